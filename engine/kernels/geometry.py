@@ -1,0 +1,207 @@
+"""Classification and closed-form orbit geometry for one point, and the parallel batch kernel.
+
+For g > 0 the radial integrals are complete elliptic integrals (physics in the README):
+
+    energy - V = C (r - r1)(r2 - r)(r - r3) / r^2,   r3 = -A / (C r1 r2) < 0,
+    T_r = 2 sqrt(M/(2C)) [r1 I0 + 2/3 (r2 - r1)(r1 - r3) R_D(0, r2 - r3, r1 - r3)],
+    I0  = 2 R_F(0, r1 - r3, r2 - r3),
+    psi = 2 K sqrt(M/(2C)) Pi(n|m) / (r2 sqrt(r2 - r3)),   K = |L_z| / (M sin^2 alpha),
+    Pi(n|m) = R_F(0, 1-m, 1) + n/3 R_J(0, 1-m, 1, 1-n),  m = (r2-r1)/(r2-r3), n = (r2-r1)/r2.
+
+Every term is positive, so no digits cancel. In free fall (g = 0): T_r = pi (r1 + r2)
+sqrt(M / (2 |energy|)), psi = pi / Omega, and an escape sweeps 2 atan2(2 sqrt(A energy), B) /
+Omega in azimuth (= 2 arccos(sign(B)/e) / Omega, without the e -> 1 and B -> 0 singularities).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import prange
+
+from .._jit import kernel, parallel_kernel
+from .carlson import rd, rf, rj
+from .physics import (
+    BOUNDED,
+    CIRCULAR,
+    FORBIDDEN,
+    HYPERBOLIC,
+    RADIAL,
+    SPILLS,
+    coefficients,
+)
+from .roots import circular_radius, free_fall_r_min, turning_points
+
+#: Default |energy - V_min| <= CIRCULAR_TOL |V_min| tolerance of the circular class.
+CIRCULAR_TOL = 1e-12
+NAN = math.nan
+
+
+@kernel
+def mu_required(r1, r2, alpha, h, Lz, M, g, k):
+    """Smallest friction coefficient that keeps rolling on [r1, r2] (r2 may be +inf): max |F|/N.
+
+    With x = 1/r and q = L_z/(M sin a): |F|/N = k/(1+k) |g cos a + cot a q h x^2 + cot^2 a q^2 x^3|
+    / (g sin a + cot a q^2 x^3), whose only interior critical point is x^3 = 2 g sin a / (cot a q^2).
+    """
+    s = math.sin(alpha)
+    c = math.cos(alpha)
+    cot = c / s
+    q = Lz / (M * s)
+    p0 = g * c
+    p2 = cot * q * h
+    p3 = cot * cot * q * q
+    q0 = g * s
+    q3 = cot * q * q
+    kk = k / (1.0 + k)
+    best = 0.0
+    # Endpoints, then the interior critical point.
+    for i in range(3):
+        if i == 0:
+            if math.isinf(r2):
+                if q0 > 0.0:
+                    val = abs(p0) / q0
+                elif p2 == 0.0:
+                    val = abs(p3) / q3
+                else:
+                    val = math.inf
+                best = max(best, val)
+                continue
+            x = 1.0 / r2
+        elif i == 1:
+            x = 1.0 / r1 if r1 > 0.0 else math.inf
+            if math.isinf(x):
+                # Through the axis (L_z = 0): q = 0, the ratio is constant.
+                best = max(best, abs(p0) / q0)
+                continue
+        else:
+            if q3 <= 0.0 or q0 <= 0.0:
+                continue
+            x = (2.0 * q0 / q3) ** (1.0 / 3.0)
+            xlo = 1.0 / r2 if not math.isinf(r2) else 0.0
+            xhi = 1.0 / r1
+            if not (xlo < x < xhi):
+                continue
+        x3 = x * x * x
+        val = abs(p0 + p2 * x * x + p3 * x3) / (q0 + q3 * x3)
+        best = max(best, val)
+    return kk * best
+
+
+@kernel
+def orbit_point(alpha, energy, h, Lz, M, g, k, rim, circ_tol):
+    """Class and geometry of one orbit.
+
+    Returns (orbit_class, r_min [m], r_max [m], r_circ [m], period [s], apsidal_angle [rad],
+    precession_rate [rad/s], mu_required [1]); NaN where a quantity is undefined.
+    """
+    A, B, C = coefficients(alpha, h, Lz, M, g, k)
+    cls = FORBIDDEN
+    r1 = NAN
+    r2 = NAN
+    rc = NAN
+    T = NAN
+    psi = NAN
+    prec = NAN
+    mu = NAN
+    s = math.sin(alpha)
+    Kang = abs(Lz) / (M * s * s)  # K: thetadot = K / r^2
+    if Lz == 0.0:
+        if g > 0.0 and energy > 0.0:
+            cls = RADIAL
+            r1 = 0.0
+            r2 = energy / C
+            T = 2.0 * math.sqrt(2.0 * M * r2 / C)
+            mu = mu_required(0.0, r2, alpha, h, Lz, M, g, k)
+    else:
+        rc = circular_radius(A, B, C)
+        has_min = not math.isnan(rc)
+        decided = False
+        if has_min:
+            Vmin = A / (rc * rc) + B / rc + C * rc
+            if abs(energy - Vmin) <= circ_tol * abs(Vmin):
+                cls = CIRCULAR
+                r1 = rc
+                r2 = rc
+                omega_r = math.sqrt(2.0 * (A + C * rc * rc * rc) / (M * rc * rc * rc * rc))
+                T = 2.0 * math.pi / omega_r
+                psi = math.pi * Kang / (rc * rc * omega_r)
+                decided = True
+            elif energy < Vmin:
+                decided = True  # forbidden
+        if not decided:
+            Om = math.sqrt((s * s + k) / (1.0 + k))  # Omega^2 = 1 - cos^2(a)/(1+k)
+            if g == 0.0:
+                if energy >= 0.0 and (B < 0.0 or energy > 0.0):
+                    cls = HYPERBOLIC
+                    r1 = free_fall_r_min(energy, A, B)
+                    r2 = math.inf
+                    psi = math.atan2(2.0 * math.sqrt(A * energy), B) / Om
+                elif has_min:
+                    cls = BOUNDED
+                    r1, r2 = turning_points(energy, A, B, C, rc)
+                    T = math.pi * (r1 + r2) * math.sqrt(M / (-2.0 * energy))
+                    psi = math.pi / Om
+            else:
+                cls = BOUNDED
+                r1, r2 = turning_points(energy, A, B, C, rc)
+                r3 = -A / (C * r1 * r2)
+                d21 = r2 - r1
+                d13 = r1 - r3
+                d23 = r2 - r3
+                sc = math.sqrt(M / (2.0 * C))
+                i0 = 2.0 * rf(0.0, d13, d23)
+                i1 = r1 * i0 + (2.0 / 3.0) * d21 * d13 * rd(0.0, d23, d13)
+                T = 2.0 * sc * i1
+                m1 = d13 / d23
+                n = d21 / r2
+                pin = rf(0.0, m1, 1.0) + n / 3.0 * rj(0.0, m1, 1.0, r1 / r2)
+                psi = 2.0 * Kang * sc * pin / (r2 * math.sqrt(d23))
+        if cls != FORBIDDEN:
+            mu = mu_required(r1, r2, alpha, h, Lz, M, g, k)
+    if cls == BOUNDED or cls == CIRCULAR:
+        prec = (2.0 * psi - 2.0 * math.pi) / T
+    if (cls == BOUNDED or cls == CIRCULAR or cls == RADIAL) and r2 > rim:
+        cls = SPILLS
+    return cls, r1, r2, rc, T, psi, prec, mu
+
+
+@parallel_kernel
+def orbit_batch(alpha, energy, h, Lz, M, g, k, rim, circ_tol, out_cls, out_f):
+    """:func:`orbit_point` over 1-D arrays in parallel.
+
+    ``out_cls`` int8[n]; ``out_f`` float64[7, n] rows: r_min, r_max, r_circ, period,
+    apsidal_angle, precession_rate, mu_required.
+    """
+    n = alpha.shape[0]
+    for i in prange(n):
+        c, r1, r2, rc, T, psi, prec, mu = orbit_point(
+            alpha[i], energy[i], h[i], Lz[i], M, g, k, rim, circ_tol
+        )
+        out_cls[i] = c
+        out_f[0, i] = r1
+        out_f[1, i] = r2
+        out_f[2, i] = rc
+        out_f[3, i] = T
+        out_f[4, i] = psi
+        out_f[5, i] = prec
+        out_f[6, i] = mu
+
+
+@parallel_kernel
+def minimum_energy_batch(alpha, h, Lz, M, g, k, out):
+    """V_min [J] for each (alpha, h, Lz); NaN where V has no minimum."""
+    n = alpha.shape[0]
+    for i in prange(n):
+        A, B, C = coefficients(alpha[i], h[i], Lz[i], M, g, k)
+        if Lz[i] == 0.0:
+            out[i] = NAN
+            continue
+        rc = circular_radius(A, B, C)
+        out[i] = A / (rc * rc) + B / rc + C * rc
+
+
+def empty_outputs(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Output buffers for :func:`orbit_batch`."""
+    return np.empty(n, np.int8), np.empty((7, n), np.float64)

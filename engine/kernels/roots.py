@@ -1,0 +1,127 @@
+"""Circular radius and turning points of V(r) = A/r^2 + B/r + C r, in numba.
+
+The turning points are the positive roots of C r^3 - energy r^2 + B r + A. A naive cubic
+formula loses half the digits near the circular limit, where the two roots merge. Instead
+both roots are found from the factorised excess over the minimum,
+
+    V(r) - V(r_c) = (r - r_c)^2 G(r),    G(r) = C/r + A/(r^2 r_c^2) > 0,
+
+(exact when r_c is the root of C r^3 - B r - 2A), by Newton's method on the monotone function
+F(r) = (r - r_c) sqrt(G(r)) = +-sqrt(energy - V_min). The gap r2 - r1 is then as accurate as
+energy - V_min itself, i.e. as the problem's conditioning allows. Free fall (C = 0) has closed
+forms, written without cancellation.
+"""
+
+from __future__ import annotations
+
+import math
+
+from .._jit import kernel
+
+_EPS = 2.220446049250313e-16
+_MAX_NEWTON = 80
+
+
+@kernel
+def circular_radius(A, B, C):
+    """Radius [m] where V has its minimum: positive root of C r^3 - B r - 2A; NaN if none.
+
+    Requires A > 0. Under gravity (C > 0) the root is unique; in free fall (C = 0) it is
+    -2A/B for B < 0 and there is none for B >= 0.
+    """
+    if not A > 0.0:
+        return math.nan
+    if C == 0.0:
+        return -2.0 * A / B if B < 0.0 else math.nan
+    # Start from an upper bound: the cubic is convex for r > 0, so Newton decreases monotonically.
+    q = (2.0 * A / C) ** (1.0 / 3.0)
+    if B < 0.0:
+        r = min(q, -2.0 * A / B)
+    else:
+        r = math.sqrt(B / C) + q
+    for _ in range(_MAX_NEWTON):
+        f = (C * r * r - B) * r - 2.0 * A
+        if f <= 0.0:
+            break
+        fp = 3.0 * C * r * r - B
+        rn = r - f / fp
+        if not rn < r:
+            break
+        r = rn
+    return r
+
+
+@kernel
+def _excess_root(target, rc, A, C, lo, hi, r):
+    """Solve F(r) = (r - rc) sqrt(C/r + A/(r^2 rc^2)) = target on the bracket (lo, hi).
+
+    Safeguarded Newton: F is increasing, a step leaving the bracket is replaced by bisection
+    (geometric when the bracket spans decades). Returns the root [m].
+    """
+    irc2 = 1.0 / (rc * rc)
+    for _ in range(_MAX_NEWTON):
+        ir = 1.0 / r
+        G = C * ir + A * ir * ir * irc2
+        sG = math.sqrt(G)
+        x = r - rc
+        F = x * sG - target
+        if F == 0.0:
+            return r
+        if F > 0.0:
+            hi = r
+        else:
+            lo = r
+        dG = -C * ir * ir - 2.0 * A * ir * ir * ir * irc2
+        Fp = sG + x * dG / (2.0 * sG)
+        rn = r - F / Fp if Fp > 0.0 else math.nan
+        if not (lo < rn < hi):
+            if math.isinf(hi):
+                rn = 2.0 * r if r > 0.0 else 1.0
+            elif lo > 0.0 and hi > 4.0 * lo:
+                rn = math.sqrt(lo * hi)
+            else:
+                rn = 0.5 * (lo + hi)
+        if abs(rn - r) <= 2.0 * _EPS * rn:
+            return rn
+        r = rn
+    return r
+
+
+@kernel
+def turning_points(energy, A, B, C, rc):
+    """Inner and outer turning points (r1, r2) [m] of a bounded orbit, energy > V(rc).
+
+    ``rc`` is :func:`circular_radius`. For C = 0 (free fall, B < 0, energy < 0) the closed
+    form is used. Returns NaN where the inputs do not describe a bounded orbit.
+    """
+    if C == 0.0:
+        # |energy| r^2 + B r + A = 0 with B < 0: stable quadratic formula; disc = 4 A delta.
+        delta = energy + B * B / (4.0 * A)
+        if not (B < 0.0 and energy < 0.0 and delta >= 0.0):
+            return math.nan, math.nan
+        sq = math.sqrt(4.0 * A * delta)
+        big = sq - B
+        return 2.0 * A / big, big / (-2.0 * energy)
+    Vc = A / (rc * rc) + B / rc + C * rc
+    delta = energy - Vc
+    if not delta >= 0.0:
+        return math.nan, math.nan
+    s = math.sqrt(delta)
+    G0 = C / rc + A / (rc * rc * rc * rc)
+    x0 = s / math.sqrt(G0)
+    r1g = rc - x0
+    if not r1g > 0.0:
+        # Far from the minimum the inner root sits where A/r^2 ~ energy - B/r.
+        r1g = min(0.5 * rc, math.sqrt(A / max(energy, 2.0 * A / (rc * rc))))
+    r2g = max(rc + x0, energy / C)
+    r1 = _excess_root(-s, rc, A, C, 0.0, rc, r1g)
+    r2 = _excess_root(s, rc, A, C, rc, math.inf, r2g)
+    return r1, r2
+
+
+@kernel
+def free_fall_r_min(energy, A, B):
+    """Pericentre [m] of an escaping free-fall orbit (energy >= 0): root of energy r^2 - B r - A."""
+    if B > 0.0:
+        return (B + math.sqrt(B * B + 4.0 * A * energy)) / (2.0 * energy)
+    return 2.0 * A / (math.sqrt(B * B + 4.0 * A * energy) - B)

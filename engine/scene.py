@@ -1,0 +1,98 @@
+"""The physical scene: the sphere, the cone's surroundings and which effects are simulated."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+__all__ = ["Scene", "EFFECTS"]
+
+#: Effects a scene may switch on beyond the ideal (closed-form) cone.
+EFFECTS = ("rolling_resistance", "rim", "slip_check", "attitude")
+
+
+def _check_positive(name: str, value: float, *, allow_zero: bool = False) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"Scene.{name} must be a real number, got {value!r}") from None
+    if math.isnan(v) or math.isinf(v):
+        raise ValueError(f"Scene.{name} must be finite, got {value!r}")
+    if v < 0 or (v == 0 and not allow_zero):
+        bound = ">= 0" if allow_zero else "> 0"
+        raise ValueError(f"Scene.{name} must be {bound}, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A sphere of mass ``M`` [kg] and radius ``a`` [m] rolling inside a cone.
+
+    Parameters
+    ----------
+    M : mass [kg], > 0.
+    g : gravity [m s-2], >= 0 (0: a freely falling cone).
+    a : sphere radius [m], > 0 (enters only the attitude and the real cone's vertex).
+    k : inertia factor I/(M a^2), >= 0 (0.4 solid sphere, 2/3 thin shell, 0 point particle).
+    rim : slant length [m] of the centre's cone where the real cone ends; None = infinite.
+    mu : friction coefficient for the slip check, > 0; None = no slip check.
+    c_rr : rolling-resistance coefficient, >= 0 (0 = none).
+    attitude : integrate the sphere's orientation (a unit quaternion) in simulations.
+    """
+
+    M: float = 1.0
+    g: float = 9.81
+    a: float = 0.01
+    k: float = 0.4
+    rim: float | None = None
+    mu: float | None = None
+    c_rr: float = 0.0
+    attitude: bool = False
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        set_(self, "M", _check_positive("M", self.M))
+        set_(self, "g", _check_positive("g", self.g, allow_zero=True))
+        set_(self, "a", _check_positive("a", self.a))
+        set_(self, "k", _check_positive("k", self.k, allow_zero=True))
+        if self.rim is not None:
+            set_(self, "rim", _check_positive("rim", self.rim))
+        if self.mu is not None:
+            set_(self, "mu", _check_positive("mu", self.mu))
+        set_(self, "c_rr", _check_positive("c_rr", self.c_rr, allow_zero=True))
+        if not isinstance(self.attitude, bool):
+            raise ValueError(f"Scene.attitude must be true or false, got {self.attitude!r}")
+
+    @property
+    def effects(self) -> tuple[str, ...]:
+        """Names of the effects beyond the ideal cone that this scene calls for."""
+        on = []
+        if self.c_rr > 0:
+            on.append("rolling_resistance")
+        if self.rim is not None:
+            on.append("rim")
+        if self.mu is not None:
+            on.append("slip_check")
+        if self.attitude:
+            on.append("attitude")
+        return tuple(on)
+
+    @property
+    def rim_or_inf(self) -> float:
+        """The rim as a float, +inf for an infinite cone."""
+        return math.inf if self.rim is None else float(self.rim)
+
+    def as_attrs(self) -> dict[str, float | int | str]:
+        """Scene parameters as netCDF-safe attributes (no None, no bool)."""
+        out: dict[str, float | int | str] = {}
+        for f in fields(self):
+            if f.name.startswith("_"):
+                continue
+            v = getattr(self, f.name)
+            if v is None:
+                out[f"scene_{f.name}"] = "none"
+            elif isinstance(v, bool):
+                out[f"scene_{f.name}"] = int(v)
+            else:
+                out[f"scene_{f.name}"] = v
+        return out
