@@ -21,21 +21,29 @@ _MAX_ITER = 60
 
 
 @kernel
-def rc_one(e):
-    """R_C(1, 1 + e) for e > -1: atan(sqrt e)/sqrt e, or atanh(sqrt(-e))/sqrt(-e) for e < 0."""
+def rc_one(e, onepe):
+    """R_C(1, 1 + e) for e > -1, given e and onepe = 1 + e (both accurate).
+
+    atan(sqrt e)/sqrt e for e > 0; atanh(s)/s = log((1 + s)/sqrt(1 + e))/s, s = sqrt(-e),
+    for e < 0 (the log form keeps its digits as e -> -1).
+    """
     if e > 0.0:
         s = math.sqrt(e)
         return math.atan(s) / s
     if e < 0.0:
         s = math.sqrt(-e)
-        return math.atanh(s) / s
+        if s < 0.5:
+            return math.atanh(s) / s
+        return math.log((1.0 + s) / math.sqrt(onepe)) / s
     return 1.0
 
 
 @kernel
 def rc(x, y):
     """Degenerate integral R_C(x, y) = R_F(x, y, y), x >= 0, y > 0."""
-    return rc_one((y - x) / x) / math.sqrt(x) if x > 0.0 else math.pi / (2.0 * math.sqrt(y))
+    if x > 0.0:
+        return rc_one((y - x) / x, y / x) / math.sqrt(x)
+    return math.pi / (2.0 * math.sqrt(y))
 
 
 @kernel
@@ -128,7 +136,8 @@ def rj(x, y, z, p):
         lam = sx * sy + sx * sz + sy * sz
         d = (sp + sx) * (sp + sy) * (sp + sz)
         e = f3 * delta / (d * d)
-        s += f * rc_one(e) / d
+        # 1 + e = 2 sqrt(p) (p + lam) / d exactly: no cancellation as e -> -1.
+        s += f * rc_one(e, 2.0 * sp * (p + lam) / d) / d
         x = 0.25 * (x + lam)
         y = 0.25 * (y + lam)
         z = 0.25 * (z + lam)

@@ -74,6 +74,8 @@ def _excess_root(target, rc, A, C, lo, hi, r):
         dG = -C * ir * ir - 2.0 * A * ir * ir * ir * irc2
         Fp = sG + x * dG / (2.0 * sG)
         rn = r - F / Fp if Fp > 0.0 else math.nan
+        if abs(rn - r) <= 2.0 * _EPS * r:
+            return rn
         if not (lo < rn < hi):
             if math.isinf(hi):
                 rn = 2.0 * r if r > 0.0 else 1.0
