@@ -1,0 +1,107 @@
+"""engine.evaluate / engine.survey: broadcasting, metadata, errors, agreement with the kernel."""
+
+import math
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import engine
+from engine.kernels.geometry import orbit_point
+
+VARS = ("r_min", "r_max", "r_circ", "period", "apsidal_angle", "precession_rate", "mu_required")
+
+
+def test_evaluate_broadcasts_like_numpy():
+    ds = engine.evaluate(0.5, np.linspace(1, 40, 5), 1.0, [[0.5], [1.0]])
+    assert ds.orbit_class.shape == (2, 5) and ds.orbit_class.dtype == np.int8
+    assert ds.alpha.shape == (2, 5)
+    for v in VARS:
+        assert ds[v].dtype == np.float64 and "units" in ds[v].attrs and "long_name" in ds[v].attrs
+    want = orbit_point(0.5, ds.energy.values[1, 3], 1.0, 1.0, 1.0, 9.81, 0.4, math.inf, 1e-12)
+    assert ds.period.values[1, 3] == want[4]
+
+
+def test_evaluate_scalar_and_dataarray_inputs():
+    ds = engine.evaluate(0.5, 10.0, 1.0, 1.0)
+    assert ds.orbit_class.shape == ()
+    e = xr.DataArray(np.linspace(5, 10, 3), dims="energy")
+    lz = xr.DataArray([0.5, 1.0], dims="Lz")
+    ds2 = engine.evaluate(0.5, e, 1.0, lz)
+    assert ds2.orbit_class.dims == ("energy", "Lz")
+
+
+def test_class_flags_follow_cf():
+    ds = engine.evaluate(0.5, 10.0, 1.0, 1.0)
+    a = ds.orbit_class.attrs
+    assert a["flag_values"].dtype == np.int8
+    assert list(a["flag_values"]) == [0, 1, 2, 3, 4, 5]
+    assert a["flag_meanings"] == "forbidden bounded circular hyperbolic radial spills"
+
+
+@pytest.mark.parametrize(
+    "kwargs,name",
+    [
+        (dict(alpha=0.0), "alpha"),
+        (dict(alpha=math.pi / 2), "alpha"),
+        (dict(alpha=-0.2), "alpha"),
+        (dict(energy=math.nan), "energy"),
+        (dict(h=math.inf), "h"),
+        (dict(Lz=[1.0, math.nan]), "Lz"),
+    ],
+)
+def test_bad_inputs_name_the_argument(kwargs, name):
+    args = dict(alpha=0.5, energy=10.0, h=1.0, Lz=1.0)
+    args.update(kwargs)
+    with pytest.raises(ValueError, match=rf"^{name} must"):
+        engine.evaluate(**args)
+
+
+def test_bad_method_and_tolerance():
+    with pytest.raises(ValueError, match="method"):
+        engine.evaluate(0.5, 10.0, 1.0, 1.0, method="euler")
+    with pytest.raises(ValueError, match="circular_tol"):
+        engine.evaluate(0.5, 10.0, 1.0, 1.0, circular_tol=-1.0)
+
+
+def test_survey_outer_product_matches_evaluate():
+    a, e, h, lz = [0.3, 0.9], [-1.0, 5.0, 30.0], [-1.0, 0.0, 2.0], [0.0, 0.4, 1.1]
+    calls = []
+    ds = engine.survey(a, e, h, lz, progress=lambda d, t: calls.append((d, t)), chunk_points=7)
+    assert ds.orbit_class.dims == ("alpha", "energy", "h", "Lz")
+    assert ds.orbit_class.shape == (2, 3, 3, 3)
+    assert calls[-1] == (54, 54) and len(calls) == math.ceil(54 / 7)
+    A, E, H, L = np.meshgrid(a, e, h, lz, indexing="ij")
+    pts = engine.evaluate(A, E, H, L)
+    for v in ("orbit_class", *VARS):
+        np.testing.assert_array_equal(ds[v].values, pts[v].values)
+    for name in ("alpha", "energy", "h", "Lz"):
+        assert "units" in ds[name].attrs
+
+
+def test_survey_energy_relative_to_minimum():
+    a, off, h, lz = [0.4, 1.0], [0.0, 1e-6, 1.0], [-1.0, 1.0], [0.5]
+    ds = engine.survey(a, off, h, lz, energy_relative=True)
+    assert ds.energy.attrs["units"] == "1"
+    cls = ds.orbit_class.values
+    assert (cls[:, 0] == 2).all()  # offset 0: circular
+    assert (cls[:, 1:] == 1).all()
+    vmin = engine.minimum_energy(0.4, -1.0, 0.5)
+    assert ds.energy_absolute.values[0, 2, 0, 0] == pytest.approx(vmin + abs(vmin), rel=1e-15)
+
+
+def test_survey_relative_energy_undefined_without_minimum():
+    # free fall with B >= 0 (h Lz > 0): V has no minimum
+    ds = engine.survey([0.5], [0.5], [1.0], [1.0], engine.Scene(g=0.0), energy_relative=True)
+    assert ds.orbit_class.values.item() == 0 and np.isnan(ds.energy_absolute).all()
+
+
+def test_minimum_energy_is_the_potential_minimum():
+    vmin = engine.minimum_energy(0.7, 1.0, 0.8)
+    ds = engine.evaluate(0.7, vmin * (1 - 1e-9) if vmin > 0 else vmin * (1 + 1e-9), 1.0, 0.8)
+    assert int(ds.orbit_class) == 0
+
+
+def test_radial_energy_conversion():
+    s = engine.Scene(M=2.0, k=0.4)
+    assert engine.radial_energy(14.0, 1.0, s) == pytest.approx(14.0 / 1.4 - 0.4 / 2.8 * 2.0)
