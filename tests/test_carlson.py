@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from engine.kernels.carlson import rc, rd, rf, rj
+from engine.kernels.carlson import cel, rc, rd, rf, rj
 
 # The duplication algorithm with TOL = 2^-53 promises ~1e-16 truncation plus the rounding of
 # a few dozen operations: 1e-14 relative is a generous but meaningful bound (errors of a wrong
@@ -64,3 +64,29 @@ def test_legendre_relation():
         Kp = rf(0.0, m, 1.0)
         Ep = Kp - (1 - m) / 3 * rd(0.0, m, 1.0)
         assert E * Kp + Ep * K - K * Kp == pytest.approx(math.pi / 2, rel=1e-14)
+
+
+@given(st.floats(1.0, 1e4), st.floats(1e-3, 1e3), st.floats(0.1, 3.0), st.floats(0.1, 3.0))
+def test_cel_matches_quadrature(kc, p, a, b):
+    """Bulirsch's cel against its defining integral (mpmath, 30 digits)."""
+    with mp.workdps(30):
+        ref = mp.quad(
+            lambda t: (a * mp.cos(t) ** 2 + b * mp.sin(t) ** 2)
+            / ((mp.cos(t) ** 2 + p * mp.sin(t) ** 2) * mp.sqrt(mp.cos(t) ** 2 + kc**2 * mp.sin(t) ** 2)),
+            [0, mp.pi / 4, mp.pi / 2],
+        )
+        assert _rel(cel(kc, p, a, b), ref) < TOL
+
+
+@given(st.floats(0.01, 10.0), st.floats(1e-6, 10.0), st.floats(1e-3, 100.0))
+def test_cel_period_and_angle_agree_with_carlson_forms(r1, gap, r3abs):
+    """The hot path's cel forms of T_r and psi against the Carlson forms (a second evaluation)."""
+    r2, r3 = r1 + gap, -r3abs
+    d13, d23, d21 = r1 - r3, r2 - r3, r2 - r1
+    t_cel = 2.0 * cel(math.sqrt(d23 / d13), 1.0, r1, r2) / math.sqrt(d13)
+    t_carlson = r1 * 2 * rf(0.0, d13, d23) + 2 / 3 * d21 * d13 * rd(0.0, d23, d13)
+    assert t_cel == pytest.approx(t_carlson, rel=TOL)
+    m1, n = d13 / d23, d21 / r2
+    p_cel = cel(math.sqrt(d23 / d13), r2 / r1, 1.0, 1.0) / (r1 * math.sqrt(d13))
+    p_carlson = (rf(0.0, m1, 1.0) + n / 3 * rj(0.0, m1, 1.0, r1 / r2)) / (r2 * math.sqrt(d23))
+    assert p_cel == pytest.approx(p_carlson, rel=TOL)

@@ -1,14 +1,17 @@
 """Classification and closed-form orbit geometry for one point, and the parallel batch kernel.
 
-For g > 0 the radial integrals are complete elliptic integrals (physics in the README):
+For g > 0 the radial integrals are complete elliptic integrals (physics in the README).
+With energy - V = C (r - r1)(r2 - r)(r - r3) / r^2, r3 = -A / (C r1 r2) < 0, and
+r = r1 cos^2 t + r2 sin^2 t,
 
-    energy - V = C (r - r1)(r2 - r)(r - r3) / r^2,   r3 = -A / (C r1 r2) < 0,
-    T_r = 2 sqrt(M/(2C)) [r1 I0 + 2/3 (r2 - r1)(r1 - r3) R_D(0, r2 - r3, r1 - r3)],
-    I0  = 2 R_F(0, r1 - r3, r2 - r3),
-    psi = 2 K sqrt(M/(2C)) Pi(n|m) / (r2 sqrt(r2 - r3)),   K = |L_z| / (M sin^2 alpha),
-    Pi(n|m) = R_F(0, 1-m, 1) + n/3 R_J(0, 1-m, 1, 1-n),  m = (r2-r1)/(r2-r3), n = (r2-r1)/r2.
+    T_r = 4 sqrt(M/(2C)) cel(kc, 1, r1, r2) / sqrt(r1 - r3),
+    psi = 2 K sqrt(M/(2C)) cel(kc, r2/r1, 1, 1) / (r1 sqrt(r1 - r3)),
 
-Every term is positive, so no digits cancel. In free fall (g = 0): T_r = pi (r1 + r2)
+with kc^2 = (r2 - r3)/(r1 - r3) and K = |L_z| / (M sin^2 alpha). In Carlson's form (used by the
+tests as a second evaluation) T_r = 2 sqrt(M/(2C)) [r1 I0 + 2/3 (r2 - r1)(r1 - r3)
+R_D(0, r2 - r3, r1 - r3)], I0 = 2 R_F(0, r1 - r3, r2 - r3), and psi = 2 K sqrt(M/(2C))
+[R_F(0, 1-m, 1) + n/3 R_J(0, 1-m, 1, 1-n)] / (r2 sqrt(r2 - r3)), m = (r2-r1)/(r2-r3),
+n = (r2-r1)/r2. Every term is positive, so no digits cancel. In free fall (g = 0): T_r = pi (r1 + r2)
 sqrt(M / (2 |energy|)), psi = pi / Omega, and an escape sweeps 2 atan2(2 sqrt(A energy), B) /
 Omega in azimuth (= 2 arccos(sign(B)/e) / Omega, without the e -> 1 and B -> 0 singularities).
 """
@@ -21,7 +24,7 @@ import numpy as np
 from numba import prange
 
 from .._jit import kernel, parallel_kernel
-from .carlson import rd, rf, rj
+from .carlson import cel
 from .physics import (
     BOUNDED,
     CIRCULAR,
@@ -147,17 +150,11 @@ def orbit_point(alpha, energy, h, Lz, M, g, k, rim, circ_tol):
                 cls = BOUNDED
                 r1, r2 = turning_points(energy, A, B, C, rc)
                 r3 = -A / (C * r1 * r2)
-                d21 = r2 - r1
                 d13 = r1 - r3
-                d23 = r2 - r3
-                sc = math.sqrt(M / (2.0 * C))
-                i0 = 2.0 * rf(0.0, d13, d23)
-                i1 = r1 * i0 + (2.0 / 3.0) * d21 * d13 * rd(0.0, d23, d13)
-                T = 2.0 * sc * i1
-                m1 = d13 / d23
-                n = d21 / r2
-                pin = rf(0.0, m1, 1.0) + n / 3.0 * rj(0.0, m1, 1.0, r1 / r2)
-                psi = 2.0 * Kang * sc * pin / (r2 * math.sqrt(d23))
+                kc = math.sqrt((r2 - r3) / d13)
+                sc = math.sqrt(M / (2.0 * C)) / math.sqrt(d13)
+                T = 4.0 * sc * cel(kc, 1.0, r1, r2)
+                psi = 2.0 * Kang * sc * cel(kc, r2 / r1, 1.0, 1.0) / r1
         if cls != FORBIDDEN:
             mu = mu_required(r1, r2, alpha, h, Lz, M, g, k)
     if cls == BOUNDED or cls == CIRCULAR:
