@@ -52,41 +52,37 @@ def circular_radius(A, B, C):
 
 
 @kernel
-def _excess_root(target, rc, A, C, lo, hi, r):
-    """Solve F(r) = (r - rc) sqrt(C/r + A/(r^2 rc^2)) = target on the bracket (lo, hi).
+def _newton_step(target, rc, irc2, A, C, lo, hi, r):
+    """One safeguarded Newton step on F(r) = (r - rc) sqrt(C/r + A/(r^2 rc^2)) = target.
 
-    Safeguarded Newton: F is increasing, a step leaving the bracket is replaced by bisection
-    (geometric when the bracket spans decades). Returns the root [m].
+    F is increasing; the bracket (lo, hi) shrinks with the sign of F, and a step leaving it
+    is replaced by bisection (geometric when the bracket spans decades). Returns
+    (new r, lo, hi, converged).
     """
-    irc2 = 1.0 / (rc * rc)
-    for _ in range(_MAX_NEWTON):
-        ir = 1.0 / r
-        G = C * ir + A * ir * ir * irc2
-        sG = math.sqrt(G)
-        x = r - rc
-        F = x * sG - target
-        if F == 0.0:
-            return r
-        if F > 0.0:
-            hi = r
+    ir = 1.0 / r
+    G = C * ir + A * ir * ir * irc2
+    sG = math.sqrt(G)
+    x = r - rc
+    F = x * sG - target
+    if F == 0.0:
+        return r, lo, hi, True
+    if F > 0.0:
+        hi = r
+    else:
+        lo = r
+    dG = -C * ir * ir - 2.0 * A * ir * ir * ir * irc2
+    Fp = sG + x * dG / (2.0 * sG)
+    rn = r - F / Fp if Fp > 0.0 else math.nan
+    if abs(rn - r) <= 2.0 * _EPS * r:
+        return rn, lo, hi, True
+    if not (lo < rn < hi):
+        if math.isinf(hi):
+            rn = 2.0 * r
+        elif lo > 0.0 and hi > 4.0 * lo:
+            rn = math.sqrt(lo * hi)
         else:
-            lo = r
-        dG = -C * ir * ir - 2.0 * A * ir * ir * ir * irc2
-        Fp = sG + x * dG / (2.0 * sG)
-        rn = r - F / Fp if Fp > 0.0 else math.nan
-        if abs(rn - r) <= 2.0 * _EPS * r:
-            return rn
-        if not (lo < rn < hi):
-            if math.isinf(hi):
-                rn = 2.0 * r if r > 0.0 else 1.0
-            elif lo > 0.0 and hi > 4.0 * lo:
-                rn = math.sqrt(lo * hi)
-            else:
-                rn = 0.5 * (lo + hi)
-        if abs(rn - r) <= 2.0 * _EPS * rn:
-            return rn
-        r = rn
-    return r
+            rn = 0.5 * (lo + hi)
+    return rn, lo, hi, False
 
 
 @kernel
@@ -116,8 +112,17 @@ def turning_points(energy, A, B, C, rc):
         # Far from the minimum the inner root sits where A/r^2 ~ energy - B/r.
         r1g = min(0.5 * rc, math.sqrt(A / max(energy, 2.0 * A / (rc * rc))))
     r2g = max(rc + x0, energy / C)
-    r1 = _excess_root(-s, rc, A, C, 0.0, rc, r1g)
-    r2 = _excess_root(s, rc, A, C, rc, math.inf, r2g)
+    # Both roots in one loop: two independent dependency chains overlap in the CPU.
+    irc2 = 1.0 / (rc * rc)
+    r1, lo1, hi1, done1 = r1g, 0.0, rc, False
+    r2, lo2, hi2, done2 = r2g, rc, math.inf, False
+    for _ in range(_MAX_NEWTON):
+        if not done1:
+            r1, lo1, hi1, done1 = _newton_step(-s, rc, irc2, A, C, lo1, hi1, r1)
+        if not done2:
+            r2, lo2, hi2, done2 = _newton_step(s, rc, irc2, A, C, lo2, hi2, r2)
+        if done1 and done2:
+            break
     return r1, r2
 
 
