@@ -8,6 +8,7 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
+from . import accessor  # noqa: E402, F401  (registers the ds.cone accessor)
 from .api import evaluate, minimum_energy, survey  # noqa: E402
 from .kernels.physics import CLASS_NAMES  # noqa: E402
 from .scene import Scene  # noqa: E402

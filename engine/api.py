@@ -10,6 +10,7 @@ import numpy as np
 import xarray as xr
 
 from . import __version__
+from .grid import BLOCK_POINTS, Tiling, evaluate_block
 from .kernels.geometry import CIRCULAR_TOL, empty_outputs, minimum_energy_batch, orbit_batch
 from .kernels.physics import CLASS_NAMES
 from .scene import Scene
@@ -51,9 +52,6 @@ INTEGRATOR_VARIABLES: dict[str, tuple[str, str]] = {
     "status": ("1", "integrator status code (0 = ok)"),
 }
 
-#: Default number of points per kernel call in surveys (a few tens of ms of work).
-CHUNK_POINTS = 1 << 18
-
 
 def _check_method(method: str) -> str:
     if method not in METHODS:
@@ -61,7 +59,9 @@ def _check_method(method: str) -> str:
     return method
 
 
-def _check_array(name: str, values: np.ndarray, *, open_interval: tuple[float, float] | None = None):
+def _check_array(
+    name: str, values: np.ndarray, *, open_interval: tuple[float, float] | None = None
+):
     bad = ~np.isfinite(values)
     if bad.any():
         raise ValueError(f"{name} must be finite; got {values[bad].flat[0]!r}")
@@ -70,7 +70,8 @@ def _check_array(name: str, values: np.ndarray, *, open_interval: tuple[float, f
         out = (values <= lo) | (values >= hi)
         if out.any():
             raise ValueError(
-                f"{name} must lie in the open interval ({lo:g}, {hi:.17g}); got {values[out].flat[0]!r}"
+                f"{name} must lie in the open interval ({lo:g}, {hi:.17g}); "
+                f"got {values[out].flat[0]!r}"
             )
 
 
@@ -159,6 +160,8 @@ def _class_attrs() -> dict[str, Any]:
 def _variable_attrs(name: str) -> dict[str, Any]:
     if name == "orbit_class":
         return _class_attrs()
+    if name == "energy_absolute":
+        return {"units": "J", "long_name": "radial energy calE (absolute)"}
     if name == "energy_loss":
         return {"units": "J", "long_name": "total energy lost over the first radial period"}
     units, long_name = {**VARIABLES, **INTEGRATOR_VARIABLES}[name]
@@ -201,14 +204,15 @@ def evaluate(
     circular_tol = _check_tol(circular_tol)
     inputs = {"alpha": alpha, "energy": energy, "h": h, "Lz": Lz}
     if any(isinstance(v, xr.DataArray) for v in inputs.values()):
-        das = xr.broadcast(*[xr.DataArray(v) if not isinstance(v, xr.DataArray) else v
-                             for v in inputs.values()])
+        das = xr.broadcast(
+            *[xr.DataArray(v) if not isinstance(v, xr.DataArray) else v for v in inputs.values()]
+        )
         dims = das[0].dims
         arrays = [np.asarray(d.transpose(*dims).values, np.float64) for d in das]
     else:
         arrays = list(np.broadcast_arrays(*[np.asarray(v, np.float64) for v in inputs.values()]))
         dims = tuple(f"dim_{i}" for i in range(arrays[0].ndim))
-    for name, arr in zip(inputs, arrays):
+    for name, arr in zip(inputs, arrays, strict=False):
         if name == "alpha":
             _check_array(name, arr, open_interval=(0.0, math.pi / 2))
         else:
@@ -221,9 +225,11 @@ def evaluate(
     }
     coords = {
         name: (dims, arr, {"units": AXES[name][0], "long_name": AXES[name][1]})
-        for name, arr in zip(inputs, arrays)
+        for name, arr in zip(inputs, arrays, strict=False)
     }
-    return xr.Dataset(data_vars, coords=coords, attrs=_global_attrs(scene, method, circular_tol, rtol))
+    return xr.Dataset(
+        data_vars, coords=coords, attrs=_global_attrs(scene, method, circular_tol, rtol)
+    )
 
 
 def minimum_energy(alpha: Any, h: Any, Lz: Any, scene: Scene | None = None) -> np.ndarray:
@@ -251,20 +257,6 @@ def _axis(name: str, values: Any) -> np.ndarray:
     return arr
 
 
-def grid_energy(
-    alpha: np.ndarray,
-    energy: np.ndarray,
-    h: np.ndarray,
-    Lz: np.ndarray,
-    scene: Scene,
-) -> np.ndarray:
-    """Absolute energies [J], shape (alpha, energy, h, Lz), for an energy axis of relative
-    offsets (energy - V_min)/|V_min|; NaN where V has no minimum."""
-    A3, H3, L3 = np.meshgrid(alpha, h, Lz, indexing="ij")
-    vmin = minimum_energy(A3, H3, L3, scene)  # (alpha, h, Lz)
-    return vmin[:, None, :, :] + energy[None, :, None, None] * np.abs(vmin)[:, None, :, :]
-
-
 def survey(
     alpha: Any,
     energy: Any,
@@ -277,57 +269,44 @@ def survey(
     circular_tol: float = CIRCULAR_TOL,
     rtol: float = 1e-10,
     progress: Callable[[int, int], None] | None = None,
-    chunk_points: int = CHUNK_POINTS,
+    chunk_points: int = BLOCK_POINTS,
 ) -> xr.Dataset:
     """Outer product of four 1-D axes -> Dataset with dims (alpha, energy, h, Lz).
 
     With ``energy_relative=True`` the energy axis holds offsets (energy - V_min)/|V_min| from
     each (alpha, h, Lz)'s potential minimum, and ``energy_absolute`` [J] is added; where V has
     no minimum (free fall with B >= 0, or L_z = 0) the energy is undefined and the point is
-    classed forbidden. ``progress(done, total)`` is called after each chunk of points.
+    classed forbidden. ``progress(done, total)`` is called after each block of
+    about ``chunk_points`` points.
     """
     scene = Scene() if scene is None else scene
     _check_method(method)
     circular_tol = _check_tol(circular_tol)
     axes = {n: _axis(n, v) for n, v in (("alpha", alpha), ("energy", energy), ("h", h), ("Lz", Lz))}
     validate_inputs(axes["alpha"], axes["energy"], axes["h"], axes["Lz"])
-    if chunk_points < 1:
-        raise ValueError(f"chunk_points must be >= 1; got {chunk_points!r}")
     shape = tuple(a.size for a in axes.values())
-    total = int(np.prod(shape))
-    if energy_relative:
-        e_abs = grid_energy(axes["alpha"], axes["energy"], axes["h"], axes["Lz"], scene)
-    else:
-        e_abs = None
+    tiling = Tiling.for_grid(shape, chunk_points)
+    spec = dict(
+        axes,
+        scene=scene,
+        method=method,
+        energy_relative=energy_relative,
+        circular_tol=circular_tol,
+        rtol=rtol,
+    )
     results: dict[str, np.ndarray] = {}
-    for start in range(0, total, chunk_points):
-        stop = min(total, start + chunk_points)
-        idx = np.unravel_index(np.arange(start, stop), shape)
-        a = axes["alpha"][idx[0]]
-        h_ = axes["h"][idx[2]]
-        lz = axes["Lz"][idx[3]]
-        if e_abs is None:
-            e = axes["energy"][idx[1]]
-        else:
-            e = e_abs.reshape(-1)[start:stop]
-        res = evaluate_flat(a, e, h_, lz, scene, method, circular_tol=circular_tol, rtol=rtol)
-        if e_abs is not None:
-            undefined = np.isnan(e)
-            if undefined.any():
-                res["orbit_class"][undefined] = 0
-                for name in VARIABLES:
-                    if name != "r_circ":
-                        res[name][undefined] = np.nan
-        for name, col in res.items():
+    done = 0
+    for slices in tiling:
+        block = evaluate_block(spec, slices)
+        for name, arr in block.items():
             if name not in results:
-                results[name] = np.empty(total, col.dtype)
-            results[name][start:stop] = col
+                results[name] = np.empty(shape, arr.dtype)
+            results[name][slices] = arr
+        done += arr.size
         if progress is not None:
-            progress(stop, total)
+            progress(done, tiling.size)
     dims = tuple(axes)
-    data_vars = {
-        name: (dims, col.reshape(shape), _variable_attrs(name)) for name, col in results.items()
-    }
+    data_vars = {name: (dims, col, _variable_attrs(name)) for name, col in results.items()}
     coords = {}
     for name, arr in axes.items():
         units, long_name = AXES[name]
@@ -335,12 +314,6 @@ def survey(
             units = "1"
             long_name = "energy offset from the potential minimum, (calE - V_min)/|V_min|"
         coords[name] = (name, arr, {"units": units, "long_name": long_name})
-    if e_abs is not None:
-        data_vars["energy_absolute"] = (
-            dims,
-            e_abs,
-            {"units": "J", "long_name": "radial energy calE (absolute)"},
-        )
     attrs = _global_attrs(scene, method, circular_tol, rtol)
     attrs["energy_axis"] = "relative to V_min" if energy_relative else "absolute"
     return xr.Dataset(data_vars, coords=coords, attrs=attrs)

@@ -1,9 +1,11 @@
 """Write a survey Dataset to netCDF-4 with CF-1.11 metadata, crash-safely.
 
 :func:`write_netcdf` never leaves a half-written file under the output's name: it writes
-``<out>.tmp`` in the same directory, fsyncs it, renames it over the output (``os.replace``) and
-fsyncs the directory. An existing output is kept unless ``overwrite=True``; on any error the
-``.tmp`` file is removed and the output (new or old) is untouched.
+``<out>.tmp`` in the same directory, fsyncs it, renames it to the output and fsyncs the
+directory. An existing output is kept unless ``overwrite=True`` (then ``os.replace`` swaps it
+atomically); without it the rename is a hard link that fails if the output appeared meanwhile.
+On any error (or KeyboardInterrupt) the ``.tmp`` file is removed and the output, new or old, is
+untouched.
 
 :func:`cf_dataset` adds the global attributes (Conventions, title, history, source,
 ``survey_definition`` = the TOML text verbatim, the scene parameters); :func:`write_survey`
@@ -16,7 +18,7 @@ import contextlib
 import errno
 import os
 from collections.abc import Mapping
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -27,7 +29,14 @@ if TYPE_CHECKING:
     from .scene import Scene
     from .surveyfile import Survey
 
-__all__ = ["CONVENTIONS", "cf_dataset", "encoding_for", "history_line", "write_netcdf", "write_survey"]
+__all__ = [
+    "CONVENTIONS",
+    "cf_dataset",
+    "encoding_for",
+    "history_line",
+    "write_netcdf",
+    "write_survey",
+]
 
 CONVENTIONS = "CF-1.11"
 #: zlib level 1 + shuffle: level 4 compresses < 1% better and costs 7-26% more time.
@@ -38,7 +47,7 @@ def history_line(command: str, *, now: datetime | None = None) -> str:
     """One CF history entry: ISO-8601 UTC time, the command and numba's threading layer."""
     from ._jit import threading_layer
 
-    stamp = (now or datetime.now(timezone.utc)).astimezone(timezone.utc)
+    stamp = (now or datetime.now(UTC)).astimezone(UTC)
     return f"{stamp:%Y-%m-%dT%H:%M:%SZ} {command} (numba threading layer: {threading_layer()})"
 
 
@@ -58,21 +67,21 @@ def cf_dataset(
     from . import __version__
 
     out = ds.copy(deep=False)
-    attrs = dict(ds.attrs)
+    rest = dict(ds.attrs)
     if scene is not None:
-        attrs.update(scene.as_attrs())
-    old_history = attrs.pop("history", "")
+        rest.update(scene.as_attrs())
+    old_history = rest.pop("history", "")
     entry = history_line(command)
-    attrs.update(
-        {
-            "Conventions": CONVENTIONS,
-            "title": title,
-            "history": f"{entry}\n{old_history}" if old_history else entry,
-            "source": f"conesurvey {__version__}",
-            "survey_definition": survey_definition,
-        }
-    )
-    out.attrs = attrs
+    for key in ("Conventions", "title", "source", "survey_definition"):
+        rest.pop(key, None)
+    out.attrs = {
+        "Conventions": CONVENTIONS,
+        "title": title,
+        "history": f"{entry}\n{old_history}" if old_history else entry,
+        "source": f"conesurvey {__version__}",
+        **rest,
+        "survey_definition": survey_definition,
+    }
     if "orbit_class" in out.data_vars:
         cls = out["orbit_class"]
         cls.attrs = dict(cls.attrs)
@@ -101,7 +110,7 @@ def write_netcdf(ds: xr.Dataset, path: str | os.PathLike[str], *, overwrite: boo
     """
     path = Path(path)
     if not overwrite and path.exists():
-        raise FileExistsError(errno.EEXIST, "output file exists (pass overwrite to replace it)", str(path))
+        raise _exists(path)
     tmp = path.with_name(path.name + ".tmp")
     try:
         tmp.unlink(missing_ok=True)  # left over by a crashed run
@@ -127,7 +136,7 @@ def write_survey(
     command: str = "conesurvey",
     overwrite: bool = False,
 ) -> Path:
-    """:func:`cf_dataset` with the survey's title, definition and scene, then :func:`write_netcdf`."""
+    """Add the survey's title, definition and scene (:func:`cf_dataset`), then write it."""
     full = cf_dataset(
         ds,
         title=survey.title,
@@ -143,13 +152,19 @@ def _rename_no_clobber(src: Path, dst: Path) -> None:
     try:
         os.link(src, dst)  # atomic: fails if dst exists
     except FileExistsError:
-        raise FileExistsError(errno.EEXIST, "output file exists (pass overwrite to replace it)", str(dst)) from None
+        raise _exists(dst) from None
     except OSError:  # no hard links here (some network or FAT file systems)
         if dst.exists():
-            raise FileExistsError(errno.EEXIST, "output file exists (pass overwrite to replace it)", str(dst)) from None
+            raise _exists(dst) from None
         os.replace(src, dst)
         return
     os.unlink(src)
+
+
+def _exists(path: Path) -> FileExistsError:
+    return FileExistsError(
+        errno.EEXIST, "output file exists (pass overwrite to replace it)", str(path)
+    )
 
 
 def _fsync_path(path: Path) -> None:

@@ -50,14 +50,15 @@ import difflib
 import math
 import os
 import re
+import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import tomllib
 
+from .api import METHODS
 from .scene import Scene
 
 if TYPE_CHECKING:
@@ -65,7 +66,6 @@ if TYPE_CHECKING:
 
 __all__ = [
     "AXES",
-    "METHODS",
     "Survey",
     "SurveyError",
     "load_survey",
@@ -74,8 +74,6 @@ __all__ = [
 
 #: The four survey axes, in the order of the output's dimensions.
 AXES = ("alpha", "energy", "h", "Lz")
-#: Method names a survey may ask for (``engine.survey`` decides which are available).
-METHODS = ("exact", "rk45", "dop853", "symplectic")
 #: Accepted values of ``axes.energy.relative_to``.
 RELATIVE_TO = ("V_min",)
 SCALES = ("linear", "log")

@@ -43,7 +43,7 @@ def solve(alpha, calE, h, Lz, M, g, k, circ_tol=1e-12):
     elif B < 0:
         rc = -2 * A / B
     out["r_c"] = rc
-    Om = mp.sqrt(1 - c**2 / (1 + k))
+    mp.sqrt(1 - c**2 / (1 + k))
     if rc is not None:
         Vmin = A / rc**2 + B / rc + C * rc
         if abs(calE - Vmin) <= circ_tol * abs(Vmin):

@@ -70,7 +70,7 @@ def test_survey_outer_product_matches_evaluate():
     ds = engine.survey(a, e, h, lz, progress=lambda d, t: calls.append((d, t)), chunk_points=7)
     assert ds.orbit_class.dims == ("alpha", "energy", "h", "Lz")
     assert ds.orbit_class.shape == (2, 3, 3, 3)
-    assert calls[-1] == (54, 54) and len(calls) == math.ceil(54 / 7)
+    assert calls[-1] == (54, 54)
     A, E, H, L = np.meshgrid(a, e, h, lz, indexing="ij")
     pts = engine.evaluate(A, E, H, L)
     for v in ("orbit_class", *VARS):

@@ -71,8 +71,13 @@ def test_cel_matches_quadrature(kc, p, a, b):
     """Bulirsch's cel against its defining integral (mpmath, 30 digits)."""
     with mp.workdps(30):
         ref = mp.quad(
-            lambda t: (a * mp.cos(t) ** 2 + b * mp.sin(t) ** 2)
-            / ((mp.cos(t) ** 2 + p * mp.sin(t) ** 2) * mp.sqrt(mp.cos(t) ** 2 + kc**2 * mp.sin(t) ** 2)),
+            lambda t: (
+                (a * mp.cos(t) ** 2 + b * mp.sin(t) ** 2)
+                / (
+                    (mp.cos(t) ** 2 + p * mp.sin(t) ** 2)
+                    * mp.sqrt(mp.cos(t) ** 2 + kc**2 * mp.sin(t) ** 2)
+                )
+            ),
             [0, mp.pi / 4, mp.pi / 2],
         )
         assert _rel(cel(kc, p, a, b), ref) < TOL

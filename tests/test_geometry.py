@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from hypothesis import assume, given
 from hypothesis import strategies as st
+from oracle import reference, tolerance
 
 import engine
 from engine.kernels.geometry import mu_required, orbit_point
@@ -24,7 +25,6 @@ from engine.kernels.physics import (
     state_from_invariants,
 )
 from engine.kernels.roots import circular_radius
-from oracle import reference, tolerance
 
 EPS = 2.220446049250313e-16
 NAMES = {"r1": 1, "r2": 2, "r_c": 3, "T_r": 4, "psi": 5, "precession_rate": 6}
@@ -41,8 +41,11 @@ def _vmin_exact(alpha, h, Lz, M, g, k):
         C = M * g * c / (1 + k)
         if C == 0:
             return -(B**2) / (4 * A), A, B
-        rc = [r for r in mp.polyroots([C, 0, -B, -2 * A], maxsteps=200, extraprec=200)
-              if abs(mp.im(r)) < 1e-30 and mp.re(r) > 0][0]
+        rc = [
+            r
+            for r in mp.polyroots([C, 0, -B, -2 * A], maxsteps=200, extraprec=200)
+            if abs(mp.im(r)) < 1e-30 and mp.re(r) > 0
+        ][0]
         rc = mp.re(rc)
         return A / rc**2 + B / rc + C * rc, A, B
 
@@ -93,7 +96,9 @@ def test_hard_energy_just_above_circular_minimum():
     with mp.workdps(50):
         gap_ref = mp.mpf(vals["r2"]) - mp.mpf(vals["r1"])
     gap_cond = (cond["r1"] * vals["r1"] + cond["r2"] * vals["r2"]) / float(gap_ref)
-    assert got[2] - got[1] == pytest.approx(float(gap_ref), rel=tolerance(gap_cond) + 4 * EPS * got[2] / float(gap_ref))
+    assert got[2] - got[1] == pytest.approx(
+        float(gap_ref), rel=tolerance(gap_cond) + 4 * EPS * got[2] / float(gap_ref)
+    )
 
 
 @pytest.mark.parametrize("e", [0.999, 1.001])
@@ -139,7 +144,9 @@ def test_spin_dominated_orbits_both_signs():
 
 def test_radial_convention():
     alpha, energy, M, g, k = 0.5, 3.0, 2.0, 9.81, 0.4
-    cls, r1, r2, rc, T, psi, prec, mu = orbit_point(alpha, energy, 0.3, 0.0, M, g, k, math.inf, 1e-12)
+    cls, r1, r2, rc, T, psi, prec, mu = orbit_point(
+        alpha, energy, 0.3, 0.0, M, g, k, math.inf, 1e-12
+    )
     C = M * g * math.cos(alpha) / (1 + k)
     assert cls == RADIAL and r1 == 0.0
     assert r2 == pytest.approx(energy / C, rel=4 * EPS)
@@ -151,7 +158,9 @@ def test_radial_convention():
 
 
 def test_forbidden_reports_r_circ_and_nothing_else():
-    cls, r1, r2, rc, T, psi, prec, mu = orbit_point(0.5, -100.0, 1.0, 1.0, 1.0, 9.81, 0.4, math.inf, 1e-12)
+    cls, r1, r2, rc, T, psi, prec, mu = orbit_point(
+        0.5, -100.0, 1.0, 1.0, 1.0, 9.81, 0.4, math.inf, 1e-12
+    )
     assert cls == FORBIDDEN and np.isfinite(rc)
     assert all(math.isnan(x) for x in (r1, r2, T, psi, prec, mu))
 
@@ -222,7 +231,9 @@ def _bounded_point(o):
 @given(orbits)
 def test_turning_points_are_roots_and_bracket_r_circ(o):
     alpha, energy, h, Lz, k, g, A, B, C, rc = _bounded_point(o)
-    cls, r1, r2, rc2, T, psi, prec, mu = orbit_point(alpha, energy, h, Lz, 1.0, g, k, math.inf, 1e-12)
+    cls, r1, r2, rc2, T, psi, prec, mu = orbit_point(
+        alpha, energy, h, Lz, 1.0, g, k, math.inf, 1e-12
+    )
     assert cls == BOUNDED
     assert r1 <= rc2 <= r2
     for r in (r1, r2):

@@ -104,12 +104,16 @@ def test_erratum_eq2_energy_not_conserved():
 
 
 def test_erratum_eq21_needs_sin4():
-    """r_c solves 5 M^2 g sin^4 cos r^3 - 2 M Lz h sin^2 cos r - Lz^2 (7 - 5 cos^2) = 0 (k = 2/5)."""
+    """k = 2/5: r_c solves 5 M^2 g sin^4 cos r^3 - 2 M Lz h sin^2 cos r - Lz^2 (7 - 5 cos^2) = 0."""
     alpha, M, g, k, h, Lz = 0.5, 1.3, 9.81, 0.4, 0.9, 0.7
     s, c = math.sin(alpha), math.cos(alpha)
     rc = circular_radius(*coefficients(alpha, h, Lz, M, g, k))
-    fixed = 5 * M**2 * g * s**4 * c * rc**3 - 2 * M * Lz * h * s**2 * c * rc - Lz**2 * (7 - 5 * c**2)
-    paper = 5 * M**2 * g * s**2 * c * rc**3 - 2 * M * Lz * h * s**2 * c * rc - Lz**2 * (7 - 5 * c**2)
+    fixed = (
+        5 * M**2 * g * s**4 * c * rc**3 - 2 * M * Lz * h * s**2 * c * rc - Lz**2 * (7 - 5 * c**2)
+    )
+    paper = (
+        5 * M**2 * g * s**2 * c * rc**3 - 2 * M * Lz * h * s**2 * c * rc - Lz**2 * (7 - 5 * c**2)
+    )
     scale = 5 * M**2 * g * s**4 * c * rc**3
     assert abs(fixed) < 1e-13 * scale
     assert abs(paper) > 1e-2 * scale

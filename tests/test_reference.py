@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from oracle import tolerance
 
 import engine
-from oracle import tolerance
 
 REF = Path(__file__).resolve().parents[2] / "shared" / "reference" / "public.json"
 if not REF.exists():  # CI clones main with shared/ beside it

@@ -7,8 +7,20 @@ from engine import Scene
 
 @pytest.mark.parametrize(
     "field,value",
-    [("M", 0.0), ("M", -1.0), ("g", -9.81), ("a", 0.0), ("k", -0.1), ("rim", 0.0),
-     ("rim", -2.0), ("M", math.nan), ("g", math.inf), ("mu", 0.0), ("c_rr", -1.0), ("k", "x")],
+    [
+        ("M", 0.0),
+        ("M", -1.0),
+        ("g", -9.81),
+        ("a", 0.0),
+        ("k", -0.1),
+        ("rim", 0.0),
+        ("rim", -2.0),
+        ("M", math.nan),
+        ("g", math.inf),
+        ("mu", 0.0),
+        ("c_rr", -1.0),
+        ("k", "x"),
+    ],
 )
 def test_invalid_values_name_field_and_value(field, value):
     with pytest.raises(ValueError) as err:
@@ -22,7 +34,11 @@ def test_defaults_and_effects():
     assert (s.M, s.g, s.k, s.rim) == (1.0, 9.81, 0.4, None)
     assert s.effects == ()
     assert Scene(rim=3.0, mu=0.2, c_rr=1e-3, attitude=True).effects == (
-        "rolling_resistance", "rim", "slip_check", "attitude")
+        "rolling_resistance",
+        "rim",
+        "slip_check",
+        "attitude",
+    )
     assert Scene(g=0.0, k=0.0).g == 0.0  # free fall and point particle are valid
 
 

@@ -11,9 +11,10 @@ with kc^2 = (r2 - r3)/(r1 - r3) and K = |L_z| / (M sin^2 alpha). In Carlson's fo
 tests as a second evaluation) T_r = 2 sqrt(M/(2C)) [r1 I0 + 2/3 (r2 - r1)(r1 - r3)
 R_D(0, r2 - r3, r1 - r3)], I0 = 2 R_F(0, r1 - r3, r2 - r3), and psi = 2 K sqrt(M/(2C))
 [R_F(0, 1-m, 1) + n/3 R_J(0, 1-m, 1, 1-n)] / (r2 sqrt(r2 - r3)), m = (r2-r1)/(r2-r3),
-n = (r2-r1)/r2. Every term is positive, so no digits cancel. In free fall (g = 0): T_r = pi (r1 + r2)
-sqrt(M / (2 |energy|)), psi = pi / Omega, and an escape sweeps 2 atan2(2 sqrt(A energy), B) /
-Omega in azimuth (= 2 arccos(sign(B)/e) / Omega, without the e -> 1 and B -> 0 singularities).
+n = (r2-r1)/r2. Every term is positive, so no digits cancel. In free fall (g = 0):
+T_r = pi (r1 + r2) sqrt(M / (2 |energy|)), psi = pi / Omega, and an escape sweeps
+2 atan2(2 sqrt(A energy), B) / Omega in azimuth (= 2 arccos(sign(B)/e) / Omega, without
+the e -> 1 and B -> 0 singularities).
 """
 
 from __future__ import annotations
@@ -45,8 +46,9 @@ NAN = math.nan
 def mu_required(r1, r2, alpha, h, Lz, M, g, k):
     """Smallest friction coefficient that keeps rolling on [r1, r2] (r2 may be +inf): max |F|/N.
 
-    With x = 1/r and q = L_z/(M sin a): |F|/N = k/(1+k) |g cos a + cot a q h x^2 + cot^2 a q^2 x^3|
-    / (g sin a + cot a q^2 x^3), whose only interior critical point is x^3 = 2 g sin a / (cot a q^2).
+    With x = 1/r and q = L_z/(M sin a):
+    |F|/N = k/(1+k) |g cos a + cot a q h x^2 + cot^2 a q^2 x^3| / (g sin a + cot a q^2 x^3),
+    whose only interior critical point is x^3 = 2 g sin a / (cot a q^2).
     """
     s = math.sin(alpha)
     c = math.cos(alpha)

@@ -1,0 +1,304 @@
+"""``ds.cone``: an xarray Dataset accessor for the results of :func:`engine.evaluate` and
+:func:`engine.survey` (xarray ``doc/internals/extending-xarray.rst``: an accessor, not a subclass).
+
+Class names always come from the ``flag_meanings`` attribute of ``orbit_class`` (CF flags), so
+the helpers work on a Dataset read back from netCDF as well as on a fresh one::
+
+    ds = engine.survey(...)
+    ds.cone.class_fractions()                 # fraction of points per class
+    ds.cone.where_class("bounded")            # other points masked with NaN
+    ds.cone.precession_per_revolution()       # 2 psi - 2 pi [degree]
+    ds.cone.class_map(x="Lz", y="energy", alpha=0.5, h=0.0)
+    print(ds.cone.summary())
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Hashable, Iterable, Sequence
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+__all__ = ["ConeAccessor", "CLASS_COLORS"]
+
+#: Colour of each class in maps, by name (tab10 shades; forbidden is light grey).
+CLASS_COLORS: dict[str, str] = {
+    "forbidden": "#d9d9d9",
+    "bounded": "#1f77b4",
+    "circular": "#d62728",
+    "hyperbolic": "#ff7f0e",
+    "radial": "#9467bd",
+    "spills": "#2ca02c",
+}
+_FALLBACK_COLORS = ("#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf")
+
+#: Classes whose apsidal angle is a half radial period (so 2 psi - 2 pi is a precession).
+_PRECESSING = ("bounded", "circular", "spills")
+
+_UNIT_ALIASES = {
+    "degree": "degree",
+    "degrees": "degree",
+    "deg": "degree",
+    "radian": "radian",
+    "radians": "radian",
+    "rad": "radian",
+}
+
+
+@xr.register_dataset_accessor("cone")
+class ConeAccessor:
+    """Helpers for a conesurvey result Dataset (needs ``orbit_class`` with CF flag attributes)."""
+
+    def __init__(self, ds: xr.Dataset) -> None:
+        self._ds = ds
+
+    # -- class bookkeeping -------------------------------------------------------------------
+
+    @property
+    def class_names(self) -> tuple[str, ...]:
+        """Class names in flag order, from ``orbit_class.attrs["flag_meanings"]``."""
+        attrs = self._class_var().attrs
+        if "flag_meanings" not in attrs:
+            raise ValueError(
+                "orbit_class has no 'flag_meanings' attribute: not a conesurvey result"
+            )
+        return tuple(str(attrs["flag_meanings"]).split())
+
+    @property
+    def class_codes(self) -> dict[str, int]:
+        """Class name -> integer code (``flag_values``, or 0, 1, ... when they are absent)."""
+        names = self.class_names
+        values = self._class_var().attrs.get("flag_values", np.arange(len(names)))
+        values = np.atleast_1d(np.asarray(values)).tolist()
+        if len(values) != len(names):
+            raise ValueError(
+                f"orbit_class has {len(values)} flag_values but {len(names)} flag_meanings"
+            )
+        return {n: int(v) for n, v in zip(names, values, strict=True)}
+
+    def _class_var(self) -> xr.DataArray:
+        if "orbit_class" not in self._ds:
+            raise ValueError("the Dataset has no 'orbit_class' variable: not a conesurvey result")
+        return self._ds["orbit_class"]
+
+    def _codes_of(self, classes: Iterable[str | int]) -> list[int]:
+        codes = self.class_codes
+        out = []
+        for c in classes:
+            if isinstance(c, str):
+                if c not in codes:
+                    raise ValueError(f"unknown class {c!r}; known: {', '.join(codes)}")
+                out.append(codes[c])
+            elif int(c) in codes.values():
+                out.append(int(c))
+            else:
+                raise ValueError(f"unknown class code {c!r}; known: {sorted(codes.values())}")
+        return out
+
+    def class_mask(self, *classes: str | int) -> xr.DataArray:
+        """Boolean DataArray: True where ``orbit_class`` is one of ``classes`` (names or codes)."""
+        if not classes:
+            raise ValueError("give at least one class name, e.g. 'bounded'")
+        return self._class_var().isin(self._codes_of(classes))
+
+    # -- selections and reductions -----------------------------------------------------------
+
+    def where_class(self, *classes: str | int, drop: bool = False) -> xr.Dataset:
+        """The Dataset with every point not of ``classes`` masked with NaN.
+
+        ``orbit_class`` becomes float (NaN where masked); its flag attributes are kept. With
+        ``drop=True`` coordinate labels whose points are all masked are removed.
+        """
+        mask = self.class_mask(*classes)
+        out = self._ds.where(mask, drop=drop)
+        for name, var in self._ds.data_vars.items():
+            if name in out:
+                out[name].attrs = dict(var.attrs)
+        out.attrs = dict(self._ds.attrs)
+        return out
+
+    def class_counts(self, dim: str | Sequence[Hashable] | None = None) -> xr.DataArray:
+        """Number of points per class (dim ``class_name``), summed over ``dim`` (default: all)."""
+        cls = self._class_var()
+        dims = _reduce_dims(cls, dim)
+        names = self.class_names
+        codes = self.class_codes
+        counts = [(cls == codes[n]).sum(dim=dims) for n in names]
+        out = xr.concat(counts, dim=xr.DataArray(list(names), dims="class_name", name="class_name"))
+        out.name = "class_count"
+        out.attrs = {"long_name": "number of points per orbit class", "units": "1"}
+        return out
+
+    def class_fractions(self, dim: str | Sequence[Hashable] | None = None) -> xr.DataArray:
+        """Fraction of points in each class (dim ``class_name``), over ``dim`` (default: all).
+
+        Points whose class is NaN (masked by :meth:`where_class`) are not counted, so the
+        fractions along ``class_name`` sum to 1 wherever any point is left.
+        """
+        cls = self._class_var()
+        dims = _reduce_dims(cls, dim)
+        counts = self.class_counts(dim)
+        total = cls.notnull().sum(dim=dims)
+        out = counts / total
+        out.name = "class_fraction"
+        out.attrs = {"long_name": "fraction of points per orbit class", "units": "1"}
+        return out
+
+    def precession_per_revolution(self, units: str = "degree") -> xr.DataArray:
+        """Apsidal precession per radial period, 2 psi - 2 pi, in ``units`` ("degree", "radian").
+
+        Defined for bounded, circular and spilling orbits; NaN elsewhere (for a hyperbolic
+        escape ``apsidal_angle`` is a sweep, not a half period). Positive: the apsides advance
+        with the orbital motion.
+        """
+        key = _UNIT_ALIASES.get(units.lower()) if isinstance(units, str) else None
+        if key is None:
+            raise ValueError(f"units must be 'degree' or 'radian'; got {units!r}")
+        if "apsidal_angle" not in self._ds:
+            raise ValueError("the Dataset has no 'apsidal_angle' variable")
+        present = [c for c in _PRECESSING if c in self.class_codes]
+        psi = self._ds["apsidal_angle"].where(self.class_mask(*present))
+        out = 2.0 * psi - 2.0 * math.pi
+        if key == "degree":
+            out = out * (180.0 / math.pi)
+        out.name = "precession_per_revolution"
+        out.attrs = {
+            "units": key,
+            "long_name": "apsidal precession per radial period, 2 psi - 2 pi",
+        }
+        return out
+
+    # -- presentation ------------------------------------------------------------------------
+
+    def class_map(
+        self,
+        x: str = "Lz",
+        y: str = "energy",
+        ax: Any = None,
+        legend: bool = True,
+        **sel: Any,
+    ) -> Any:
+        """Plot a 2-D map of ``orbit_class`` over coordinates ``x`` and ``y``; return the Axes.
+
+        ``sel`` picks one value of every other dimension (nearest label), e.g.
+        ``alpha=0.5, h=0.0``. The legend lists the classes present, named from flag_meanings.
+        matplotlib is imported here, not at module import.
+        """
+        import matplotlib.pyplot as plt
+        from matplotlib.colors import BoundaryNorm, ListedColormap
+        from matplotlib.patches import Patch
+
+        cls = self._class_var()
+        index_sel = {k: v for k, v in sel.items() if k in cls.dims and k in cls.indexes}
+        pos_sel = {k: v for k, v in sel.items() if k in cls.dims and k not in cls.indexes}
+        unknown = set(sel) - set(index_sel) - set(pos_sel)
+        if unknown:
+            raise ValueError(f"cannot select on {sorted(unknown)}: not dimensions of orbit_class")
+        if index_sel:
+            cls = cls.sel(index_sel, method="nearest")
+        if pos_sel:
+            cls = cls.isel(pos_sel)
+        cls = cls.squeeze(drop=False)
+        if cls.ndim != 2:
+            raise ValueError(
+                f"class_map needs a 2-D selection; orbit_class has dims {cls.dims} after "
+                f"selecting {sel}: pick one value of the other dims with keyword arguments"
+            )
+        for name in (x, y):
+            if name not in cls.coords:
+                raise ValueError(f"{name!r} is not a coordinate of orbit_class")
+        xc, yc = cls[x], cls[y]
+        if xc.ndim == 1 and yc.ndim == 1 and xc.dims != yc.dims:
+            z = cls.transpose(yc.dims[0], xc.dims[0]).values
+            X, Y = xc.values, yc.values
+        else:
+            xc, yc = xr.broadcast(xc, yc)
+            X, Y = xc.transpose(*cls.dims).values, yc.transpose(*cls.dims).values
+            z = cls.values
+        z = np.asarray(z, float)
+        names = self.class_names
+        codes = self.class_codes
+        colors = [_class_color(n, i) for i, n in enumerate(names)]
+        ordered = sorted(range(len(names)), key=lambda i: codes[names[i]])
+        vals = [codes[names[i]] for i in ordered]
+        cmap = ListedColormap([colors[i] for i in ordered])
+        bounds = [v - 0.5 for v in vals] + [vals[-1] + 0.5]
+        norm = BoundaryNorm(bounds, cmap.N)
+        if ax is None:
+            _, ax = plt.subplots(figsize=(6, 4.5))
+        ax.pcolormesh(X, Y, np.ma.masked_invalid(z), cmap=cmap, norm=norm, shading="nearest")
+        ax.set_xlabel(_axis_label(self._ds, x))
+        ax.set_ylabel(_axis_label(self._ds, y))
+        fixed = ", ".join(f"{k} = {_fmt(cls.coords[k].values)}" for k in sel if k in cls.coords)
+        if fixed:
+            ax.set_title(f"orbit class ({fixed})", fontsize="medium")
+        if legend:
+            present = set(np.unique(z[np.isfinite(z)]).astype(int).tolist())
+            handles = [
+                Patch(facecolor=colors[i], edgecolor="k", linewidth=0.5, label=names[i])
+                for i in ordered
+                if codes[names[i]] in present
+            ]
+            ax.legend(handles=handles, title="orbit class", loc="best", fontsize="small")
+        return ax
+
+    def summary(self) -> str:
+        """A few lines: dims, scene, class counts and ranges of the main observables."""
+        ds = self._ds
+        cls = self._class_var()
+        dims = ", ".join(f"{d}: {n}" for d, n in ds.sizes.items()) or "scalar"
+        scene = ", ".join(
+            f"{k[6:]}={ds.attrs[k]}" for k in ("scene_M", "scene_g", "scene_k") if k in ds.attrs
+        )
+        lines = [f"conesurvey result ({dims}); method {ds.attrs.get('method', '?')}; {scene}"]
+        counts = self.class_counts()
+        n = int(cls.notnull().sum())
+        parts = [
+            f"{name} {int(c)} ({100.0 * int(c) / n:.1f}%)"
+            for name, c in zip(counts.class_name.values, counts.values, strict=True)
+            if int(c) > 0
+        ]
+        lines.append(f"classes of {n} points: " + ", ".join(parts))
+        prec = self.precession_per_revolution("degree")
+        for label, da in (
+            ("precession per revolution [degree]", prec),
+            ("precession rate [radian s-1]", ds.get("precession_rate")),
+            ("mu_required [1]", ds.get("mu_required")),
+        ):
+            if da is None:
+                continue
+            v = np.asarray(da.values, float)
+            v = v[np.isfinite(v)]
+            if v.size:
+                lines.append(f"{label}: {v.min():.4g} .. {v.max():.4g} (finite on {v.size})")
+        return "\n".join(lines)
+
+
+def _reduce_dims(da: xr.DataArray, dim: str | Sequence[Hashable] | None) -> list[Hashable]:
+    if dim is None:
+        return list(da.dims)
+    dims = [dim] if isinstance(dim, str) else list(dim)
+    missing = [d for d in dims if d not in da.dims]
+    if missing:
+        raise ValueError(f"{missing} are not dimensions of orbit_class {da.dims}")
+    return dims
+
+
+def _class_color(name: str, i: int) -> str:
+    return CLASS_COLORS.get(name, _FALLBACK_COLORS[i % len(_FALLBACK_COLORS)])
+
+
+def _axis_label(ds: xr.Dataset, name: str) -> str:
+    if name not in ds.coords:
+        return name
+    units = ds.coords[name].attrs.get("units")
+    if name == "energy" and units == "1":
+        return "energy offset (calE - V_min)/|V_min|"
+    return f"{name} [{units}]" if units else name
+
+
+def _fmt(v: Any) -> str:
+    arr = np.asarray(v)
+    return f"{float(arr):.4g}" if arr.size == 1 else str(arr)

@@ -1,0 +1,298 @@
+"""netCDF output: CF attributes, encodings, round trip and crash safety."""
+
+from __future__ import annotations
+
+import os
+import re
+import warnings
+
+import netCDF4
+import numpy as np
+import pytest
+import xarray as xr
+
+import engine
+from engine import output
+from engine.output import cf_dataset, encoding_for, write_netcdf, write_survey
+from engine.surveyfile import parse_survey
+
+# Free fall: B of both signs, so several classes and NaN fields occur. Non-ASCII and quotes
+# check that the definition is stored verbatim.
+SURVEY_TEXT = """\
+# A "small" survey: free fall, \u03b1 in radian
+title = "Round trip \u2014 free fall"
+
+[scene]
+g = 0.0
+rim = 40.0
+
+[axes.alpha]
+values = [0.5, 1.0]
+
+[axes.energy]
+start = -0.3
+stop = 0.3
+num = 7
+
+[axes.h]
+values = [-2.0, 2.0]
+
+[axes.Lz]
+values = [-0.5, 0.5]
+"""
+
+
+@pytest.fixture(scope="module")
+def survey():
+    return parse_survey(SURVEY_TEXT, origin="roundtrip.toml")
+
+
+@pytest.fixture(scope="module")
+def ds(survey):
+    return survey.run()
+
+
+@pytest.fixture(scope="module")
+def ds_relative():
+    return engine.survey([0.4], np.geomspace(1e-6, 1.0, 4), [0.0, 1.0], [0.3], energy_relative=True)
+
+
+def write(ds, path, survey, **kw):
+    return write_survey(ds, path, survey, command="conesurvey run roundtrip.toml", **kw)
+
+
+def test_survey_has_several_classes_and_nans(ds):
+    """Guard: the round trip below covers NaN fields and more than one class."""
+    assert np.unique(ds.orbit_class.values).size >= 3
+    assert np.isnan(ds.r_max.values).any()
+
+
+def test_round_trip_values_and_attrs(tmp_path, survey, ds):
+    path = write(ds, tmp_path / "out.nc", survey)
+    assert path == tmp_path / "out.nc"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # opens cleanly: no decoding or CF warnings
+        back = xr.open_dataset(path, engine="netcdf4").load()
+    back.close()
+    expected = cf_dataset(ds, title=survey.title, survey_definition=SURVEY_TEXT, scene=survey.scene)
+    assert set(back.data_vars) == set(ds.data_vars)
+    assert set(back.coords) == set(ds.coords)
+    for name in ds.variables:
+        np.testing.assert_array_equal(back[name].values, ds[name].values)  # NaN == NaN here
+        assert back[name].dtype == ds[name].dtype, name
+        assert back[name].dims == ds[name].dims
+        for key, value in expected[name].attrs.items():
+            np.testing.assert_array_equal(back[name].attrs[key], value)
+        assert set(back[name].attrs) == set(expected[name].attrs), name
+    for key, value in expected.attrs.items():
+        if key != "history":  # written at its own time stamp
+            assert back.attrs[key] == value, key
+    assert back.attrs["survey_definition"] == SURVEY_TEXT
+    assert back.orbit_class.dtype == np.int8
+    assert back.orbit_class.attrs["flag_values"].dtype == np.int8
+    np.testing.assert_array_equal(back.orbit_class.attrs["flag_values"], np.arange(6))
+    assert back.orbit_class.attrs["flag_meanings"].split() == list(engine.CLASS_NAMES)
+
+
+def test_global_attributes(tmp_path, survey, ds):
+    path = write(ds, tmp_path / "out.nc", survey)
+    with xr.open_dataset(path) as back:
+        attrs = dict(back.attrs)
+    assert attrs["Conventions"] == "CF-1.11"
+    assert attrs["title"] == "Round trip \u2014 free fall"
+    assert attrs["source"] == f"conesurvey {engine.__version__}"
+    assert attrs["method"] == "exact"
+    for key, value in survey.scene.as_attrs().items():
+        assert attrs[key] == value, key
+    assert attrs["scene_rim"] == 40.0 and attrs["scene_g"] == 0.0
+    history = attrs["history"]
+    assert re.match(r"^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ conesurvey run roundtrip\.toml ", history)
+    assert "numba threading layer: " in history
+    assert engine._jit.threading_layer() in history
+    assert list(attrs)[:4] == ["Conventions", "title", "history", "source"]
+
+
+def test_encodings_on_disk(tmp_path, survey, ds):
+    path = write(ds, tmp_path / "out.nc", survey)
+    with netCDF4.Dataset(path) as nc:
+        assert nc.data_model == "NETCDF4"
+        for name in ("alpha", "energy", "h", "Lz"):
+            var = nc.variables[name]
+            assert "_FillValue" not in var.ncattrs(), name
+            assert var.dtype == np.float64
+        for name in ds.data_vars:
+            filters = nc.variables[name].filters()
+            assert filters["zlib"] and filters["shuffle"] and filters["complevel"] == 1, name
+        cls = nc.variables["orbit_class"]
+        assert cls.dtype == np.int8
+        assert cls.getncattr("flag_values").dtype == np.int8
+        assert isinstance(nc.getncattr("survey_definition"), str)
+
+
+def test_encoding_for_separates_coordinates_and_data(ds):
+    enc = encoding_for(ds)
+    for name in ("alpha", "energy", "h", "Lz"):
+        assert enc[name] == {"_FillValue": None}
+    assert enc["orbit_class"]["dtype"] == np.int8
+    assert enc["r_min"]["complevel"] == 1 and enc["r_min"]["zlib"] is True
+
+
+def test_energy_absolute_and_relative_axis_round_trip(tmp_path, ds_relative):
+    full = cf_dataset(ds_relative, title="rel", survey_definition="x = 1\n")
+    path = write_netcdf(full, tmp_path / "rel.nc")
+    with xr.open_dataset(path) as back:
+        assert back.energy.attrs["units"] == "1"
+        assert back.energy_absolute.attrs["units"] == "J"
+        np.testing.assert_array_equal(back.energy_absolute.values, ds_relative.energy_absolute)
+
+
+def test_cf_dataset_does_not_modify_its_input_and_prepends_history(ds):
+    before = dict(ds.attrs)
+    first = cf_dataset(ds, title="t", survey_definition="a = 1\n", command="first")
+    second = cf_dataset(first, title="t", survey_definition="a = 1\n", command="second")
+    assert ds.attrs == before
+    lines = second.attrs["history"].split("\n")
+    assert len(lines) == 2
+    assert " second " in lines[0] and " first " in lines[1]
+
+
+def test_flag_values_are_made_int8(ds):
+    bad = ds.copy()
+    bad["orbit_class"] = bad.orbit_class.copy()
+    bad.orbit_class.attrs["flag_values"] = [0, 1, 2, 3, 4, 5]  # a list would be written int64
+    fixed = cf_dataset(bad, title="t", survey_definition="")
+    assert fixed.orbit_class.attrs["flag_values"].dtype == np.int8
+    assert isinstance(bad.orbit_class.attrs["flag_values"], list)  # input untouched
+
+
+# --- crash safety -----------------------------------------------------------------------------
+
+
+def listing(directory):
+    return sorted(p.name for p in directory.iterdir())
+
+
+def test_existing_output_is_not_clobbered(tmp_path, survey, ds):
+    path = tmp_path / "out.nc"
+    path.write_bytes(b"precious")
+    with pytest.raises(FileExistsError) as info:
+        write(ds, path, survey)
+    assert str(path) in str(info.value)
+    assert path.read_bytes() == b"precious"
+    assert listing(tmp_path) == ["out.nc"]
+
+
+def test_overwrite_replaces_existing_output(tmp_path, survey, ds):
+    path = tmp_path / "out.nc"
+    path.write_bytes(b"old")
+    write(ds, path, survey, overwrite=True)
+    with xr.open_dataset(path) as back:
+        assert back.sizes["energy"] == 7
+    assert listing(tmp_path) == ["out.nc"]
+
+
+def test_error_while_writing_keeps_existing_output_and_removes_tmp(tmp_path, ds):
+    path = tmp_path / "out.nc"
+    path.write_bytes(b"precious")
+    bad = ds.copy()
+    bad.attrs = {"not_allowed": {"a": 1}}  # xarray refuses dict attributes (xarray#3743)
+    with pytest.raises(TypeError):
+        write_netcdf(bad, path, overwrite=True)
+    assert path.read_bytes() == b"precious"
+    assert listing(tmp_path) == ["out.nc"]
+
+
+def test_interrupt_before_rename_leaves_nothing(tmp_path, ds, monkeypatch):
+    seen = []
+
+    def interrupted(p):
+        seen.append(p)
+        assert p.exists()  # the full .tmp file was written before the interrupt
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(output, "_fsync_path", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        write_netcdf(ds, tmp_path / "out.nc")
+    assert seen == [tmp_path / "out.nc.tmp"]
+    assert listing(tmp_path) == []
+
+
+def test_output_created_meanwhile_is_not_clobbered(tmp_path, ds, monkeypatch):
+    """Another process creates the output while we write: the final rename must not replace it."""
+    path = tmp_path / "out.nc"
+    real_fsync_path = output._fsync_path
+
+    def racing(p):
+        real_fsync_path(p)
+        path.write_bytes(b"theirs")
+
+    monkeypatch.setattr(output, "_fsync_path", racing)
+    with pytest.raises(FileExistsError):
+        write_netcdf(ds, path)
+    assert path.read_bytes() == b"theirs"
+    assert listing(tmp_path) == ["out.nc"]
+
+
+def test_stale_tmp_file_is_replaced(tmp_path, ds):
+    (tmp_path / "out.nc.tmp").write_bytes(b"left by a crashed run")
+    write_netcdf(ds, tmp_path / "out.nc")
+    assert listing(tmp_path) == ["out.nc"]
+    with xr.open_dataset(tmp_path / "out.nc") as back:
+        assert back.sizes == ds.sizes
+
+
+def test_file_and_directory_are_fsynced(tmp_path, ds, monkeypatch):
+    synced = []
+    real_fsync = os.fsync
+
+    def spy(fd):
+        synced.append(os.readlink(f"/proc/self/fd/{fd}") if os.path.exists("/proc/self") else fd)
+        real_fsync(fd)
+
+    monkeypatch.setattr(os, "fsync", spy)
+    write_netcdf(ds, tmp_path / "out.nc")
+    if os.path.exists("/proc/self"):
+        assert synced == [str(tmp_path / "out.nc.tmp"), str(tmp_path)]
+    else:
+        assert len(synced) == 2
+
+
+# --- CF compliance (runs where the optional `compliance-checker` package is installed) ---------
+
+
+def cf_problems(path) -> tuple[bool, list[str]]:
+    import json
+
+    runner = pytest.importorskip("compliance_checker.runner")
+    runner.CheckSuite.load_all_available_checkers()
+    report_path = f"{path}.json"
+    ok, _ = runner.ComplianceChecker.run_checker(
+        str(path), ["cf:1.11"], 0, "normal", output_filename=report_path, output_format="json"
+    )
+    with open(report_path, encoding="utf-8") as f:
+        report = json.load(f)["cf:1.11"]
+    msgs = [
+        m
+        for level in ("high_priorities", "medium_priorities")
+        for item in report[level]
+        for m in item["msgs"]
+    ]
+    return ok, msgs
+
+
+def test_output_passes_cf_checker(tmp_path, survey, ds, ds_relative):
+    path = write(ds, tmp_path / "out.nc", survey)
+    assert cf_problems(path) == (True, [])
+    rel = cf_dataset(ds_relative, title="rel", survey_definition="x = 1\n")
+    assert cf_problems(write_netcdf(rel, tmp_path / "rel.nc")) == (True, [])
+
+
+def test_cf_checker_catches_a_planted_error(tmp_path, ds):
+    """Guard for the test above: a plain to_netcdf (int64 flags, coordinate fill values) fails."""
+    bad = ds.copy()
+    bad["orbit_class"] = bad.orbit_class.copy()
+    bad.orbit_class.attrs["flag_values"] = [0, 1, 2, 3, 4, 5]
+    bad.to_netcdf(tmp_path / "bad.nc")
+    ok, msgs = cf_problems(tmp_path / "bad.nc")
+    assert not ok
+    assert any("flag_values" in m for m in msgs)
