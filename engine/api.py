@@ -223,10 +223,14 @@ def evaluate(
     data_vars = {
         name: (dims, col.reshape(shape), _variable_attrs(name)) for name, col in res.items()
     }
-    coords = {
-        name: (dims, arr, {"units": AXES[name][0], "long_name": AXES[name][1]})
-        for name, arr in zip(inputs, arrays, strict=False)
-    }
+    coords = {}
+    for (name, value), arr in zip(inputs.items(), arrays, strict=True):
+        attrs = {"units": AXES[name][0], "long_name": AXES[name][1]}
+        if isinstance(value, xr.DataArray):
+            # keep a DataArray input on its own dims (1-D inputs become index coordinates)
+            coords[name] = (value.dims, np.asarray(value.values, np.float64), attrs)
+        else:
+            coords[name] = (dims, arr, attrs)
     return xr.Dataset(
         data_vars, coords=coords, attrs=_global_attrs(scene, method, circular_tol, rtol)
     )

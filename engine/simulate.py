@@ -48,11 +48,12 @@ def solve_rk(method, effects, y0, p, rtol, atol, t_end, n_apsides, max_steps, re
 
 
 @kernel
-def solve_symplectic(effects, z0, p, h, Lz, order, rtol, t_end, n_apsides, max_steps, record,
-                     dt_out):  # fmt: skip
+def solve_symplectic(effects, z0, p, energy, h, Lz, order, rtol, t_end, n_apsides, max_steps,
+                     record, dt_out):  # fmt: skip
     """:func:`engine.kernels.symplectic.sym_run` compiled for a literal effect set."""
     literally(effects)
-    return sym_run(effects, z0, p, h, Lz, order, rtol, t_end, n_apsides, max_steps, record, dt_out)
+    return sym_run(effects, z0, p, energy, h, Lz, order, rtol, t_end, n_apsides, max_steps,
+                   record, dt_out)  # fmt: skip
 
 
 def _real(name: str, value: Any) -> float:
@@ -182,8 +183,8 @@ def simulate(
     record = RECORD_STEPS if dt_out is None else RECORD_EVERY_DT
     t_stop = math.inf if t_end is None else t_end
     if mid == SYMPLECTIC:
-        z0 = initial_z(p, r0, 0.0, h, Lz)
-        res = solve_symplectic(effects, z0, p, h, Lz, DEFAULT_ORDER, rtol, t_stop, n_apsides,
+        z0 = initial_z(p, r0, 0.0, energy, h, Lz)
+        res = solve_symplectic(effects, z0, p, energy, h, Lz, DEFAULT_ORDER, rtol, t_stop, n_apsides,
                                int(max_steps), record, dt_out or 0.0)  # fmt: skip
     else:
         atol = rtol * tolerance_scales(p, effects, y0, energy, h, Lz, r1, r2, rc)

@@ -29,6 +29,8 @@ def test_evaluate_scalar_and_dataarray_inputs():
     lz = xr.DataArray([0.5, 1.0], dims="Lz")
     ds2 = engine.evaluate(0.5, e, 1.0, lz)
     assert ds2.orbit_class.dims == ("energy", "Lz")
+    assert ds2.energy.dims == ("energy",) and ds2.Lz.dims == ("Lz",)
+    assert ds2.sel(Lz=1.0).orbit_class.shape == (3,)  # 1-D inputs are index coordinates
 
 
 def test_class_flags_follow_cf():
