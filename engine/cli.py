@@ -8,16 +8,18 @@ output file is created and an existing one is left as it was.
 from __future__ import annotations
 
 import argparse
-import math
 import shlex
+import shutil
 import sys
-import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
-import numpy as np
-import xarray as xr
+from .grid import BLOCK_POINTS, DIMS
+
+if TYPE_CHECKING:
+    from .runner import RunStats
+    from .surveyfile import Survey
 
 __all__ = ["main", "build_parser"]
 
@@ -83,7 +85,55 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument(
         "-q", "--quiet", action="store_true", help="no progress bar and no summary; errors only"
     )
+    run.add_argument(
+        "--chunk-points",
+        type=_positive_int,
+        metavar="N",
+        help=f"points per block computed and stored at a time (default {BLOCK_POINTS:,}); "
+        "memory grows with N, not with the grid",
+    )
+    run.add_argument(
+        "--force",
+        action="store_true",
+        help="run even if the estimated output does not fit on the disk",
+    )
+    backend = run.add_mutually_exclusive_group()
+    backend.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run the blocks on an existing dask.distributed cluster (e.g. tcp://host:8786)",
+    )
+    backend.add_argument(
+        "--workers",
+        type=_positive_int,
+        metavar="N",
+        help="start a local dask cluster of N worker processes (numba threads split among them)",
+    )
+    info = sub.add_parser(
+        "info",
+        help="show the definition, completion state, class counts and provenance of a result",
+        description="Describe a conesurvey result file (or the unfinished run behind it).",
+        formatter_class=fmt,
+    )
+    info.add_argument("file", metavar="FILE.nc", help="a conesurvey netCDF result")
+    validate = sub.add_parser(
+        "validate",
+        help="check a survey definition; print grid size, output size and run-time estimate",
+        description="Check SURVEY.toml without running it (exit 2 if it is invalid).",
+        formatter_class=fmt,
+    )
+    validate.add_argument("survey", metavar="SURVEY.toml", help="survey definition (TOML)")
     return parser
+
+
+def _positive_int(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
+    return n
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -99,12 +149,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         if args.command == "run":
             return _run(args, command)
+        if args.command == "info":
+            return _info(args)
+        if args.command == "validate":
+            return _validate(args)
         raise AssertionError(f"unhandled command {args.command!r}")  # pragma: no cover
     except _InputError as exc:
         _error(str(exc))
         return 2
     except KeyboardInterrupt:
-        _error("interrupted; no output written")
+        _error("interrupted; finished blocks are kept: run the same command again to resume")
         return 130
 
 
@@ -112,14 +166,12 @@ def _error(message: str) -> None:
     print(f"{PROG}: error: {message}", file=sys.stderr)
 
 
-def _run(args: argparse.Namespace, command: str) -> int:
-    from .output import write_survey
-    from .progress import Progress
+def _load(path: str) -> Survey:
     from .surveyfile import SurveyError, load_survey
 
-    source = Path(args.survey)
+    source = Path(path)
     try:
-        survey = load_survey(source)
+        return load_survey(source)
     except FileNotFoundError:
         raise _InputError(f"survey file not found: {source}") from None
     except IsADirectoryError:
@@ -129,86 +181,158 @@ def _run(args: argparse.Namespace, command: str) -> int:
     except SurveyError as exc:
         raise _InputError(str(exc)) from None
 
+
+#: Exact-path throughput assumed by ``validate`` [points/s] (2 cores, see the README).
+EXACT_RATE = 2.0e6
+#: Integrator throughput assumed by ``validate`` [orbits/s] at rtol 1e-10 on 2 cores.
+INTEGRATOR_RATE = 2.0e4
+
+
+def _estimates(survey: Survey) -> tuple[int, float]:
+    """(uncompressed output bytes, estimated run time [s])."""
+    from .runner import estimate_bytes
+
+    rate = EXACT_RATE if survey.method == "exact" else INTEGRATOR_RATE
+    return estimate_bytes(survey), survey.size / rate
+
+
+def _run(args: argparse.Namespace, command: str) -> int:
+    from .progress import Progress
+    from .runner import AlreadyComplete, RunError, run_survey
+
+    source = Path(args.survey)
+    survey = _load(args.survey)
     out = Path(args.output) if args.output else Path.cwd() / (source.stem + ".nc")
     if out.is_dir():
         raise _InputError(f"output path is a directory: {out}")
-    if out.exists() and not args.overwrite:
-        raise _InputError(f"output file exists: {out} (use --overwrite to replace it)")
     if not out.parent.is_dir():
         raise _InputError(f"output directory does not exist: {out.parent}")
-
-    t0 = time.perf_counter()
+    need, _ = _estimates(survey)
+    free = shutil.disk_usage(out.parent).free
+    if need > free and not args.force:
+        raise _InputError(
+            f"the survey needs up to {_size(need)} of disk for its blocks but {out.parent} has "
+            f"{_size(free)} free ({survey.size:,} points); use --force to run anyway"
+        )
     progress = None if args.quiet else Progress(sys.stderr)
     try:
-        ds = survey.run(progress=progress)
-    except (ValueError, NotImplementedError) as exc:  # inputs engine.survey refuses
-        raise _InputError(f"{source}: {exc}") from None
-    finally:
+        stats = run_survey(
+            survey,
+            out,
+            chunk_points=args.chunk_points,
+            overwrite=args.overwrite,
+            progress=progress,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            command=command,
+        )
+    except AlreadyComplete as exc:
         if progress is not None:
             progress.close()
-    elapsed = time.perf_counter() - t0
-
-    t1 = time.perf_counter()
-    try:
-        path = write_survey(ds, out, survey, command=command, overwrite=args.overwrite)
-    except FileExistsError:  # created by someone else while the survey ran
-        raise _InputError(f"output file exists: {out} (use --overwrite to replace it)") from None
+        print(f"{PROG}: {exc}")
+        return 0
+    except RunError as exc:
+        raise _InputError(str(exc)) from None
+    except (ValueError, NotImplementedError) as exc:  # inputs the engine refuses
+        raise _InputError(f"{source}: {exc}") from None
     except OSError as exc:
         _error(f"cannot write {out}: {exc.strerror or exc}")
         return 1
+    finally:
+        if progress is not None:
+            progress.close()
     if not args.quiet:
-        writing = time.perf_counter() - t1
-        print_summary(ds, title=survey.title, elapsed=elapsed, writing=writing, path=path.resolve())
+        print_summary(stats, title=survey.title, method=survey.method)
     return 0
 
 
-def print_summary(
-    ds: xr.Dataset,
-    *,
-    title: str,
-    elapsed: float,
-    path: Path,
-    writing: float | None = None,
-    file: TextIO | None = None,
-) -> None:
-    """Print the grid shape, class counts and fractions, the range of each result variable
-    over its finite values, the survey's time ``elapsed`` [s] (and ``writing`` [s]) and the
-    output path."""
+def _size(n: float) -> str:
+    for unit in ("B", "kB", "MB", "GB", "TB"):
+        if n < 1000 or unit == "TB":
+            return f"{n:.3g} {unit}"
+        n /= 1000
+    return f"{n:.3g} TB"  # pragma: no cover
+
+
+def _validate(args: argparse.Namespace) -> int:
+    survey = _load(args.survey)
+    need, seconds = _estimates(survey)
+    shape = " x ".join(f"{d} {n}" for d, n in zip(DIMS, survey.shape, strict=True))
+    print(f"{args.survey}: valid")
+    print(f"  title   {survey.title}")
+    print(
+        f"  method  {survey.method}"
+        + (f" (rtol {survey.rtol:g})" if survey.method != "exact" else "")
+    )
+    print(f"  grid    {shape} = {survey.size:,} points")
+    print(
+        f"  output  about {_size(need)} uncompressed (zlib shrinks NaN-rich and class maps a lot)"
+    )
+    print(f"  time    about {seconds:.3g} s on 2 cores")
+    return 0
+
+
+def _info(args: argparse.Namespace) -> int:
+    from .runner import RunError, read_info
+
+    path = Path(args.file)
+    try:
+        info = read_info(path)
+    except RunError as exc:
+        raise _InputError(str(exc)) from None
+    attrs = info.get("attrs", {})
+    print(f"{path}")
+    state = "complete" if info.get("complete") else "unfinished"
+    if "blocks_done" in info:
+        state += f" ({info['blocks_done']}/{info['blocks_total']} blocks stored; rerun to resume)"
+    print(f"  state       {state}")
+    dims = info.get("dims", {})
+    print("  grid        " + " x ".join(f"{d} {n}" for d, n in dims.items()))
+    for key in ("title", "source", "method", "history", "survey_fingerprint", "engine"):
+        if key in attrs:
+            text = str(attrs[key]).replace("\n", "\n              ")
+            print(f"  {key:<12}{text}")
+    if "counts" in info:
+        total = max(1, sum(info["counts"].values()))
+        print("  classes")
+        for name, n in info["counts"].items():
+            print(f"    {name:<12}{n:>14,}{n / total:>10.4f}")
+    definition = attrs.get("survey_definition")
+    if definition:
+        print("  survey definition:")
+        for line in str(definition).splitlines():
+            print(f"    {line}")
+    return 0
+
+
+def print_summary(stats: RunStats, *, title: str, method: str, file: TextIO | None = None) -> None:
+    """Print the grid, class counts and fractions, the range of each result variable over its
+    finite values, the time taken and the output path."""
     from .kernels.physics import CLASS_NAMES
 
     out = sys.stdout if file is None else file
-    dims = ("alpha", "energy", "h", "Lz")
-    shape = " x ".join(f"{d} {ds.sizes[d]}" for d in dims if d in ds.sizes)
-    total = math.prod(ds.sizes[d] for d in dims if d in ds.sizes)
-    lines = [
-        title,
-        f"  grid    {shape} = {total:,} points",
-        f"  method  {ds.attrs.get('method', '?')}",
-    ]
-    if "orbit_class" in ds:
-        counts = np.bincount(ds["orbit_class"].values.ravel(), minlength=len(CLASS_NAMES))
-        lines.append("")
-        lines.append(f"  {'class':<12}{'count':>12}{'fraction':>10}")
-        for name, n in zip(CLASS_NAMES, counts, strict=False):
-            lines.append(f"  {name:<12}{n:>12,}{n / max(total, 1):>10.4f}")
+    total = stats.points
+    shape = " x ".join(f"{d} {n}" for d, n in zip(DIMS, stats.shape, strict=True))
+    lines = [title, f"  grid    {shape} = {total:,} points", f"  method  {method}", ""]
+    lines.append(f"  {'class':<12}{'count':>12}{'fraction':>10}")
+    for name, n in zip(CLASS_NAMES, stats.counts, strict=True):
+        lines.append(f"  {name:<12}{n:>12,}{n / max(total, 1):>10.4f}")
     lines.append("")
     lines.append(f"  {'variable':<16}{'min':>13}{'max':>13}  units  (finite values)")
-    for name, var in ds.data_vars.items():
-        if name == "orbit_class" or var.dtype.kind != "f":
-            continue
-        values = var.values
-        finite = values[np.isfinite(values)]
-        units = var.attrs.get("units", "")
-        if finite.size:
-            lo, hi = f"{finite.min():.6g}", f"{finite.max():.6g}"
-        else:
-            lo = hi = "-"
-        lines.append(f"  {name:<16}{lo:>13}{hi:>13}  {units}")
-    rate = total / elapsed if elapsed > 0 else float("nan")
+    for name, (lo, hi, units) in stats.ranges.items():
+        lines.append(f"  {name:<16}{lo:>13.6g}{hi:>13.6g}  {units}")
     lines.append("")
-    wrote = f" + {writing:.2f} s writing" if writing is not None else ""
-    lines.append(f"  time    {elapsed:.2f} s survey ({rate:,.0f} points/s){wrote}")
-    lines.append(f"  output  {path}")
+    rate = total / stats.compute_seconds if stats.compute_seconds > 0 else float("nan")
+    reused = (
+        f", {stats.blocks_reused} of {stats.blocks_total} blocks from an earlier run"
+        if stats.blocks_reused
+        else ""
+    )
+    lines.append(
+        f"  time    {stats.compute_seconds:.2f} s computing ({rate:,.0f} points/s{reused}) "
+        f"+ {stats.write_seconds:.2f} s writing"
+    )
+    lines.append(f"  output  {stats.path.resolve() if stats.path else '?'}")
     print("\n".join(lines), file=out)
 
 

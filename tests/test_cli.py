@@ -108,7 +108,7 @@ def test_run_default_output_and_summary(workdir, capsys):
         assert re.search(
             rf"^  {name}\s+{finite.min():.6g}\s+{finite.max():.6g}\s+{ds[name].units}$", out, re.M
         ), name
-    assert re.search(r"^  time\s+\d+\.\d\d s survey", out, re.M)
+    assert re.search(r"^  time\s+\d+\.\d\d s computing", out, re.M)
     assert f"output  {out_path}" in out
     assert "56/56 points" in captured.err  # final progress line (stderr is not a TTY here)
 
@@ -184,37 +184,45 @@ def test_output_path_is_a_directory_exit_2(workdir, capsys):
 
 
 def test_value_error_from_engine_exit_2(workdir, capsys, monkeypatch):
+    from engine import runner
+
     def refuse(*args, **kwargs):
         raise ValueError("method rk45 needs something")
 
-    monkeypatch.setattr(engine, "survey", refuse)
+    monkeypatch.setattr(runner, "evaluate_block", refuse)
     assert cli.main(["run", "small.toml"]) == 2
     assert "conesurvey: error: small.toml: method rk45 needs something" in capsys.readouterr().err
-    assert listing(workdir) == ["bad.toml", "small.toml"]
+    assert not (workdir / "small.nc").exists()
 
 
-def test_interrupt_exit_130_and_no_output(workdir, capsys, monkeypatch):
-    def interrupted(*args, progress=None, **kwargs):
-        progress(10, 56)
+def test_interrupt_exit_130_keeps_blocks_for_resume(workdir, capsys, monkeypatch):
+    from engine import runner
+
+    def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(engine, "survey", interrupted)
+    original = runner.evaluate_block
+    monkeypatch.setattr(runner, "evaluate_block", interrupted)
     assert cli.main(["run", "small.toml"]) == 130
     err = capsys.readouterr().err
-    assert "10/56 points" in err and "interrupted" in err
-    assert listing(workdir) == ["bad.toml", "small.toml"]
+    assert "0/56 points" in err and "interrupted" in err and "resume" in err
+    assert listing(workdir) == ["bad.toml", "small.nc.parts", "small.toml"]
+    monkeypatch.setattr(runner, "evaluate_block", original)
+    assert cli.main(["run", "small.toml", "-q"]) == 0  # resumes, then cleans up
+    assert listing(workdir) == ["bad.toml", "small.nc", "small.toml"]
 
 
 def test_write_failure_exit_1(workdir, capsys, monkeypatch):
-    from engine import output
+    from engine import runner
 
-    def full_disk(ds, path, *, overwrite=False):
+    def full_disk(*args, **kwargs):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(output, "write_netcdf", full_disk)
+    monkeypatch.setattr(runner, "_merge", full_disk)
     assert cli.main(["run", "small.toml"]) == 1
     err = capsys.readouterr().err
     assert "conesurvey: error: cannot write" in err and "No space left on device" in err
+    assert not (workdir / "small.nc").exists()
 
 
 # --- subprocess: the real entry points --------------------------------------------------------
@@ -252,10 +260,21 @@ def test_console_script_run_and_refuse_clobber(workdir):
     again = subprocess.run(
         [*exe, "run", "small.toml"], capture_output=True, text=True, env=_env(), timeout=300
     )
-    assert again.returncode == 2
-    assert "output file exists" in again.stderr
+    assert again.returncode == 0  # the same survey, already complete: nothing to do
+    assert "nothing to do" in again.stdout
+    other = workdir / "other.toml"
+    other.write_text(SURVEY.replace("CLI test", "another survey"), encoding="utf-8")
+    clash = subprocess.run(
+        [*exe, "run", "other.toml", "-o", "small.nc"],
+        capture_output=True,
+        text=True,
+        env=_env(),
+        timeout=300,
+    )
+    assert clash.returncode == 2
+    assert "output file exists" in clash.stderr
     assert (workdir / "small.nc").read_bytes() == before
-    assert listing(workdir) == ["bad.toml", "small.nc", "small.toml"]
+    assert listing(workdir) == ["bad.toml", "other.toml", "small.nc", "small.toml"]
 
 
 def test_console_script_is_registered():
