@@ -301,7 +301,7 @@ def _dask_blocks(
         n_workers = max(1, len(client.scheduler_info()["workers"]))
         spec_f = client.scatter(spec, broadcast=True)
         todo = iter(pending)
-        futures = as_completed()
+        futures = as_completed(loop=client.loop)  # not the default client's loop
         for i in todo:
             futures.add(client.submit(compute_block, spec_f, tiling, i, pure=False))
             if futures.count() >= 2 * n_workers:
