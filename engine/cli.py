@@ -265,9 +265,7 @@ def _validate(args: argparse.Namespace) -> int:
         + (f" (rtol {survey.rtol:g})" if survey.method != "exact" else "")
     )
     print(f"  grid    {shape} = {survey.size:,} points")
-    print(
-        f"  output  about {_size(need)} uncompressed (zlib shrinks NaN-rich and class maps a lot)"
-    )
+    print(f"  output  about {_size(need)} uncompressed (zlib shrinks it, class maps ~150x)")
     print(f"  time    about {seconds:.3g} s on 2 cores")
     return 0
 
