@@ -93,6 +93,15 @@ def build_parser() -> argparse.ArgumentParser:
         "memory grows with N, not with the grid",
     )
     run.add_argument(
+        "--complevel",
+        type=int,
+        choices=range(10),
+        default=1,
+        metavar="0-9",
+        help="zlib level of the output (default 1; 0 = uncompressed, several times faster "
+        "to write, ~1.7x larger)",
+    )
+    run.add_argument(
         "--force",
         action="store_true",
         help="run even if the estimated output does not fit on the disk",
@@ -225,6 +234,7 @@ def _run(args: argparse.Namespace, command: str) -> int:
             scheduler=args.scheduler,
             workers=args.workers,
             command=command,
+            complevel=args.complevel,
         )
     except AlreadyComplete as exc:
         if progress is not None:

@@ -248,3 +248,17 @@ def test_peak_memory_is_bounded_by_the_block_not_the_grid(tmp_path):
     small = _peak_rss_mb(tmp_path, SMALL, "small")
     large = _peak_rss_mb(tmp_path, SURVEY, "large")
     assert large - small < 40, (small, large)
+
+
+def test_complevel_changes_storage_not_values(tmp_path):
+    import netCDF4
+
+    s = parse_survey(SMALL)
+    run_survey(s, tmp_path / "z1.nc")
+    run_survey(s, tmp_path / "z0.nc", complevel=0)
+    with netCDF4.Dataset(tmp_path / "z1.nc") as a, netCDF4.Dataset(tmp_path / "z0.nc") as b:
+        assert a["period"].filters()["zlib"] and a["period"].filters()["complevel"] == 1
+        assert not b["period"].filters()["zlib"]
+    _same_content(tmp_path / "z1.nc", tmp_path / "z0.nc")
+    with pytest.raises(RunError, match="complevel"):
+        run_survey(s, tmp_path / "bad.nc", complevel=12)
