@@ -278,6 +278,10 @@ def _dask_blocks(
         raise RunError(
             "the dask backend needs dask.distributed: pip install 'conesurvey[dask]'"
         ) from None
+    # distributed's Nanny writes its pre-spawn environment (NUMBA_NUM_THREADS, OMP_NUM_THREADS,
+    # ...) into this process's os.environ; numba re-reads it and refuses a thread count that
+    # differs from its running pool. Restore the environment when the cluster is gone.
+    saved_env = dict(os.environ)
     cluster = None
     if scheduler is None:
         n = int(workers or 1)
@@ -317,6 +321,8 @@ def _dask_blocks(
         client.close()
         if cluster is not None:
             cluster.close()
+        os.environ.clear()
+        os.environ.update(saved_env)
 
 
 # --- merging into netCDF ----------------------------------------------------------------

@@ -45,6 +45,16 @@ def _values(path):
         return {k: v.values.copy() for k, v in ds.variables.items()}
 
 
+@pytest.fixture(autouse=True)
+def _keep_environment():
+    """A LocalCluster's nannies write NUMBA_NUM_THREADS=1 etc. into os.environ (distributed
+    Nanny.start); numba in this process must not see that after the test."""
+    saved = dict(os.environ)
+    yield
+    os.environ.clear()
+    os.environ.update(saved)
+
+
 @pytest.fixture(scope="module")
 def local_result(tmp_path_factory):
     out = tmp_path_factory.mktemp("local") / "local.nc"
@@ -91,7 +101,9 @@ def test_existing_cluster_with_a_worker_killed_mid_run(tmp_path, local_result):
 
 def test_local_cluster_started_by_workers_flag(tmp_path, local_result):
     out = tmp_path / "workers.nc"
+    before = dict(os.environ)
     run_survey(parse_survey(SURVEY), out, chunk_points=CHUNK, workers=2)
+    assert dict(os.environ) == before  # the runner restores what the nannies changed
     got = _values(out)
     for name, arr in local_result.items():
         np.testing.assert_array_equal(got[name], arr, err_msg=name)
