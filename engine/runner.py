@@ -337,6 +337,7 @@ class RunStats:
     ranges: dict[str, tuple[float, float, str]]
     compute_seconds: float = 0.0
     write_seconds: float = 0.0
+    compile_seconds: float = 0.0
     blocks_total: int = 0
     blocks_reused: int = 0
     path: Path | None = None
@@ -556,12 +557,13 @@ def run_survey(
     if progress is not None:
         progress(points_done, tiling.size)
     spec = block_spec(survey)
+    # Compile (or load from numba's cache) before timing, on one point of the grid; this also
+    # warms the cache before dask workers start (concurrent first compiles race, numba#4807).
+    tc = time.perf_counter()
+    if pending:
+        evaluate_block(spec, tuple(slice(0, 1) for _ in DIMS))
     t0 = time.perf_counter()
     if scheduler is not None or workers is not None:
-        # warm numba's cache in this process first: concurrent first compiles race (numba#4807)
-        from .api import evaluate
-
-        evaluate(0.5, 1.0, 1.0, 1.0, survey.scene, survey.method)
         blocks = _dask_blocks(spec, tiling, pending, scheduler, workers)
     else:
         blocks = _local_blocks(spec, tiling, pending)
@@ -576,6 +578,7 @@ def run_survey(
     stats = _merge(store, survey, out, fp, command, overwrite, complevel)
     shutil.rmtree(store.root, ignore_errors=True)
     stats.compute_seconds = t1 - t0
+    stats.compile_seconds = t0 - tc
     stats.write_seconds = time.perf_counter() - t1
     stats.blocks_total = tiling.nblocks
     stats.blocks_reused = len(done)
