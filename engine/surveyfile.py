@@ -34,7 +34,8 @@ A survey evaluates every point of the grid alpha x energy x h x Lz. Example::
 
 Each of the four axes is required and is given either as ``values = [...]`` (a non-empty list
 of distinct finite numbers, in the order they should appear) or as a range: ``start``, ``stop``
-(both included) and ``num`` (a positive integer; ``num = 1`` needs ``start == stop``), with
+(both included) and ``num`` (a positive integer, at most ``MAX_AXIS_POINTS``; ``num = 1`` needs
+``start == stop``, and the points must be distinct doubles), with
 ``scale = "linear"`` (the default) or ``"log"`` (geometric spacing; start and stop > 0).
 ``relative_to = "V_min"`` is allowed on the energy axis only.
 
@@ -46,6 +47,7 @@ the offending value; unknown keys come with a did-you-mean suggestion.
 from __future__ import annotations
 
 import dataclasses
+import datetime
 import difflib
 import math
 import os
@@ -81,6 +83,8 @@ SCALES = ("linear", "log")
 DEFAULT_METHOD = "exact"
 DEFAULT_RTOL = 1e-10
 DEFAULT_CIRCULAR_TOL = 1e-12
+#: Largest ``num`` of a range axis (the axes are held in memory: 8 bytes a point).
+MAX_AXIS_POINTS = 10**8
 
 _TOP_KEYS = ("title", "method", "rtol", "circular_tol", "scene", "axes")
 _RANGE_KEYS = ("start", "stop", "num", "scale")
@@ -185,14 +189,20 @@ def parse_survey(text: str, *, origin: str = "<string>") -> Survey:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SurveyError(origin, "", f"malformed TOML: {exc}") from None
+    except RecursionError:  # tomllib recurses once per level of nested arrays/inline tables
+        raise SurveyError(
+            origin, "", "malformed TOML: arrays or tables nested too deeply"
+        ) from None
     return _Reader(origin).survey(doc, text)
 
 
 # --- validation -----------------------------------------------------------------------------
 
 
-def _toml_repr(value: Any) -> str:
+def _toml_repr(value: Any, depth: int = 0) -> str:
     """A value as it would be written in TOML (for error messages)."""
+    if depth > 8 and isinstance(value, list | dict):
+        return "[...]" if isinstance(value, list) else "{...}"
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, float):
@@ -203,9 +213,11 @@ def _toml_repr(value: Any) -> str:
     if isinstance(value, str):
         return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
     if isinstance(value, list):
-        return "[" + ", ".join(_toml_repr(v) for v in value) + "]"
+        return "[" + ", ".join(_toml_repr(v, depth + 1) for v in value) + "]"
     if isinstance(value, dict):
-        return "{" + ", ".join(f"{k} = {_toml_repr(v)}" for k, v in value.items()) + "}"
+        return "{" + ", ".join(f"{k} = {_toml_repr(v, depth + 1)}" for k, v in value.items()) + "}"
+    if isinstance(value, datetime.date | datetime.time):  # datetime is a date
+        return value.isoformat()
     return repr(value) if not isinstance(value, int | float) else str(value)
 
 
@@ -263,7 +275,9 @@ class _Reader:
             return None
         value = parent[key]
         if not isinstance(value, dict):
-            raise self.fail(_join(path, key), f"must be a table, got {_toml_type(value)}")
+            raise self.fail(
+                _join(path, key), f"must be a table, got {_toml_type(value)} {_toml_repr(value)}"
+            )
         return value
 
     def check_keys(self, table: dict, allowed: tuple[str, ...], path: str) -> None:
@@ -275,7 +289,10 @@ class _Reader:
     def number(self, value: Any, key: str) -> float:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise self.fail(key, f"must be a number, got {_toml_type(value)} {_toml_repr(value)}")
-        x = float(value)
+        try:
+            x = float(value)
+        except OverflowError:  # a TOML integer beyond the range of a double
+            raise self.bad_value(key, value, "must be finite (|x| < 1.8e308)") from None
         if not math.isfinite(x):
             raise self.bad_value(key, value, "must be finite")
         return x
@@ -386,6 +403,8 @@ class _Reader:
         num = table["num"]
         if isinstance(num, bool) or not isinstance(num, int) or num < 1:
             raise self.bad_value(f"{path}.num", num, "must be a positive integer")
+        if num > MAX_AXIS_POINTS:
+            raise self.bad_value(f"{path}.num", num, f"must be <= {MAX_AXIS_POINTS:.0e} per axis")
         scale = self.choice(table.get("scale", "linear"), f"{path}.scale", SCALES)
         if name == "alpha":
             self.check_alpha(start, f"{path}.start", table["start"])
@@ -402,10 +421,21 @@ class _Reader:
                     raise self.bad_value(
                         f"{path}.{key}", table[key], 'must be > 0 with scale = "log"'
                     )
-            grid = np.geomspace(start, stop, num)
+            with np.errstate(over="ignore"):  # 10**log10(stop) may round above DBL_MAX
+                grid = np.geomspace(start, stop, num)
         else:
-            grid = np.linspace(start, stop, num)
+            with np.errstate(over="ignore", invalid="ignore"):
+                grid = np.linspace(start, stop, num)
+            if not np.isfinite(grid).all():  # stop - start overflowed: halve, exactly
+                grid = np.linspace(0.5 * start, 0.5 * stop, num) * 2.0
         grid[0], grid[-1] = start, stop  # exact end points (geomspace rounds them)
+        steps = np.diff(grid)
+        if not ((steps > 0.0).all() or (steps < 0.0).all()):
+            raise self.bad_value(
+                f"{path}.num",
+                num,
+                "is more points than there are distinct doubles between start and stop",
+            )
         return _frozen(grid)
 
     def values(self, value: Any, key: str) -> np.ndarray:

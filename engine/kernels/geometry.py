@@ -60,6 +60,8 @@ def mu_required(r1, r2, alpha, h, Lz, M, g, k):
     q0 = g * s
     q3 = cot * q * q
     kk = k / (1.0 + k)
+    if kk == 0.0:
+        return 0.0  # a point particle needs no friction (and 0 * inf would be NaN)
     best = 0.0
     # Endpoints, then the interior critical point.
     for i in range(3):

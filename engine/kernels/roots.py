@@ -86,6 +86,28 @@ def _newton_step(target, rc, irc2, A, C, lo, hi, r):
 
 
 @kernel
+def _polish(r, energy, A, B, C, noise_c, lo, hi):
+    """Newton on energy - V(r) from r, kept inside (lo, hi), if V at r is evaluated with less
+    rounding (|A|/r^2 + |B|/r + C r + |energy|) than the excess over V_min (``noise_c``)."""
+    ir = 1.0 / r
+    if A * ir * ir + abs(B) * ir + C * r + abs(energy) >= noise_c:
+        return r
+    for _ in range(_MAX_NEWTON):
+        ir = 1.0 / r
+        f = energy - (A * ir * ir + B * ir + C * r)
+        fp = 2.0 * A * ir * ir * ir + B * ir * ir - C
+        if fp == 0.0:
+            return r
+        rn = r - f / fp
+        if not (lo < rn < hi):
+            return r
+        if abs(rn - r) <= 2.0 * _EPS * rn:
+            return rn
+        r = rn
+    return r
+
+
+@kernel
 def turning_points(energy, A, B, C, rc):
     """Inner and outer turning points (r1, r2) [m] of a bounded orbit, energy > V(rc).
 
@@ -123,6 +145,12 @@ def turning_points(energy, A, B, C, rc):
             r2, lo2, hi2, done2 = _newton_step(s, rc, irc2, A, C, lo2, hi2, r2)
         if done1 and done2:
             break
+    # The excess energy - V_min carries a rounding error of eps |V_min| (plus the terms of V at
+    # r_c); where V is evaluated more accurately at the root itself (a deep narrow well:
+    # |V_min| >> |V(r)|), polish on energy - V(r) directly.
+    noise_c = abs(energy) + A / (rc * rc) + abs(B) / rc + C * rc
+    r1 = _polish(r1, energy, A, B, C, noise_c, 0.0, rc)
+    r2 = _polish(r2, energy, A, B, C, noise_c, rc, math.inf)
     return r1, r2
 
 
