@@ -107,3 +107,9 @@ def test_minimum_energy_is_the_potential_minimum():
 def test_radial_energy_conversion():
     s = engine.Scene(M=2.0, k=0.4)
     assert engine.radial_energy(14.0, 1.0, s) == pytest.approx(14.0 / 1.4 - 0.4 / 2.8 * 2.0)
+
+
+def test_simulate_is_the_function_even_after_importing_its_module():
+    import engine.simulate  # noqa: F401  (binds the submodule on first import)
+
+    assert callable(engine.simulate) and engine.simulate.__name__ == "simulate"
