@@ -11,9 +11,10 @@ from numba import literally
 
 from . import __version__
 from ._jit import kernel
-from .integrated import check_method, check_rtol, scene_params
+from .integrated import call_specialized, check_method, check_rtol, scene_params
 from .kernels.geometry import CIRCULAR_TOL, orbit_point
 from .kernels.integrators import (
+    BUFFER_FULL,
     EVENT_NAMES,
     OK,
     RECORD_EVERY_DT,
@@ -40,20 +41,22 @@ DEFAULT_MAX_STEPS = 100_000_000
 
 
 @kernel
-def solve_rk(method, effects, y0, p, rtol, atol, t_end, n_apsides, max_steps, record, dt_out):
+def solve_rk(method, effects, y0, p, rtol, atol, t_end, n_apsides, max_steps, record, dt_out,
+             ev_t, ev_kind, ev_y, tr_t, tr_y, tr_rate):  # fmt: skip
     """:func:`engine.kernels.integrators.rk_run` compiled for a literal method and effect set."""
     literally(method)
     literally(effects)
-    return rk_run(method, effects, y0, p, rtol, atol, t_end, n_apsides, max_steps, record, dt_out)
+    return rk_run(method, effects, y0, p, rtol, atol, t_end, n_apsides, max_steps, record, dt_out,
+                  ev_t, ev_kind, ev_y, tr_t, tr_y, tr_rate)  # fmt: skip
 
 
 @kernel
 def solve_symplectic(effects, z0, p, energy, h, Lz, order, rtol, t_end, n_apsides, max_steps,
-                     record, dt_out):  # fmt: skip
+                     record, dt_out, ev_t, ev_kind, ev_y, tr_t, tr_y):  # fmt: skip
     """:func:`engine.kernels.symplectic.sym_run` compiled for a literal effect set."""
     literally(effects)
     return sym_run(effects, z0, p, energy, h, Lz, order, rtol, t_end, n_apsides, max_steps,
-                   record, dt_out)  # fmt: skip
+                   record, dt_out, ev_t, ev_kind, ev_y, tr_t, tr_y)  # fmt: skip
 
 
 def _real(name: str, value: Any) -> float:
@@ -68,6 +71,23 @@ def _real(name: str, value: Any) -> float:
 
 def _attrs(units: str, long_name: str, **extra: Any) -> dict[str, Any]:
     return {"units": units, "long_name": long_name, **extra}
+
+
+def _capacities(alpha, energy, h, Lz, scene, t_end, periods, dt_out) -> tuple[int, int]:
+    """First guess of the event and trajectory buffer sizes (grown on demand)."""
+    T = float(orbit_point(alpha, energy, h, Lz, scene.M, scene.g, scene.k, math.inf,
+                          CIRCULAR_TOL)[4])  # fmt: skip
+    if periods is not None:
+        cap_ev = 2 * int(periods) + 2
+        span = 1.05 * periods * T
+    else:
+        cap_ev = int(2 * t_end / T) + 4 if math.isfinite(T) and T > 0 else 64
+        span = t_end
+    if dt_out is not None and math.isfinite(span):
+        cap_tr = min(int(span / dt_out) + 3, 1 << 24)
+    else:
+        cap_tr = 4096
+    return cap_ev, cap_tr
 
 
 def _start_radius(alpha, energy, h, Lz, scene, p, periods):
@@ -182,17 +202,66 @@ def simulate(
     y0[2] = 0.0  # r0 is a turning point
     record = RECORD_STEPS if dt_out is None else RECORD_EVERY_DT
     t_stop = math.inf if t_end is None else t_end
-    if mid == SYMPLECTIC:
-        z0 = initial_z(p, r0, 0.0, energy, h, Lz)
-        res = solve_symplectic(effects, z0, p, energy, h, Lz, DEFAULT_ORDER, rtol, t_stop, n_apsides,
-                               int(max_steps), record, dt_out or 0.0)  # fmt: skip
-    else:
+    n = y0.shape[0]
+    cap_ev, cap_tr = _capacities(alpha, energy, h, Lz, scene, t_end, periods, dt_out)
+    if mid != SYMPLECTIC:
         atol = rtol * tolerance_scales(p, effects, y0, energy, h, Lz, r1, r2, rc)
-        res = solve_rk(mid, effects, y0, p, rtol, atol, t_stop, n_apsides, int(max_steps),
-                       record, dt_out or 0.0)  # fmt: skip
-    status, n_acc, n_rej, t_final = int(res[0]), int(res[1]), int(res[2]), float(res[3])
-    ev_t, ev_kind, ev_y, n_ev = res[5], res[6], res[7], int(res[8])
-    tr_t, tr_y, tr_rate, n_tr = res[9], res[10], res[11], int(res[12])
+    while True:  # integration is deterministic: a run that ran out of room is redone larger
+        ev_t, ev_kind, ev_y = np.empty(cap_ev), np.empty(cap_ev, np.int8), np.empty((cap_ev, n))
+        tr_t, tr_y = np.empty(cap_tr), np.empty((cap_tr, n))
+        tr_rate = np.empty((cap_tr if effects & ATTITUDE else 0, n))
+        if mid == SYMPLECTIC:
+            z0 = initial_z(p, r0, 0.0, energy, h, Lz)
+            args = (
+                effects,
+                z0,
+                p,
+                energy,
+                h,
+                Lz,
+                DEFAULT_ORDER,
+                rtol,
+                t_stop,
+                n_apsides,
+                int(max_steps),
+                record,
+                dt_out or 0.0,
+                ev_t,
+                ev_kind,
+                ev_y,
+                tr_t,
+                tr_y,
+            )
+            res = call_specialized(solve_symplectic, args, (0,))
+        else:
+            args = (
+                mid,
+                effects,
+                y0,
+                p,
+                rtol,
+                atol,
+                t_stop,
+                n_apsides,
+                int(max_steps),
+                record,
+                dt_out or 0.0,
+                ev_t,
+                ev_kind,
+                ev_y,
+                tr_t,
+                tr_y,
+                tr_rate,
+            )
+            res = call_specialized(solve_rk, args, (0, 1))
+        status, n_acc, n_rej, t_final = int(res[0]), int(res[1]), int(res[2]), float(res[3])
+        n_ev, n_tr = int(res[5]), int(res[6])
+        if status != BUFFER_FULL:
+            break
+        if n_ev == cap_ev:
+            cap_ev *= 4
+        if n_tr == cap_tr:
+            cap_tr *= 4
     if status not in (OK, SPILLED, SLIPPED):
         raise RuntimeError(
             f"simulate({method!r}) failed at t={t_final:.17g} s after {n_acc} steps: "
@@ -200,8 +269,7 @@ def simulate(
         )
     return _dataset(
         scene, effects, p, method, rtol, alpha, energy, h, Lz, cls_name, y0, status, n_acc, n_rej,
-        tr_t[:n_tr].copy(), tr_y[:n_tr].copy(), tr_rate[:n_tr].copy(),
-        ev_t[:n_ev].copy(), ev_kind[:n_ev].copy(), ev_y[:n_ev].copy(),
+        tr_t[:n_tr], tr_y[:n_tr], tr_rate[:n_tr], ev_t[:n_ev], ev_kind[:n_ev], ev_y[:n_ev],
     )  # fmt: skip
 
 
