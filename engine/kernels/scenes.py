@@ -1,0 +1,292 @@
+"""Right-hand sides, event functions and diagnostics per scene, with the effects compiled in or out.
+
+A scene's structure is an ``effects`` bit mask (:data:`ROLLING_RESISTANCE`, :data:`RIM`,
+:data:`SLIP_CHECK`, :data:`ATTITUDE`) that reaches every kernel as a numba *literal* integer
+(the entry points call ``numba.literally(effects)``), so each effect set is its own compiled,
+disk-cached specialisation and an effect that is off costs no branch, no state and no time: the
+tests ``effects & FLAG`` fold to constants and LLVM drops the dead code. Gravity (g = 0 is free
+fall) and the spin coupling (k = 0) are runtime parameters. All physical parameters travel in
+one float64 array (layout ``P_*`` below, built by :func:`make_params`), so sweeping a grid never
+recompiles.
+
+State y (length :func:`state_size`): r [m], theta [rad], u = rdot [m/s], v = r sin(alpha)
+thetadot [m/s], w = a omega_nu [m/s]; with :data:`ATTITUDE` also the unit quaternion
+(q0, q1, q2, q3) (scalar first) rotating body axes to the fixed frame (identity at t = 0).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._jit import kernel
+
+# Effect bits (combine with |). Gravity and spin coupling are parameters, not effects.
+ROLLING_RESISTANCE = 1
+RIM = 2
+SLIP_CHECK = 4
+ATTITUDE = 8
+ALL_EFFECTS = ROLLING_RESISTANCE | RIM | SLIP_CHECK | ATTITUDE
+EFFECT_BITS = {
+    "rolling_resistance": ROLLING_RESISTANCE,
+    "rim": RIM,
+    "slip_check": SLIP_CHECK,
+    "attitude": ATTITUDE,
+}
+
+# Parameter array layout.
+P_ALPHA = 0  # half-aperture [rad]
+P_SIN = 1  # sin(alpha)
+P_COS = 2  # cos(alpha)
+P_COT = 3  # cot(alpha)
+P_M = 4  # mass [kg]
+P_G = 5  # gravity [m s-2]
+P_K = 6  # inertia factor I/(M a^2)
+P_KK = 7  # k / (1 + k)
+P_GC = 8  # g cos(alpha) / (1 + k) [m s-2]
+P_RADIUS = 9  # sphere radius a [m]
+P_RIM = 10  # rim slant length [m] (inf: none)
+P_MU = 11  # friction coefficient (inf: no slip check)
+P_CRR = 12  # rolling-resistance coefficient
+P_INV_M1K = 13  # 1 / (M (1 + k)) [kg-1]
+N_PARAMS = 14
+
+N_BASE = 5
+N_ATTITUDE = 9
+
+
+def effects_mask(effects: tuple[str, ...]) -> int:
+    """Bit mask of a :attr:`engine.scene.Scene.effects` tuple."""
+    mask = 0
+    for name in effects:
+        mask |= EFFECT_BITS[name]
+    return mask
+
+
+@kernel
+def make_params(alpha, M, g, k, a, rim, mu, c_rr):
+    """The float64 parameter array (``P_*`` layout) of a scene on a cone of half-aperture alpha."""
+    p = np.empty(N_PARAMS)
+    s = math.sin(alpha)
+    c = math.cos(alpha)
+    p[P_ALPHA] = alpha
+    p[P_SIN] = s
+    p[P_COS] = c
+    p[P_COT] = c / s
+    p[P_M] = M
+    p[P_G] = g
+    p[P_K] = k
+    p[P_KK] = k / (1.0 + k)
+    p[P_GC] = g * c / (1.0 + k)
+    p[P_RADIUS] = a
+    p[P_RIM] = rim
+    p[P_MU] = mu
+    p[P_CRR] = c_rr
+    p[P_INV_M1K] = 1.0 / (M * (1.0 + k))
+    return p
+
+
+@kernel
+def param_tuple(p):
+    """The parameter array as a tuple: the hot loops index it with constants and keep the values
+    in registers (an array is re-read after every store that might alias it)."""
+    return (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p[12],
+            p[13])  # fmt: skip
+
+
+@kernel
+def set_alpha(p, alpha):
+    """Update the alpha-dependent entries of ``p`` in place (for batch kernels over alpha)."""
+    s = math.sin(alpha)
+    c = math.cos(alpha)
+    p[P_ALPHA] = alpha
+    p[P_SIN] = s
+    p[P_COS] = c
+    p[P_COT] = c / s
+    p[P_GC] = p[P_G] * c / (1.0 + p[P_K])
+
+
+@kernel
+def state_size(effects):
+    """Length of the state vector of an effect set: 5, or 9 with the attitude quaternion."""
+    if effects & ATTITUDE:
+        return N_ATTITUDE
+    return N_BASE
+
+
+@kernel
+def motion_rates(r, u, v, w, p, effects):
+    """(rdot, thetadot, udot, vdot, wdot) of the centre (physics.md "Equations of motion";
+    rolling resistance from "Effects beyond the paper" when compiled in)."""
+    ir = 1.0 / r
+    kappa = p[P_COT] * ir
+    vir = v * ir
+    udot = v * vir + p[P_KK] * kappa * v * w - p[P_GC]
+    vdot = -u * vir
+    if effects & ROLLING_RESISTANCE:
+        # A force c_rr N opposing the CM velocity (u, v).
+        speed = math.sqrt(u * u + v * v)
+        if speed > 0.0:
+            N = p[P_M] * (p[P_G] * p[P_SIN] + v * vir * p[P_COT])
+            f = p[P_CRR] * N * p[P_INV_M1K] / speed
+            udot -= f * u
+            vdot -= f * v
+    return u, vir / p[P_SIN], udot, vdot, -kappa * u * v
+
+
+@kernel
+def omega_fixed(theta, u, v, w, p):
+    """Angular velocity (wx, wy, wz) [rad/s] in the fixed frame: (-v/a) e1 + (u/a) e2 + (w/a) nu."""
+    s = p[P_SIN]
+    c = p[P_COS]
+    cth = math.cos(theta)
+    sth = math.sin(theta)
+    ia = 1.0 / p[P_RADIUS]
+    o1 = -v * ia
+    o2 = u * ia
+    o3 = w * ia
+    # e1 = (s cth, s sth, c), e2 = (-sth, cth, 0), nu = (-c cth, -c sth, s)
+    wx = o1 * s * cth - o2 * sth - o3 * c * cth
+    wy = o1 * s * sth + o2 * cth - o3 * c * sth
+    wz = o1 * c + o3 * s
+    return wx, wy, wz
+
+
+@kernel
+def quaternion_rate(theta, u, v, w, q0, q1, q2, q3, p):
+    """qdot = 1/2 (0, omega) * q: q maps body axes to the fixed frame, omega in the fixed frame."""
+    wx, wy, wz = omega_fixed(theta, u, v, w, p)
+    return (
+        0.5 * (-wx * q1 - wy * q2 - wz * q3),
+        0.5 * (wx * q0 + wy * q3 - wz * q2),
+        0.5 * (wy * q0 + wz * q1 - wx * q3),
+        0.5 * (wz * q0 + wx * q2 - wy * q1),
+    )
+
+
+@kernel
+def rates5(y0, y1, y2, y3, y4, p, effects):
+    """dy/dt of a 5-component state given as scalars (a tuple)."""
+    return motion_rates(y0, y2, y3, y4, p, effects)
+
+
+@kernel
+def rates9(y0, y1, y2, y3, y4, y5, y6, y7, y8, p, effects):
+    """dy/dt of a 9-component state (with the attitude quaternion) given as scalars."""
+    a, b, c, d, e = motion_rates(y0, y2, y3, y4, p, effects)
+    q0, q1, q2, q3 = quaternion_rate(y1, y2, y3, y4, y5, y6, y7, y8, p)
+    return a, b, c, d, e, q0, q1, q2, q3
+
+
+@kernel
+def rhs(y, p, effects, out, row):
+    """dy/dt of the scene ``effects`` into the row ``row`` of the 2-D array ``out``."""
+    a, b, c, d, e = motion_rates(y[0], y[2], y[3], y[4], p, effects)
+    out[row, 0] = a
+    out[row, 1] = b
+    out[row, 2] = c
+    out[row, 3] = d
+    out[row, 4] = e
+    if effects & ATTITUDE:
+        q0, q1, q2, q3 = quaternion_rate(y[1], y[2], y[3], y[4], y[5], y[6], y[7], y[8], p)
+        out[row, 5] = q0
+        out[row, 6] = q1
+        out[row, 7] = q2
+        out[row, 8] = q3
+
+
+@kernel
+def forces(y, p):
+    """(F [N], N [N]): friction along e1 needed to roll, and the normal force."""
+    r = y[0]
+    v = y[3]
+    w = y[4]
+    kappa = p[P_COT] / r
+    M = p[P_M]
+    N = M * (p[P_G] * p[P_SIN] + v * v * kappa)
+    F = p[P_KK] * M * (p[P_G] * p[P_COS] + kappa * v * w)
+    return F, N
+
+
+@kernel
+def slip_margin(y, p):
+    """Event function of the slip check: |F| - mu N [N] (> 0: the sphere slips)."""
+    F, N = forces(y, p)
+    return abs(F) - p[P_MU] * N
+
+
+@kernel
+def rim_margin(y, p):
+    """Event function of the rim: r - rim [m] (> 0: the sphere has left the cone)."""
+    return y[0] - p[P_RIM]
+
+
+@kernel
+def invariants(y, p):
+    """(E [J], L_z [kg m^2/s], h [m/s]) of a state (physics.md "Invariants")."""
+    r = y[0]
+    u = y[2]
+    v = y[3]
+    w = y[4]
+    M = p[P_M]
+    k = p[P_K]
+    s = p[P_SIN]
+    Lz = M * r * v * s
+    h = w - Lz * p[P_COS] / (M * r * s * s)
+    E = 0.5 * (1.0 + k) * M * (u * u + v * v) + 0.5 * k * M * w * w + M * p[P_G] * r * p[P_COS]
+    return E, Lz, h
+
+
+@kernel
+def kinetic_energy(y, p):
+    """Kinetic energy [J] of translation and rotation."""
+    M = p[P_M]
+    k = p[P_K]
+    u = y[2]
+    v = y[3]
+    w = y[4]
+    return 0.5 * (1.0 + k) * M * (u * u + v * v) + 0.5 * k * M * w * w
+
+
+@kernel
+def contact_velocity(y, ydot, p):
+    """Velocity [m/s] (fixed frame) of the material point of the sphere at the contact.
+
+    R_dot + omega x (-a nu), with R_dot from (rdot, thetadot) = ydot[0:2] and omega recovered from
+    the attitude, omega = 2 qdot q* / |q|^2 with qdot = ydot[5:9]: zero for rolling without slip,
+    so it checks the frame, the rolling constraint and the quaternion's kinematics together.
+    """
+    s = p[P_SIN]
+    c = p[P_COS]
+    a = p[P_RADIUS]
+    r = y[0]
+    cth = math.cos(y[1])
+    sth = math.sin(y[1])
+    rd = ydot[0]
+    vt = r * s * ydot[1]
+    # R_dot = rdot e1 + r s thetadot e2
+    Rx = rd * s * cth - vt * sth
+    Ry = rd * s * sth + vt * cth
+    Rz = rd * c
+    q0 = y[5]
+    q1 = y[6]
+    q2 = y[7]
+    q3 = y[8]
+    d0 = ydot[5]
+    d1 = ydot[6]
+    d2 = ydot[7]
+    d3 = ydot[8]
+    n2 = q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3
+    # vector part of 2 qdot * conj(q)
+    wx = 2.0 * (-d0 * q1 + d1 * q0 - d2 * q3 + d3 * q2) / n2
+    wy = 2.0 * (-d0 * q2 + d1 * q3 + d2 * q0 - d3 * q1) / n2
+    wz = 2.0 * (-d0 * q3 - d1 * q2 + d2 * q1 + d3 * q0) / n2
+    # -a nu = a (c cth, c sth, -s)
+    px = a * c * cth
+    py = a * c * sth
+    pz = -a * s
+    vx = Rx + wy * pz - wz * py
+    vy = Ry + wz * px - wx * pz
+    vz = Rz + wx * py - wy * px
+    return vx, vy, vz
