@@ -48,7 +48,10 @@ _FLOAT_ORDER = tuple(VARIABLES)  # rows of the kernel's float output
 #: Extra variables of the integrator methods: name -> (units, long_name).
 INTEGRATOR_VARIABLES: dict[str, tuple[str, str]] = {
     "n_steps": ("1", "accepted integrator steps over one radial period"),
-    "energy_drift": ("1", "relative change of the total energy E over one radial period"),
+    "energy_drift": (
+        "1",
+        "|E(T) - E(0)| / max(|E(0)|, kinetic energy at start) over one radial period",
+    ),
     "status": ("1", "integrator status code (0 = ok)"),
 }
 
@@ -160,6 +163,14 @@ def _class_attrs() -> dict[str, Any]:
 def _variable_attrs(name: str) -> dict[str, Any]:
     if name == "orbit_class":
         return _class_attrs()
+    if name == "status":
+        from .kernels.integrators import STATUS_FLAGS
+
+        return {
+            "long_name": "integrator status",
+            "flag_values": np.arange(len(STATUS_FLAGS), dtype=np.int8),
+            "flag_meanings": " ".join(STATUS_FLAGS),
+        }
     if name == "energy_absolute":
         return {"units": "J", "long_name": "radial energy calE (absolute)"}
     if name == "energy_loss":

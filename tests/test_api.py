@@ -113,3 +113,14 @@ def test_simulate_is_the_function_even_after_importing_its_module():
     import engine.simulate  # noqa: F401  (binds the submodule on first import)
 
     assert callable(engine.simulate) and engine.simulate.__name__ == "simulate"
+
+
+def test_integrator_method_outputs_and_status_flags():
+    ds = engine.evaluate(0.6, [0.5, 20.0], 1.0, 0.8, method="rk45", rtol=1e-10)
+    exact = engine.evaluate(0.6, [0.5, 20.0], 1.0, 0.8)
+    assert list(ds.orbit_class.values) == [0, 1]
+    assert ds.status.attrs["flag_values"].dtype == np.int8
+    assert ds.status.attrs["flag_meanings"].split()[0] == "ok"
+    assert ds.status.values[1] == 0 and ds.n_steps.values[1] > 0
+    assert np.isnan(ds.period.values[0])  # forbidden: not integrated
+    assert ds.apsidal_angle.values[1] == pytest.approx(exact.apsidal_angle.values[1], rel=1e-8)

@@ -117,6 +117,19 @@ STATUS_MESSAGES = (
     "output buffer full (internal: the caller retries with more room)",
 )
 
+#: CF flag_meanings of the status codes (same order as STATUS_MESSAGES).
+STATUS_FLAGS = (
+    "ok",
+    "spilled",
+    "slipped",
+    "max_steps",
+    "step_too_small",
+    "not_bounded",
+    "non_finite",
+    "unsupported_scene",
+    "buffer_full",
+)
+
 # Event kinds (int8, CF flag_values 0..3).
 PERICENTRE = 0
 APOCENTRE = 1
