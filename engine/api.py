@@ -191,6 +191,24 @@ def _global_attrs(scene: Scene, method: str, circular_tol: float, rtol: float) -
     return attrs
 
 
+def axis_attrs(name: str, energy_relative: bool = False) -> dict[str, str]:
+    """``units`` and ``long_name`` of a survey axis (the energy axis may be relative)."""
+    units, long_name = AXES[name]
+    if name == "energy" and energy_relative:
+        units = "1"
+        long_name = "energy offset from the potential minimum, (calE - V_min)/|V_min|"
+    return {"units": units, "long_name": long_name}
+
+
+def survey_attrs(
+    scene: Scene, method: str, circular_tol: float, rtol: float, energy_relative: bool
+) -> dict[str, Any]:
+    """Global attributes of a survey result (before the CF ones of :mod:`engine.output`)."""
+    attrs = _global_attrs(scene, method, circular_tol, rtol)
+    attrs["energy_axis"] = "relative to V_min" if energy_relative else "absolute"
+    return attrs
+
+
 def evaluate(
     alpha: Any,
     energy: Any,
@@ -223,11 +241,7 @@ def evaluate(
     else:
         arrays = list(np.broadcast_arrays(*[np.asarray(v, np.float64) for v in inputs.values()]))
         dims = tuple(f"dim_{i}" for i in range(arrays[0].ndim))
-    for name, arr in zip(inputs, arrays, strict=False):
-        if name == "alpha":
-            _check_array(name, arr, open_interval=(0.0, math.pi / 2))
-        else:
-            _check_array(name, arr)
+    validate_inputs(*arrays)
     shape = arrays[0].shape
     flat = [np.ascontiguousarray(a).reshape(-1) for a in arrays]
     res = evaluate_flat(*flat, scene, method, circular_tol=circular_tol, rtol=rtol)
@@ -324,11 +338,6 @@ def survey(
     data_vars = {name: (dims, col, _variable_attrs(name)) for name, col in results.items()}
     coords = {}
     for name, arr in axes.items():
-        units, long_name = AXES[name]
-        if name == "energy" and energy_relative:
-            units = "1"
-            long_name = "energy offset from the potential minimum, (calE - V_min)/|V_min|"
-        coords[name] = (name, arr, {"units": units, "long_name": long_name})
-    attrs = _global_attrs(scene, method, circular_tol, rtol)
-    attrs["energy_axis"] = "relative to V_min" if energy_relative else "absolute"
+        coords[name] = (name, arr, axis_attrs(name, energy_relative))
+    attrs = survey_attrs(scene, method, circular_tol, rtol, energy_relative)
     return xr.Dataset(data_vars, coords=coords, attrs=attrs)

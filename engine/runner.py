@@ -350,11 +350,12 @@ class RunStats:
 def _global_attrs(survey: Survey, fp: str, command: str) -> dict[str, Any]:
     import xarray as xr
 
-    from .api import _global_attrs as api_attrs
+    from .api import survey_attrs
     from .output import cf_dataset
 
-    base = api_attrs(survey.scene, survey.method, survey.circular_tol, survey.rtol)
-    base["energy_axis"] = "relative to V_min" if survey.energy_relative else "absolute"
+    base = survey_attrs(
+        survey.scene, survey.method, survey.circular_tol, survey.rtol, survey.energy_relative
+    )
     ds = cf_dataset(
         xr.Dataset(attrs=base),
         title=survey.title,
@@ -365,16 +366,6 @@ def _global_attrs(survey: Survey, fp: str, command: str) -> dict[str, Any]:
     attrs = dict(ds.attrs)
     attrs[FINGERPRINT_ATTR] = fp
     return attrs
-
-
-def _axis_attrs(name: str, survey: Survey) -> dict[str, str]:
-    from .api import AXES
-
-    units, long_name = AXES[name]
-    if name == "energy" and survey.energy_relative:
-        units = "1"
-        long_name = "energy offset from the potential minimum, (calE - V_min)/|V_min|"
-    return {"units": units, "long_name": long_name}
 
 
 def _merge(
@@ -390,7 +381,7 @@ def _merge(
     rename it to ``out``; returns the statistics gathered on the way."""
     import netCDF4
 
-    from .api import _variable_attrs
+    from .api import _variable_attrs, axis_attrs
     from .kernels.physics import CLASS_NAMES
 
     tiling = store.tiling
@@ -406,7 +397,7 @@ def _merge(
                 values = np.asarray(getattr(survey, d), np.float64)
                 nc.createDimension(d, values.size)
                 v = nc.createVariable(d, "f8", (d,), fill_value=False)
-                v.setncatts(_axis_attrs(d, survey))
+                v.setncatts(axis_attrs(d, survey.energy_relative))
                 v[:] = values
             variables = {}
             for name, dt in store.names.items():
