@@ -15,7 +15,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
-from .grid import BLOCK_POINTS, DIMS
+from .grid import BLOCK_POINTS
+from .schema import DIMS
 
 if TYPE_CHECKING:
     from .runner import RunStats
@@ -316,7 +317,7 @@ def _info(args: argparse.Namespace) -> int:
 def print_summary(stats: RunStats, *, title: str, method: str, file: TextIO | None = None) -> None:
     """Print the grid, class counts and fractions, the range of each result variable over its
     finite values, the time taken and the output path."""
-    from .kernels.physics import CLASS_NAMES
+    from .kernels.geometry import CLASS_NAMES
 
     out = sys.stdout if file is None else file
     total = stats.points

@@ -1,4 +1,4 @@
-"""Tiling of a 4-D survey grid (alpha, energy, h, Lz) into blocks, and the block computation.
+"""Tiling of a 4-D survey grid (alpha, energy, h, Lz) into blocks.
 
 A block is a rectangular hyperslab whose shape is a whole multiple of the netCDF storage
 chunk, so every block fills whole chunks: streamed writes never re-compress a chunk, and the
@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -19,7 +18,6 @@ import numpy as np
 CHUNK_TARGET = 1 << 16
 #: Default points per computed block (~0.5 s of exact-path work on 2 cores, ~70 MB of results).
 BLOCK_POINTS = 1 << 20
-DIMS = ("alpha", "energy", "h", "Lz")
 
 
 def storage_chunks(shape: tuple[int, ...], target: int = CHUNK_TARGET) -> tuple[int, ...]:
@@ -86,36 +84,3 @@ class Tiling:
 
     def __iter__(self) -> Iterator[tuple[slice, ...]]:
         return (self.slices(i) for i in range(self.nblocks))
-
-
-def evaluate_block(spec: dict[str, Any], slices: tuple[slice, ...]) -> dict[str, np.ndarray]:
-    """Results on one hyperslab of the grid, each array shaped like the slab.
-
-    ``spec``: axes ``alpha``, ``energy``, ``h``, ``Lz`` (1-D float64), ``scene`` (Scene),
-    ``method``, ``energy_relative``, ``circular_tol``, ``rtol``. With a relative energy axis the
-    absolute energy (``energy_absolute``) is V_min + offset |V_min| from the slab's own V_min;
-    where V has no minimum it is NaN and the point is classed forbidden.
-    """
-    from .api import VARIABLES, evaluate_flat, minimum_energy
-
-    sub = [np.asarray(spec[d])[s] for d, s in zip(DIMS, slices, strict=False)]
-    shape = tuple(x.size for x in sub)
-    A, E, H, L = (x.reshape(-1) for x in np.meshgrid(*sub, indexing="ij"))
-    scene = spec["scene"]
-    e_abs = None
-    if spec["energy_relative"]:
-        vmin = minimum_energy(A, H, L, scene)
-        e_abs = vmin + E * np.abs(vmin)
-        E = e_abs
-    res = evaluate_flat(
-        A, E, H, L, scene, spec["method"], circular_tol=spec["circular_tol"], rtol=spec["rtol"]
-    )
-    if e_abs is not None:
-        undefined = np.isnan(e_abs)
-        if undefined.any():
-            res["orbit_class"][undefined] = 0
-            for name in VARIABLES:
-                if name != "r_circ":
-                    res[name][undefined] = np.nan
-        res["energy_absolute"] = e_abs
-    return {name: col.reshape(shape) for name, col in res.items()}

@@ -31,7 +31,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .grid import BLOCK_POINTS, DIMS, Tiling, evaluate_block
+from .evaluation import evaluate_block
+from .grid import BLOCK_POINTS, Tiling
+from .schema import DIMS, axis_attrs, result_variables, survey_attrs, variable_attrs
 
 if TYPE_CHECKING:
     from .surveyfile import Survey
@@ -66,21 +68,7 @@ class AlreadyComplete(RunError):
 
 def output_variables(survey: Survey) -> dict[str, np.dtype]:
     """Names and dtypes of the result variables of ``survey``, in file order."""
-    from .api import VARIABLES
-
-    out: dict[str, np.dtype] = {"orbit_class": np.dtype(np.int8)}
-    out.update({name: np.dtype(np.float64) for name in VARIABLES})
-    if survey.method != "exact":
-        out.update(
-            n_steps=np.dtype(np.int64),
-            energy_drift=np.dtype(np.float64),
-            status=np.dtype(np.int8),
-        )
-        if survey.scene.c_rr > 0:
-            out["energy_loss"] = np.dtype(np.float64)
-    if survey.energy_relative:
-        out["energy_absolute"] = np.dtype(np.float64)
-    return out
+    return result_variables(survey.method, survey.scene, survey.energy_relative)
 
 
 def estimate_bytes(survey: Survey) -> int:
@@ -350,7 +338,6 @@ class RunStats:
 def _global_attrs(survey: Survey, fp: str, command: str) -> dict[str, Any]:
     import xarray as xr
 
-    from .api import survey_attrs
     from .output import cf_dataset
 
     base = survey_attrs(
@@ -381,8 +368,7 @@ def _merge(
     rename it to ``out``; returns the statistics gathered on the way."""
     import netCDF4
 
-    from .api import _variable_attrs, axis_attrs
-    from .kernels.physics import CLASS_NAMES
+    from .kernels.geometry import CLASS_NAMES
 
     tiling = store.tiling
     tmp = out.with_name(out.name + ".tmp")
@@ -412,7 +398,7 @@ def _merge(
                     chunksizes=tiling.chunk,
                     fill_value=fill,
                 )
-                attrs = _variable_attrs(name)
+                attrs = variable_attrs(name)
                 if name == "orbit_class":
                     attrs["flag_values"] = np.asarray(attrs["flag_values"], np.int8)
                 v.setncatts(attrs)
@@ -448,7 +434,7 @@ def _merge(
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
-    units = {n: _variable_attrs(n).get("units", "") for n in lo}
+    units = {n: variable_attrs(n).get("units", "") for n in lo}
     ranges = {n: (lo[n], hi[n], units[n]) for n in lo}
     return RunStats(tiling.shape, counts, ranges, path=out)
 
@@ -468,7 +454,7 @@ def read_info(path: Path) -> dict[str, Any]:
                 info["attrs"] = {k: nc.getncattr(k) for k in nc.ncattrs()}
                 info["dims"] = {d: len(nc.dimensions[d]) for d in nc.dimensions}
                 if "orbit_class" in nc.variables:
-                    from .kernels.physics import CLASS_NAMES
+                    from .kernels.geometry import CLASS_NAMES
 
                     v = nc.variables["orbit_class"]
                     counts = np.zeros(len(CLASS_NAMES), np.int64)

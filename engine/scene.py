@@ -5,10 +5,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
-__all__ = ["Scene", "EFFECTS"]
+import numpy as np
 
-#: Effects a scene may switch on beyond the ideal (closed-form) cone.
-EFFECTS = ("rolling_resistance", "rim", "slip_check", "attitude")
+from .kernels.model import EFFECT_BITS, make_params
+
+__all__ = ["Scene"]
 
 
 def _check_positive(name: str, value: float, *, allow_zero: bool = False) -> float:
@@ -76,6 +77,20 @@ class Scene:
         if self.attitude:
             on.append("attitude")
         return tuple(on)
+
+    @property
+    def effects_mask(self) -> int:
+        """The effects as the bit mask the kernels compile in (``engine.kernels.model``)."""
+        mask = 0
+        for name in self.effects:
+            mask |= EFFECT_BITS[name]
+        return mask
+
+    def params(self, alpha: float = math.pi / 4) -> np.ndarray:
+        """The float64 parameter array of the kernels (layout ``engine.kernels.model.P_*``) on a
+        cone of half-aperture ``alpha`` [rad] (batch kernels replace alpha per point)."""
+        mu = math.inf if self.mu is None else float(self.mu)
+        return make_params(alpha, self.M, self.g, self.k, self.a, self.rim_or_inf, mu, self.c_rr)
 
     @property
     def rim_or_inf(self) -> float:

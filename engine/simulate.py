@@ -7,56 +7,38 @@ from typing import Any
 
 import numpy as np
 import xarray as xr
-from numba import literally
 
-from . import __version__
-from ._jit import kernel
-from .integrated import call_specialized, check_method, check_rtol, scene_params
-from .kernels.geometry import CIRCULAR_TOL, orbit_point
-from .kernels.integrators import (
+from ._jit import call_specialized
+from ._version import __version__
+from .kernels.geometry import BOUNDED, CIRCULAR, CIRCULAR_TOL, CLASS_NAMES, HYPERBOLIC, orbit_point
+from .kernels.model import (
+    ATTITUDE,
+    SLIP_CHECK,
+    coefficients,
+    contact_forces_of,
+    contact_velocity,
+    invariants,
+    invariants_of,
+)
+from .kernels.orbit import initial_state, orbit_start, solve, tolerance_scales
+from .kernels.protocol import (
     BUFFER_FULL,
-    EVENT_NAMES,
     OK,
     RECORD_EVERY_DT,
     RECORD_STEPS,
     SLIPPED,
     SPILLED,
     STATUS_MESSAGES,
-    SYMPLECTIC,
-    initial_state,
-    orbit_start,
-    rk_run,
-    tolerance_scales,
 )
-from .kernels.physics import BOUNDED, CIRCULAR, CLASS_NAMES, HYPERBOLIC, coefficients
 from .kernels.roots import free_fall_r_min
-from .kernels.scenes import ATTITUDE, SLIP_CHECK, effects_mask, invariants
-from .kernels.symplectic import DEFAULT_ORDER, initial_z, sym_run
+from .methods import DEFAULT_RTOL, check_method, check_rtol
 from .scene import Scene
+from .schema import TRAJECTORY
 
 __all__ = ["simulate", "DEFAULT_MAX_STEPS"]
 
 #: Step budget of one simulation (a guard against runaway runs, not a tuning knob).
 DEFAULT_MAX_STEPS = 100_000_000
-
-
-@kernel
-def solve_rk(method, effects, y0, p, rtol, atol, t_end, n_apsides, max_steps, record, dt_out,
-             ev_t, ev_kind, ev_y, tr_t, tr_y, tr_rate):  # fmt: skip
-    """:func:`engine.kernels.integrators.rk_run` compiled for a literal method and effect set."""
-    literally(method)
-    literally(effects)
-    return rk_run(method, effects, y0, p, rtol, atol, t_end, n_apsides, max_steps, record, dt_out,
-                  ev_t, ev_kind, ev_y, tr_t, tr_y, tr_rate)  # fmt: skip
-
-
-@kernel
-def solve_symplectic(effects, z0, p, energy, h, Lz, order, rtol, t_end, n_apsides, max_steps,
-                     record, dt_out, ev_t, ev_kind, ev_y, tr_t, tr_y):  # fmt: skip
-    """:func:`engine.kernels.symplectic.sym_run` compiled for a literal effect set."""
-    literally(effects)
-    return sym_run(effects, z0, p, energy, h, Lz, order, rtol, t_end, n_apsides, max_steps,
-                   record, dt_out, ev_t, ev_kind, ev_y, tr_t, tr_y)  # fmt: skip
 
 
 def _real(name: str, value: Any) -> float:
@@ -67,10 +49,6 @@ def _real(name: str, value: Any) -> float:
     if not math.isfinite(v):
         raise ValueError(f"{name} must be finite; got {value!r}")
     return v
-
-
-def _attrs(units: str, long_name: str, **extra: Any) -> dict[str, Any]:
-    return {"units": units, "long_name": long_name, **extra}
 
 
 def _capacities(alpha, energy, h, Lz, scene, t_end, periods, dt_out) -> tuple[int, int]:
@@ -128,7 +106,7 @@ def simulate(
     t_end: float | None = None,
     periods: int | None = None,
     method: str = "rk45",
-    rtol: float = 1e-10,
+    rtol: float = DEFAULT_RTOL,
     *,
     dt_out: float | None = None,
     max_steps: int = DEFAULT_MAX_STEPS,
@@ -174,7 +152,9 @@ def simulate(
     Lz = _real("Lz", Lz)
     if Lz == 0.0:
         raise ValueError("Lz must be nonzero (Lz=0.0 is a radial orbit through the axis)")
-    mid = check_method(method, scene)
+    m = check_method(method, scene)
+    if not m.integrates:
+        raise ValueError(f"method {method!r} is not an integrator; give one of rk45, dop853, ...")
     rtol = check_rtol(rtol)
     if (t_end is None) == (periods is None):
         raise ValueError(f"give exactly one of t_end and periods; got t_end={t_end!r}, "
@@ -195,8 +175,8 @@ def simulate(
     if int(max_steps) < 1:
         raise ValueError(f"max_steps must be >= 1; got {max_steps!r}")
 
-    effects = effects_mask(scene.effects)
-    p = scene_params(scene, alpha)
+    effects = scene.effects_mask
+    p = scene.params(alpha)
     r0, r1, r2, rc, cls_name = _start_radius(alpha, energy, h, Lz, scene, p, periods)
     y0 = initial_state(p, effects, r0, energy, h, Lz)
     y0[2] = 0.0  # r0 is a turning point
@@ -204,56 +184,15 @@ def simulate(
     t_stop = math.inf if t_end is None else t_end
     n = y0.shape[0]
     cap_ev, cap_tr = _capacities(alpha, energy, h, Lz, scene, t_end, periods, dt_out)
-    if mid != SYMPLECTIC:
-        atol = rtol * tolerance_scales(p, effects, y0, energy, h, Lz, r1, r2, rc)
+    atol = rtol * tolerance_scales(p, effects, y0, energy, h, Lz, r1, r2, rc)
     while True:  # integration is deterministic: a run that ran out of room is redone larger
         ev_t, ev_kind, ev_y = np.empty(cap_ev), np.empty(cap_ev, np.int8), np.empty((cap_ev, n))
         tr_t, tr_y = np.empty(cap_tr), np.empty((cap_tr, n))
         tr_rate = np.empty((cap_tr if effects & ATTITUDE else 0, n))
-        if mid == SYMPLECTIC:
-            z0 = initial_z(p, r0, 0.0, energy, h, Lz)
-            args = (
-                effects,
-                z0,
-                p,
-                energy,
-                h,
-                Lz,
-                DEFAULT_ORDER,
-                rtol,
-                t_stop,
-                n_apsides,
-                int(max_steps),
-                record,
-                dt_out or 0.0,
-                ev_t,
-                ev_kind,
-                ev_y,
-                tr_t,
-                tr_y,
-            )
-            res = call_specialized(solve_symplectic, args, (0,))
-        else:
-            args = (
-                mid,
-                effects,
-                y0,
-                p,
-                rtol,
-                atol,
-                t_stop,
-                n_apsides,
-                int(max_steps),
-                record,
-                dt_out or 0.0,
-                ev_t,
-                ev_kind,
-                ev_y,
-                tr_t,
-                tr_y,
-                tr_rate,
-            )
-            res = call_specialized(solve_rk, args, (0, 1))
+        args = (m.kernel_id, effects, y0, p, (energy, h, Lz), rtol, atol, t_stop, n_apsides,
+                int(max_steps), record, dt_out or 0.0, ev_t, ev_kind, ev_y, tr_t, tr_y,
+                tr_rate)  # fmt: skip
+        res = call_specialized(solve, args, (0, 1))
         status, n_acc, n_rej, t_final = int(res[0]), int(res[1]), int(res[2]), float(res[3])
         n_ev, n_tr = int(res[5]), int(res[6])
         if status != BUFFER_FULL:
@@ -278,50 +217,39 @@ def _dataset(scene, effects, p, method, rtol, alpha, energy, h, Lz, cls_name, y0
     M, g, k = scene.M, scene.g, scene.k
     s, c = math.sin(alpha), math.cos(alpha)
     r, th, u, v, w = (Y[:, i] for i in range(5))
-    Lz_t = M * r * v * s
-    h_t = w - Lz_t * c / (M * r * s * s)
-    E_t = 0.5 * (1 + k) * M * (u * u + v * v) + 0.5 * k * M * w * w + M * g * r * c
+    E_t, Lz_t, h_t = invariants_of.py_func(r, u, v, w, s, c, M, g, k)
     E0, Lz0, h0 = invariants(y0, p)
-    T = ("time",)
-    data: dict[str, Any] = {
-        "r": (T, r, _attrs("m", "distance of the centre from the vertex of its cone")),
-        "theta": (T, th, _attrs("radian", "azimuth of the centre (unwrapped)")),
-        "u": (T, u, _attrs("m s-1", "radial velocity dr/dt along the generatrix")),
-        "v": (T, v, _attrs("m s-1", "azimuthal velocity r sin(alpha) dtheta/dt")),
-        "w": (T, w, _attrs("m s-1", "spin about the normal times the radius, a omega_nu")),
-        "x": (T, r * s * np.cos(th), _attrs("m", "Cartesian x of the centre")),
-        "y": (T, r * s * np.sin(th), _attrs("m", "Cartesian y of the centre")),
-        "z": (T, r * c, _attrs("m", "Cartesian z of the centre (cone axis, up)")),
-        "E_drift": (T, E_t - E0, _attrs("J", "total energy minus its initial value")),
-        "Lz_drift": (T, Lz_t - Lz0, _attrs("kg m2 s-1", "L_z minus its initial value")),
-        "h_drift": (T, h_t - h0, _attrs("m s-1", "spin invariant h minus its initial value")),
+    columns: dict[str, Any] = {
+        "r": r,
+        "theta": th,
+        "u": u,
+        "v": v,
+        "w": w,
+        "x": r * s * np.cos(th),
+        "y": r * s * np.sin(th),
+        "z": r * c,
+        "E_drift": E_t - E0,
+        "Lz_drift": Lz_t - Lz0,
+        "h_drift": h_t - h0,
     }
     if effects & SLIP_CHECK:
-        N = M * (g * s + v * v * c / (r * s))
-        F = k / (1 + k) * M * (g * c + c / (r * s) * v * w)
-        data["friction_ratio"] = (T, np.abs(F) / N, _attrs(
-            "1", "friction needed over normal force |F|/N (slip where > mu)"))  # fmt: skip
+        F, N = contact_forces_of.py_func(r, v, w, s, c, c / s, M, g, k / (1 + k))
+        columns["friction_ratio"] = np.abs(F) / N
     if effects & ATTITUDE:
         q = Y[:, 5:9]
-        for i, name in enumerate(("w", "x", "y", "z")):
-            data[f"quat_{name}"] = (T, q[:, i], _attrs(
-                "1", f"attitude quaternion, {name} component (body to fixed frame)"))  # fmt: skip
-        data["quat_norm_error"] = (T, np.linalg.norm(q, axis=1) - 1.0,
-                                   _attrs("1", "|q| - 1 of the attitude quaternion"))  # fmt: skip
-        data["contact_speed"] = (T, _contact_speed(Y, rate, p), _attrs(
-            "m s-1", "speed of the sphere's material point at the contact "
-            "|R_dot + omega x (-a nu)|, omega from the quaternion (0 when rolling)"))  # fmt: skip
-    E = ("event",)
-    kind_attrs = {
-        "long_name": "event kind",
-        "flag_values": np.arange(len(EVENT_NAMES), dtype=np.int8),
-        "flag_meanings": " ".join(EVENT_NAMES),
+        for i, name in enumerate("wxyz"):
+            columns[f"quat_{name}"] = q[:, i]
+        columns["quat_norm_error"] = np.linalg.norm(q, axis=1) - 1.0
+        columns["contact_speed"] = _contact_speed(Y, rate, p)
+    data = {name: (("time",), col, TRAJECTORY[name].attrs()) for name, col in columns.items()}
+    events = {
+        "event_time": ev_t,
+        "event_kind": ev_kind.astype(np.int8),
+        "event_r": ev_y[:, 0],
+        "event_theta": ev_y[:, 1],
     }
-    data["event_time"] = (E, ev_t, _attrs("s", "time of the event"))
-    data["event_kind"] = (E, ev_kind.astype(np.int8), kind_attrs)
-    data["event_r"] = (E, ev_y[:, 0], _attrs("m", "r at the event"))
-    data["event_theta"] = (E, ev_y[:, 1], _attrs("radian", "theta at the event"))
-    ds = xr.Dataset(data, coords={"time": (T, t, _attrs("s", "time since the start at r_min"))})
+    data.update({n: (("event",), col, TRAJECTORY[n].attrs()) for n, col in events.items()})
+    ds = xr.Dataset(data, coords={"time": (("time",), t, TRAJECTORY["time"].attrs())})
     ds.time.encoding["_FillValue"] = None
     ds.attrs.update(
         {
@@ -348,9 +276,7 @@ def _dataset(scene, effects, p, method, rtol, alpha, energy, h, Lz, cls_name, y0
 
 
 def _contact_speed(Y: np.ndarray, rate: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """|R_dot + omega x (-a nu)| at each recorded point (see scenes.contact_velocity)."""
-    from .kernels.scenes import contact_velocity
-
+    """|R_dot + omega x (-a nu)| at each recorded point (see model.contact_velocity)."""
     out = np.empty(Y.shape[0])
     for i in range(Y.shape[0]):
         vx, vy, vz = contact_velocity(Y[i], rate[i], p)

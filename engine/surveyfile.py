@@ -60,8 +60,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .api import METHODS
+from .kernels.geometry import CIRCULAR_TOL as DEFAULT_CIRCULAR_TOL
+from .methods import DEFAULT_RTOL, METHODS
 from .scene import Scene
+from .schema import DIMS as AXES
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -74,15 +76,11 @@ __all__ = [
     "parse_survey",
 ]
 
-#: The four survey axes, in the order of the output's dimensions.
-AXES = ("alpha", "energy", "h", "Lz")
 #: Accepted values of ``axes.energy.relative_to``.
 RELATIVE_TO = ("V_min",)
 SCALES = ("linear", "log")
 
 DEFAULT_METHOD = "exact"
-DEFAULT_RTOL = 1e-10
-DEFAULT_CIRCULAR_TOL = 1e-12
 #: Largest ``num`` of a range axis (the axes are held in memory: 8 bytes a point).
 MAX_AXIS_POINTS = 10**8
 
@@ -314,7 +312,7 @@ class _Reader:
     def survey(self, doc: dict, text: str) -> Survey:
         self.check_keys(doc, _TOP_KEYS, "")
         title = self.string(doc.get("title", "conesurvey survey"), "title")
-        method = self.choice(doc.get("method", DEFAULT_METHOD), "method", METHODS)
+        method = self.choice(doc.get("method", DEFAULT_METHOD), "method", tuple(METHODS))
         rtol = self.number(doc.get("rtol", DEFAULT_RTOL), "rtol")
         if not 0.0 < rtol < 1.0:
             raise self.bad_value("rtol", doc["rtol"], "must lie in the open interval (0, 1)")

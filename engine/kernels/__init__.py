@@ -1,12 +1,15 @@
 """Pure numba kernels: functions of floats and arrays, no Python objects, no globals that change.
 
-- :mod:`.physics`   coefficients A, B, C, the effective potential, invariants, equations of motion,
-                    contact forces;
-- :mod:`.roots`     circular radius and turning points;
-- :mod:`.carlson`   Carlson's symmetric elliptic integrals R_F, R_D, R_J, R_C;
-- :mod:`.geometry`  classification and closed-form orbit geometry, one point and a parallel batch;
-- :mod:`.tableaux`  Butcher tableaux (Dormand-Prince 5(4), 8(5,3)) and Yoshida weights as data;
-- :mod:`.scenes`    right-hand sides with effects compiled in by flags, parameters in an array;
-- :mod:`.integrators` adaptive Runge-Kutta loop, dense output, event location;
-- :mod:`.symplectic` time-transformed leapfrog with Yoshida compositions.
+- :mod:`.model`      one copy of each formula: coefficients A, B, C, the effective potential,
+                     invariants, contact forces, the parameter array, effect bits and the
+                     scene's right-hand side with the effects compiled in by flags;
+- :mod:`.roots`      circular radius and turning points;
+- :mod:`.carlson`    Carlson's symmetric elliptic integrals R_F, R_D, R_J, R_C and Bulirsch's cel;
+- :mod:`.geometry`   classification and closed-form orbit geometry, one point and a parallel batch;
+- :mod:`.tableaux`   Runge-Kutta pairs (:data:`~.tableaux.RK_TABLEAUX`) and composition weights;
+- :mod:`.protocol`   the run protocol: statuses, event kinds, buffers, shared event helpers, Brent;
+- :mod:`.rk_codegen` Runge-Kutta steps generated from tableau data;
+- :mod:`.rk`         the adaptive Runge-Kutta run kernel (dense output, event location);
+- :mod:`.symplectic` time-transformed leapfrog with Yoshida compositions, on the same protocol;
+- :mod:`.orbit`      start state, tolerances, one radial period, the parallel batch over points.
 """

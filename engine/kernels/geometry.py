@@ -1,6 +1,6 @@
 """Classification and closed-form orbit geometry for one point, and the parallel batch kernel.
 
-For g > 0 the radial integrals are complete elliptic integrals (physics in the README).
+For g > 0 the radial integrals are complete elliptic integrals (docs/physics.md).
 With energy - V = C (r - r1)(r2 - r)(r - r3) / r^2, r3 = -A / (C r1 r2) < 0, and
 r = r1 cos^2 t + r2 sin^2 t,
 
@@ -26,16 +26,17 @@ from numba import prange
 
 from .._jit import kernel, parallel_kernel
 from .carlson import cel
-from .physics import (
-    BOUNDED,
-    CIRCULAR,
-    FORBIDDEN,
-    HYPERBOLIC,
-    RADIAL,
-    SPILLS,
-    coefficients,
-)
+from .model import coefficients
 from .roots import circular_radius, free_fall_r_min, turning_points
+
+#: Orbit classes, stored as int8 ``orbit_class`` (CF flag_values 0..5, names CLASS_NAMES).
+FORBIDDEN = 0
+BOUNDED = 1
+CIRCULAR = 2
+HYPERBOLIC = 3
+RADIAL = 4
+SPILLS = 5
+CLASS_NAMES = ("forbidden", "bounded", "circular", "hyperbolic", "radial", "spills")
 
 #: Default |energy - V_min| <= CIRCULAR_TOL |V_min| tolerance of the circular class.
 CIRCULAR_TOL = 1e-12

@@ -1,8 +1,8 @@
 """Geometric integration of the conservative scene: time-transformed leapfrog + Yoshida composition.
 
 L_z and h are exact invariants of the conservative scene, so the motion reduces to the radial
-Hamiltonian H(r, p) = p^2/(2M) + V(r), V = A/r^2 + B/r + C r (physics.md), with the azimuth by
-quadrature, thetadot = L_z/(M sin^2(alpha) r^2), and v, w functions of r. H is separable, so a
+Hamiltonian H(r, p) = p^2/(2M) + V(r), V = A/r^2 + B/r + C r (docs/physics.md), with the azimuth
+by quadrature, thetadot = L_z/(M sin^2(alpha) r^2), and v, w functions of r. H is separable, so a
 splitting into drift (r moves with p) and kick (p and theta move with r) integrates it.
 
 Near the axis (small L_z) and at the pericentre of eccentric free-fall orbits the natural time
@@ -21,7 +21,7 @@ secular drift. The fixed step in s follows from rtol: h = STEP_SCALE[order] rtol
 Events (apsides: p = 0; the rim; slip onset) and output times are located by Brent's method on
 the partial step, i.e. by re-taking the composed step with a shorter s-step, which keeps the
 method's order. Rolling resistance (dissipative) and the attitude (needs the full rigid-body
-state) are refused with status UNSUPPORTED.
+state) are refused with status UNSUPPORTED (:data:`UNSUPPORTED_EFFECTS`).
 
 Phase-space vector z: (r [m], p = M u [kg m/s], theta [rad], t [s], W [1/s]).
 """
@@ -33,30 +33,7 @@ import math
 import numpy as np
 
 from .._jit import kernel
-from .integrators import (
-    APOCENTRE,
-    BUFFER_FULL,
-    EPS,
-    MAX_STEPS,
-    NONFINITE,
-    OK,
-    PERICENTRE,
-    RECORD_EVERY_DT,
-    RECORD_NONE,
-    RECORD_STEPS,
-    SLIP,
-    SLIPPED,
-    SPILL,
-    SPILLED,
-    UNSUPPORTED,
-    _copy,
-    _copy_row,
-    brent_next,
-    brent_start,
-    brent_update,
-)
-from .physics import coefficients
-from .scenes import (
+from .model import (
     ATTITUDE,
     P_COS,
     P_G,
@@ -66,10 +43,40 @@ from .scenes import (
     RIM,
     ROLLING_RESISTANCE,
     SLIP_CHECK,
+    coefficients,
     rim_margin,
     slip_margin,
 )
+from .protocol import (
+    BUFFER_FULL,
+    EPS,
+    MAX_STEPS,
+    NONFINITE,
+    OK,
+    PERICENTRE,
+    RECORD_EVERY_DT,
+    RECORD_STEPS,
+    SLIP,
+    SPILL,
+    UNSUPPORTED,
+    brent_next,
+    brent_start,
+    brent_update,
+    copy_into,
+    push_event,
+    push_state,
+    record_apsis,
+    start_protocol,
+    status_of,
+    terminal_fired,
+)
 from .tableaux import LEAPFROG, YOSHIDA4, YOSHIDA6
+
+#: Kernel id of the method (Runge-Kutta pairs take the ids 0, 1, ... of their tableaux).
+SYMPLECTIC = 100
+#: Effects this method cannot honour: it integrates the conservative radial Hamiltonian, which
+#: rolling resistance breaks, and it does not carry the rigid body's attitude.
+UNSUPPORTED_EFFECTS = ROLLING_RESISTANCE | ATTITUDE
 
 #: Default composition order of the "symplectic" method.
 DEFAULT_ORDER = 6
@@ -221,11 +228,11 @@ def locate(kind, z0, hstep, wts, cf, p, h, Lz, t_target, g0, g1, zt, buf, st):
         done, sig = brent_next(st, 4.0 * EPS * hstep)
         if done:
             break
-        _copy(z0, zt)
+        copy_into(z0, zt)
         ttl_step(zt, sig, wts, cf)
         brent_update(st, _target(kind, zt, p, h, Lz, t_target, buf))
     sig = min(max(sig, 0.0), hstep)
-    _copy(z0, zt)
+    copy_into(z0, zt)
     ttl_step(zt, sig, wts, cf)
     return sig
 
@@ -255,56 +262,93 @@ def initial_z(p, r0, u0, energy, h, Lz):
     return z
 
 
+
+
 @kernel
-def sym_run(effects, z0, p, energy, h, Lz, order, rtol, t_end, n_apsides, max_steps, record,
-            dt_out, ev_t, ev_kind, ev_y, tr_t, tr_y):  # fmt: skip
-    """Integrate the conservative scene like :func:`.integrators.rk_run`, with the same buffers
-    and returns (status, n_steps, 0, t, y, n_ev, n_tr); states are full (r, theta, u, v, w).
-    Scenes with rolling resistance or attitude return UNSUPPORTED."""
-    n = 5
-    cf = ttl_coefficients(p, energy, h, Lz)
-    A = cf[0]
-    B = cf[1]
-    C = cf[2]
-    wts = weights(order)
-    hstep = step_size(order, rtol)
-    z = z0.copy()
-    zn = np.empty(5)
-    zt = np.empty(5)
-    zs = np.empty(5)
-    y = np.empty(n)
-    buf = np.empty(n)
-    st = np.empty(8)
-    cap_ev = ev_t.shape[0]
+def _step_events(effects, z, zn, hstep, wts, cf, p, h, Lz, t_end, g_aps, n_aps, n_apsides,
+                 ev_t, ev_kind, ev_y, n_ev, zt, buf, st):  # fmt: skip
+    """Events inside the step z -> zn: the end time, the first terminal event, the apsis before
+    it. Returns (ok, sigma of the stop (2 hstep = none), stop status, is a terminal event,
+    stop kind, g_aps, n_aps, n_ev); ok is False when the event buffers are full."""
+    sig_stop = 2.0 * hstep
+    stop_status = OK
+    stop_kind = 0
+    stop_is_event = False
+    if zn[Z_T] >= t_end:
+        sig_stop = locate(np.int64(_TARGET_TIME), z, hstep, wts, cf, p, h, Lz, t_end,
+                          z[Z_T] - t_end, zn[Z_T] - t_end, zt, buf, st)  # fmt: skip
+    for kind in range(SPILL, SLIP + 1):
+        if kind == SPILL and not effects & RIM:
+            continue
+        if kind == SLIP and not effects & SLIP_CHECK:
+            continue
+        g1 = _target(kind, zn, p, h, Lz, 0.0, buf)
+        if terminal_fired(kind, g1):
+            g0 = _target(kind, z, p, h, Lz, 0.0, buf)
+            sig = locate(kind, z, hstep, wts, cf, p, h, Lz, 0.0, g0, g1, zt, buf, st)
+            if sig <= sig_stop:
+                sig_stop = sig
+                stop_status = status_of(kind)
+                stop_kind = kind
+                stop_is_event = True
+    g1 = zn[Z_P]
+    if (g_aps > 0.0 and g1 <= 0.0) or (g_aps < 0.0 and g1 >= 0.0):
+        sig = locate(np.int64(PERICENTRE), z, hstep, wts, cf, p, h, Lz, 0.0, z[Z_P], g1, zt,
+                     buf, st)  # fmt: skip
+        if sig <= sig_stop:
+            full_state(zt, p, h, Lz, buf)
+            n_ev, g_aps, n_aps, reached = record_apsis(ev_t, ev_kind, ev_y, n_ev, zt[Z_T], buf,
+                                                       g_aps, n_aps, n_apsides)  # fmt: skip
+            if n_ev < 0:
+                return False, sig_stop, stop_status, stop_is_event, stop_kind, g_aps, n_aps, n_ev
+            if reached:
+                sig_stop = sig
+                stop_status = OK
+                stop_is_event = False
+    return True, sig_stop, stop_status, stop_is_event, stop_kind, g_aps, n_aps, n_ev
+
+
+@kernel
+def _samples(z, zn, t_lim, t_end, dt_out, next_out, hstep, wts, cf, p, h, Lz, tr_t, tr_y, n_tr,
+             zs, buf, st):  # fmt: skip
+    """Record the state every ``dt_out`` seconds up to t_lim (partial steps located by Brent);
+    returns (n_tr, next_out); n_tr < 0 when the trajectory buffers are full."""
     cap_tr = tr_t.shape[0]
-    n_ev = 0
-    n_tr = 0
+    while next_out <= t_lim and next_out < t_end and n_tr < cap_tr:
+        locate(np.int64(_TARGET_TIME), z, hstep, wts, cf, p, h, Lz, next_out, z[Z_T] - next_out,
+               zn[Z_T] - next_out, zs, buf, st)  # fmt: skip
+        full_state(zs, p, h, Lz, buf)
+        n_tr = push_state(tr_t, tr_y, n_tr, next_out, buf)
+        next_out = n_tr * dt_out
+    if n_tr == cap_tr:
+        return -1, next_out
+    return n_tr, next_out
+
+
+@kernel
+def sym_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_steps, record,
+            dt_out, ev_t, ev_kind, ev_y, tr_t, tr_y, tr_rate):  # fmt: skip
+    """Integrate the conservative scene on the run protocol (:func:`.rk.rk_run` has the same
+    signature and returns); states are full (r, theta, u, v, w). ``orbit`` = (calE, h, L_z)
+    defines the reduced radial problem; y0 gives r and u at t = 0; ``atol`` and ``tr_rate`` are
+    unused. Scenes with :data:`UNSUPPORTED_EFFECTS` return UNSUPPORTED."""
+    energy, h, Lz = orbit
+    cf = ttl_coefficients(p, energy, h, Lz)
+    wts = weights(np.int64(DEFAULT_ORDER))
+    hstep = step_size(np.int64(DEFAULT_ORDER), rtol)
+    z = initial_z(p, y0[0], y0[2], energy, h, Lz)
+    work = np.empty(3 * 5 + 2 * 5 + 8)
+    zn, zt, zs = work[0:5], work[5:10], work[10:15]
+    y, buf, st = work[15:20], work[20:25], work[25:]
     full_state(z, p, h, Lz, y)
-    if effects & (ROLLING_RESISTANCE | ATTITUDE):
+    if effects & UNSUPPORTED_EFFECTS:
         return UNSUPPORTED, 0, 0, 0.0, y, 0, 0
-    status = OK
-    if record != RECORD_NONE:
-        if cap_tr < 1:
-            return BUFFER_FULL, 0, 0, 0.0, y, 0, 0
-        tr_t[0] = 0.0
-        _copy_row(y, tr_y, 0)
-        n_tr = 1
-    if effects & RIM:
-        if rim_margin(y, p) >= 0.0:
-            status = SPILLED
-    if effects & SLIP_CHECK:
-        if status == OK and slip_margin(y, p) > 0.0:
-            status = SLIPPED
+    status, n_ev, n_tr = start_protocol(effects, y, p, record, ev_t, ev_kind, ev_y, tr_t, tr_y)
     if status != OK:
-        if cap_ev < 1:
-            return BUFFER_FULL, 0, 0, 0.0, y, 0, n_tr
-        ev_t[0] = 0.0
-        ev_kind[0] = SPILL if status == SPILLED else SLIP
-        _copy_row(y, ev_y, 0)
-        return status, 0, 0, 0.0, y, 1, n_tr
+        return status, 0, 0, 0.0, y, n_ev, n_tr
     # Sign of the apsis function; at a turning point, the sign of pdot = -V'(r).
     r0 = z[Z_R]
-    g_aps = z[Z_P] if z[Z_P] != 0.0 else -((-2.0 * A / r0 - B) / (r0 * r0) + C)
+    g_aps = z[Z_P] if z[Z_P] != 0.0 else -((-2.0 * cf[0] / r0 - cf[1]) / (r0 * r0) + cf[2])
     next_out = dt_out
     n_acc = 0
     n_aps = 0
@@ -312,97 +356,47 @@ def sym_run(effects, z0, p, energy, h, Lz, order, rtol, t_end, n_apsides, max_st
         if n_acc >= max_steps:
             status = MAX_STEPS
             break
-        _copy(z, zn)
+        copy_into(z, zn)
         ttl_step(zn, hstep, wts, cf)
         if not (zn[Z_R] > 0.0 and math.isfinite(zn[Z_P]) and math.isfinite(zn[Z_W])):
             status = NONFINITE
             break
         n_acc += 1
-        sig_stop = 2.0 * hstep
-        stop_status = OK
-        stop_kind = 0
-        stop_is_event = False
-        if zn[Z_T] >= t_end:
-            g0 = z[Z_T] - t_end
-            g1 = zn[Z_T] - t_end
-            sig_stop = locate(np.int64(_TARGET_TIME), z, hstep, wts, cf, p, h, Lz, t_end, g0, g1,
-                              zt, buf, st)  # fmt: skip
-        for kind in range(SPILL, SLIP + 1):
-            if kind == SPILL and not effects & RIM:
-                continue
-            if kind == SLIP and not effects & SLIP_CHECK:
-                continue
-            g1 = _target(kind, zn, p, h, Lz, 0.0, buf)
-            if g1 > 0.0 or (kind == SPILL and g1 == 0.0):
-                g0 = _target(kind, z, p, h, Lz, 0.0, buf)
-                sig = locate(kind, z, hstep, wts, cf, p, h, Lz, 0.0, g0, g1, zt, buf, st)
-                if sig <= sig_stop:
-                    sig_stop = sig
-                    stop_status = SPILLED if kind == SPILL else SLIPPED
-                    stop_kind = kind
-                    stop_is_event = True
-        g1 = zn[Z_P]
-        if (g_aps > 0.0 and g1 <= 0.0) or (g_aps < 0.0 and g1 >= 0.0):
-            sig = locate(np.int64(PERICENTRE), z, hstep, wts, cf, p, h, Lz, 0.0, z[Z_P], g1, zt,
-                         buf, st)  # fmt: skip
-            if sig <= sig_stop:
-                if n_ev == cap_ev:
-                    status = BUFFER_FULL
-                    break
-                full_state(zt, p, h, Lz, buf)
-                ev_t[n_ev] = zt[Z_T]
-                ev_kind[n_ev] = APOCENTRE if g_aps > 0.0 else PERICENTRE
-                _copy_row(buf, ev_y, n_ev)
-                n_ev += 1
-                n_aps += 1
-                g_aps = -g_aps
-                if n_apsides > 0 and n_aps >= n_apsides:
-                    sig_stop = sig
-                    stop_status = OK
-                    stop_is_event = False
+        ok, sig_stop, stop_status, stop_is_event, stop_kind, g_aps, n_aps, n_ev = _step_events(
+            effects, z, zn, hstep, wts, cf, p, h, Lz, t_end, g_aps, n_aps, n_apsides,
+            ev_t, ev_kind, ev_y, n_ev, zt, buf, st)  # fmt: skip
+        if not ok:
+            n_ev = ev_t.shape[0]
+            status = BUFFER_FULL
+            break
         stopping = sig_stop <= hstep
-        if stopping:
-            # Re-take the step up to the stop.
-            _copy(z, zt)
+        t_lim = zn[Z_T]
+        if stopping:  # re-take the step up to the stop
+            copy_into(z, zt)
             ttl_step(zt, sig_stop, wts, cf)
+            t_lim = zt[Z_T]
             if stop_is_event:
-                if n_ev == cap_ev:
+                full_state(zt, p, h, Lz, buf)
+                n_ev = push_event(ev_t, ev_kind, ev_y, n_ev, zt[Z_T], stop_kind, buf)
+                if n_ev < 0:
+                    n_ev = ev_t.shape[0]
                     status = BUFFER_FULL
                     break
-                full_state(zt, p, h, Lz, buf)
-                ev_t[n_ev] = zt[Z_T]
-                ev_kind[n_ev] = stop_kind
-                _copy_row(buf, ev_y, n_ev)
-                n_ev += 1
-            t_lim = zt[Z_T]
-        else:
-            t_lim = zn[Z_T]
         if record == RECORD_EVERY_DT:
-            while next_out <= t_lim and next_out < t_end and n_tr < cap_tr:
-                g0 = z[Z_T] - next_out
-                g1 = zn[Z_T] - next_out
-                locate(np.int64(_TARGET_TIME), z, hstep, wts, cf, p, h, Lz, next_out, g0, g1, zs,
-                       buf, st)  # fmt: skip
-                tr_t[n_tr] = next_out
-                full_state(zs, p, h, Lz, buf)
-                _copy_row(buf, tr_y, n_tr)
-                n_tr += 1
-                next_out = n_tr * dt_out
-            if n_tr == cap_tr:
+            n_tr, next_out = _samples(z, zn, t_lim, t_end, dt_out, next_out, hstep, wts, cf, p,
+                                      h, Lz, tr_t, tr_y, n_tr, zs, buf, st)  # fmt: skip
+            if n_tr < 0:
+                n_tr = tr_t.shape[0]
                 status = BUFFER_FULL
                 break
-        if stopping:
-            _copy(zt, z)
-        else:
-            _copy(zn, z)
+        copy_into(zt if stopping else zn, z)
         if record == RECORD_STEPS or (record == RECORD_EVERY_DT and stopping):
-            if n_tr == cap_tr:
+            full_state(z, p, h, Lz, buf)
+            n_tr = push_state(tr_t, tr_y, n_tr, z[Z_T], buf)
+            if n_tr < 0:
+                n_tr = tr_t.shape[0]
                 status = BUFFER_FULL
                 break
-            tr_t[n_tr] = z[Z_T]
-            full_state(z, p, h, Lz, buf)
-            _copy_row(buf, tr_y, n_tr)
-            n_tr += 1
         if stopping:
             status = stop_status
             break

@@ -17,6 +17,8 @@ Sources: Dormand & Prince (1980) with Shampine's dense output (1986); Hairer, No
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 __all__ = [
@@ -41,7 +43,38 @@ __all__ = [
     "YOSHIDA6",
     "LEAPFROG",
     "composition_weights",
+    "Tableau",
+    "RK_TABLEAUX",
 ]
+
+
+class Tableau(NamedTuple):
+    """An embedded explicit Runge-Kutta pair with dense output: everything the generic stepper of
+    :mod:`.rk` needs. Its id in kernels is its position in :data:`RK_TABLEAUX`.
+
+    ``A`` (S, S) all stages (main, FSAL row = b, extra dense-output stages); ``C`` (S,);
+    ``E`` (n + 1,) error weights; ``E3`` (n + 1,) weights of a 3rd-order companion estimate
+    (all zero: plain RMS norm; else Hairer's stretched norm); ``P`` (S, deg) dense output;
+    ``n_stages`` n; ``order`` of the propagated solution; ``error_order`` q (the step-size
+    exponent is 1/(q+1)); ``beta`` and ``beta_weight`` of the PI controller
+    (k1 = 1/(q+1) - beta_weight beta); ``unroll``: generate straight-line code per component
+    (fast, more to compile) instead of loops over the components; ``name`` and ``title`` for
+    users.
+    """
+
+    name: str
+    title: str
+    A: np.ndarray
+    C: np.ndarray
+    E: np.ndarray
+    E3: np.ndarray
+    P: np.ndarray
+    n_stages: int
+    order: int
+    error_order: int
+    beta: float
+    beta_weight: float
+    unroll: bool
 
 # --------------------------------------------------------------------------- Dormand-Prince 5(4)
 DP5_N_STAGES = 6
@@ -321,3 +354,40 @@ def composition_weights(order: int) -> np.ndarray:
     if order not in table:
         raise ValueError(f"order must be 2, 4 or 6; got {order!r}")
     return table[order]
+
+
+# ------------------------------------------------------------------------------ the RK pairs
+#: Every Runge-Kutta pair the engine offers, in kernel-id order (id = position). Adding a pair
+#: here is all it takes: the method registry, the survey file, the CLI and the tests read it.
+RK_TABLEAUX: tuple[Tableau, ...] = (
+    Tableau(
+        name="rk45",
+        title="Dormand-Prince 5(4), Shampine's quartic dense output",
+        A=DP5_A,
+        C=DP5_C,
+        E=DP5_E,
+        E3=np.zeros(DP5_N_STAGES + 1),
+        P=DP5_P,
+        n_stages=DP5_N_STAGES,
+        order=DP5_ORDER,
+        error_order=DP5_ERR_ORDER,
+        beta=0.04,  # Hairer's dopri5
+        beta_weight=0.75,
+        unroll=True,
+    ),
+    Tableau(
+        name="dop853",
+        title="Dormand-Prince 8(5,3), Hairer's degree-7 dense output",
+        A=DOP853_A,
+        C=DOP853_C,
+        E=DOP853_E,
+        E3=DOP853_E3,
+        P=DOP853_P,
+        n_stages=DOP853_N_STAGES,
+        order=DOP853_ORDER,
+        error_order=DOP853_ERR_ORDER,
+        beta=0.0,  # Hairer's dop853
+        beta_weight=0.2,
+        unroll=False,  # 12 stages, few steps: loops compile faster at the same speed
+    ),
+)

@@ -1,4 +1,9 @@
-"""Right-hand sides, event functions and diagnostics per scene, with the effects compiled in or out.
+"""The model: one copy of each formula of docs/physics.md, as numba kernels.
+
+- the radial problem: coefficients A, B, C of V(r) = A/r^2 + B/r + C r, V and its derivatives,
+  the radial energy;
+- the invariants E, L_z, h and the contact forces (F, N) of a state;
+- the scene's right-hand side, with the effects compiled in or out.
 
 A scene's structure is an ``effects`` bit mask (:data:`ROLLING_RESISTANCE`, :data:`RIM`,
 :data:`SLIP_CHECK`, :data:`ATTITUDE`) that reaches every kernel as a numba *literal* integer
@@ -12,6 +17,9 @@ recompiles.
 State y (length :func:`state_size`): r [m], theta [rad], u = rdot [m/s], v = r sin(alpha)
 thetadot [m/s], w = a omega_nu [m/s]; with :data:`ATTITUDE` also the unit quaternion
 (q0, q1, q2, q3) (scalar first) rotating body axes to the fixed frame (identity at t = 0).
+
+The scalar formulas (:func:`invariants_of`, :func:`contact_forces_of`, :func:`radial_energy`)
+use arithmetic only, so their ``.py_func`` also evaluates them on numpy arrays (trajectories).
 """
 
 from __future__ import annotations
@@ -28,6 +36,7 @@ RIM = 2
 SLIP_CHECK = 4
 ATTITUDE = 8
 ALL_EFFECTS = ROLLING_RESISTANCE | RIM | SLIP_CHECK | ATTITUDE
+#: Effect name (as in :attr:`engine.Scene.effects`) -> bit.
 EFFECT_BITS = {
     "rolling_resistance": ROLLING_RESISTANCE,
     "rim": RIM,
@@ -56,43 +65,82 @@ N_BASE = 5
 N_ATTITUDE = 9
 
 
-def effects_mask(effects: tuple[str, ...]) -> int:
-    """Bit mask of a :attr:`engine.scene.Scene.effects` tuple."""
-    mask = 0
-    for name in effects:
-        mask |= EFFECT_BITS[name]
-    return mask
+# ------------------------------------------------------------------------ the radial problem
+@kernel
+def coefficients(alpha, h, Lz, M, g, k):
+    """A [J m^2], B [J m], C [J/m] of V(r) = A/r^2 + B/r + C r."""
+    s = math.sin(alpha)
+    c = math.cos(alpha)
+    s2 = s * s
+    kk = k / (1.0 + k)
+    cot = c / s
+    A = Lz * Lz / (2.0 * M * s2) * (1.0 + kk * cot * cot)
+    B = kk * h * Lz * c / s2
+    C = M * g * c / (1.0 + k)
+    return A, B, C
 
 
+@kernel
+def radial_energy(E, h, M, k):
+    """Radial energy calE [J] from the total energy E [J] and spin invariant h [m/s]."""
+    return E / (1.0 + k) - k / (2.0 * (1.0 + k)) * M * h * h
+
+
+@kernel
+def potential(r, A, B, C):
+    """Effective potential V(r) = A/r^2 + B/r + C r [J]."""
+    return A / (r * r) + B / r + C * r
+
+
+@kernel
+def potential_d1(r, A, B, C):
+    """V'(r) [J/m]."""
+    return -2.0 * A / (r * r * r) - B / (r * r) + C
+
+
+@kernel
+def potential_d2(r, A, B, C):
+    """V''(r) [J/m^2]."""
+    return 6.0 * A / (r * r * r * r) + 2.0 * B / (r * r * r)
+
+
+# ----------------------------------------------------------------- invariants and forces
+@kernel
+def invariants_of(r, u, v, w, s, c, M, g, k):
+    """(E [J], L_z [kg m^2/s], h [m/s]) of the state (r, u, v, w) on a cone with sin(alpha) = s,
+    cos(alpha) = c."""
+    Lz = M * r * v * s
+    h = w - Lz * c / (M * r * s * s)
+    E = 0.5 * (1.0 + k) * M * (u * u + v * v) + 0.5 * k * M * w * w + M * g * r * c
+    return E, Lz, h
+
+
+@kernel
+def contact_forces_of(r, v, w, s, c, cot, M, g, kk):
+    """(F [N], N [N]): the friction along e1 that rolling needs, and the normal force (> 0 on
+    the inside of the cone); cot = cot(alpha), kk = k/(1+k)."""
+    kappa = cot / r
+    N = M * (g * s + v * v * kappa)
+    F = kk * M * (g * c + kappa * v * w)
+    return F, N
+
+
+# ------------------------------------------------------------------------ the scene's params
 @kernel
 def make_params(alpha, M, g, k, a, rim, mu, c_rr):
     """The float64 parameter array (``P_*`` layout) of a scene on a cone of half-aperture alpha."""
     p = np.empty(N_PARAMS)
-    s = math.sin(alpha)
-    c = math.cos(alpha)
-    p[P_ALPHA] = alpha
-    p[P_SIN] = s
-    p[P_COS] = c
-    p[P_COT] = c / s
     p[P_M] = M
     p[P_G] = g
     p[P_K] = k
     p[P_KK] = k / (1.0 + k)
-    p[P_GC] = g * c / (1.0 + k)
     p[P_RADIUS] = a
     p[P_RIM] = rim
     p[P_MU] = mu
     p[P_CRR] = c_rr
     p[P_INV_M1K] = 1.0 / (M * (1.0 + k))
+    set_alpha(p, alpha)
     return p
-
-
-@kernel
-def param_tuple(p):
-    """The parameter array as a tuple: the hot loops index it with constants and keep the values
-    in registers (an array is re-read after every store that might alias it)."""
-    return (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p[12],
-            p[13])  # fmt: skip
 
 
 @kernel
@@ -108,6 +156,14 @@ def set_alpha(p, alpha):
 
 
 @kernel
+def param_tuple(p):
+    """The parameter array as a tuple: the hot loops index it with constants and keep the values
+    in registers (an array is re-read after every store that might alias it)."""
+    return (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p[12],
+            p[13])  # fmt: skip
+
+
+@kernel
 def state_size(effects):
     """Length of the state vector of an effect set: 5, or 9 with the attitude quaternion."""
     if effects & ATTITUDE:
@@ -115,10 +171,11 @@ def state_size(effects):
     return N_BASE
 
 
+# ------------------------------------------------------------------------ right-hand side
 @kernel
 def motion_rates(r, u, v, w, p, effects):
-    """(rdot, thetadot, udot, vdot, wdot) of the centre (physics.md "Equations of motion";
-    rolling resistance from "Effects beyond the paper" when compiled in)."""
+    """(rdot, thetadot, udot, vdot, wdot) of the centre (docs/physics.md "Equations of motion";
+    rolling resistance from "Effects beyond the ideal cone" when compiled in)."""
     ir = 1.0 / r
     kappa = p[P_COT] * ir
     vir = v * ir
@@ -196,17 +253,13 @@ def rhs(y, p, effects, out, row):
         out[row, 8] = q3
 
 
+# ----------------------------------------------------------- quantities of a state vector
 @kernel
 def forces(y, p):
-    """(F [N], N [N]): friction along e1 needed to roll, and the normal force."""
-    r = y[0]
-    v = y[3]
-    w = y[4]
-    kappa = p[P_COT] / r
-    M = p[P_M]
-    N = M * (p[P_G] * p[P_SIN] + v * v * kappa)
-    F = p[P_KK] * M * (p[P_G] * p[P_COS] + kappa * v * w)
-    return F, N
+    """(F [N], N [N]) of the state y (:func:`contact_forces_of`)."""
+    return contact_forces_of(
+        y[0], y[3], y[4], p[P_SIN], p[P_COS], p[P_COT], p[P_M], p[P_G], p[P_KK]
+    )
 
 
 @kernel
@@ -218,24 +271,14 @@ def slip_margin(y, p):
 
 @kernel
 def rim_margin(y, p):
-    """Event function of the rim: r - rim [m] (> 0: the sphere has left the cone)."""
+    """Event function of the rim: r - rim [m] (>= 0: the sphere has left the cone)."""
     return y[0] - p[P_RIM]
 
 
 @kernel
 def invariants(y, p):
-    """(E [J], L_z [kg m^2/s], h [m/s]) of a state (physics.md "Invariants")."""
-    r = y[0]
-    u = y[2]
-    v = y[3]
-    w = y[4]
-    M = p[P_M]
-    k = p[P_K]
-    s = p[P_SIN]
-    Lz = M * r * v * s
-    h = w - Lz * p[P_COS] / (M * r * s * s)
-    E = 0.5 * (1.0 + k) * M * (u * u + v * v) + 0.5 * k * M * w * w + M * p[P_G] * r * p[P_COS]
-    return E, Lz, h
+    """(E [J], L_z [kg m^2/s], h [m/s]) of the state y (:func:`invariants_of`)."""
+    return invariants_of(y[0], y[2], y[3], y[4], p[P_SIN], p[P_COS], p[P_M], p[P_G], p[P_K])
 
 
 @kernel
@@ -269,14 +312,8 @@ def contact_velocity(y, ydot, p):
     Rx = rd * s * cth - vt * sth
     Ry = rd * s * sth + vt * cth
     Rz = rd * c
-    q0 = y[5]
-    q1 = y[6]
-    q2 = y[7]
-    q3 = y[8]
-    d0 = ydot[5]
-    d1 = ydot[6]
-    d2 = ydot[7]
-    d3 = ydot[8]
+    q0, q1, q2, q3 = y[5], y[6], y[7], y[8]
+    d0, d1, d2, d3 = ydot[5], ydot[6], ydot[7], ydot[8]
     n2 = q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3
     # vector part of 2 qdot * conj(q)
     wx = 2.0 * (-d0 * q1 + d1 * q0 - d2 * q3 + d3 * q2) / n2

@@ -1,0 +1,275 @@
+"""The run protocol every integrator kernel follows: status codes, event kinds, buffers, events.
+
+A run kernel (:func:`.rk.rk_run`, :func:`.symplectic.sym_run`, ...) has one signature (see
+:mod:`.orbit`), writes events and recorded states into buffers the caller preallocated, and
+returns ``(status, n_accepted, n_rejected, t, y, n_events, n_recorded)`` (the fields of
+:data:`RUN_RESULT`): it never raises and never reallocates, so its hot loop has no reference
+counting. The helpers here are the parts every run kernel shares: the terminal events already
+on at the start, appending an event or a recorded state, the event functions, and Brent's
+root finder in reverse communication (the caller evaluates the function on its own dense
+output or partial step).
+
+``effects`` reaches these helpers as a numba literal from the run kernel, so the tests
+``effects & RIM`` fold to constants here as in the caller.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._jit import kernel
+from .model import RIM, SLIP_CHECK, rim_margin, slip_margin
+
+EPS = 2.220446049250313e-16
+SQRT_EPS = 1.4901161193847656e-08
+
+# ---------------------------------------------------------------------------- statuses (int8)
+#: (code, CF flag meaning, message) of every exit status of one integration. The code is the
+#: position in the table; the flags name the ``status`` variable's CF ``flag_meanings``.
+STATUSES = (
+    (0, "ok", "ok"),
+    (1, "spilled", "spilled: the orbit reached the rim before the end"),
+    (2, "slipped", "slipped: friction needed exceeded mu N before the end"),
+    (3, "max_steps", "maximum number of steps reached"),
+    (4, "step_too_small", "step size fell below 16 eps |t|"),
+    (
+        5,
+        "not_bounded",
+        "not a bounded orbit: no turning points (forbidden, escaping, radial or invalid input)",
+    ),
+    (6, "non_finite", "non-finite state"),
+    (7, "unsupported_scene", "method does not support this scene"),
+    (8, "buffer_full", "output buffer full (internal: the caller retries with more room)"),
+)
+OK = 0
+SPILLED = 1
+SLIPPED = 2
+MAX_STEPS = 3
+STEP_TOO_SMALL = 4
+NOT_BOUNDED = 5
+NONFINITE = 6
+UNSUPPORTED = 7
+BUFFER_FULL = 8
+STATUS_FLAGS = tuple(row[1] for row in STATUSES)
+STATUS_MESSAGES = tuple(row[2] for row in STATUSES)
+
+# ------------------------------------------------------------------------ event kinds (int8)
+PERICENTRE = 0
+APOCENTRE = 1
+SPILL = 2
+SLIP = 3
+EVENT_NAMES = ("pericentre", "apocentre", "spill", "slip")
+
+# ------------------------------------------------------------------ what a run records
+RECORD_NONE = 0
+RECORD_STEPS = 1
+RECORD_EVERY_DT = 2
+
+#: Fields of the tuple a run kernel returns.
+RUN_RESULT = ("status", "n_accepted", "n_rejected", "t", "y", "n_events", "n_recorded")
+
+
+def _check_tables() -> None:
+    for code, (c, _, _) in enumerate(STATUSES):
+        assert c == code, "STATUSES must be listed in code order"
+
+
+_check_tables()
+
+
+# ------------------------------------------------------------------------------- buffers
+@kernel
+def copy_into(src, dst):
+    """dst[:] = src for 1-D arrays (a loop: no slicing machinery to compile)."""
+    for j in range(src.shape[0]):
+        dst[j] = src[j]
+
+
+@kernel
+def copy_row(src, dst, row):
+    """dst[row, :] = src."""
+    for j in range(src.shape[0]):
+        dst[row, j] = src[j]
+
+
+@kernel
+def event_buffers(capacity, n):
+    """Empty event buffers (time, kind, state) for ``capacity`` events of states of length n
+    (times and states are views of one allocation)."""
+    block = np.empty(capacity * (n + 1))
+    return block[:capacity], np.empty(capacity, np.int8), block[capacity:].reshape((capacity, n))
+
+
+@kernel
+def push_event(ev_t, ev_kind, ev_y, n_ev, t, kind, y):
+    """Append event ``kind`` at time t [s] with state y; returns the new count, or -1 if the
+    buffers are full."""
+    if n_ev == ev_t.shape[0]:
+        return -1
+    ev_t[n_ev] = t
+    ev_kind[n_ev] = kind
+    copy_row(y, ev_y, n_ev)
+    return n_ev + 1
+
+
+@kernel
+def push_state(tr_t, tr_y, n_tr, t, y):
+    """Append a recorded state; returns the new count, or -1 if the buffers are full."""
+    if n_tr == tr_t.shape[0]:
+        return -1
+    tr_t[n_tr] = t
+    copy_row(y, tr_y, n_tr)
+    return n_tr + 1
+
+
+@kernel
+def record_apsis(ev_t, ev_kind, ev_y, n_ev, t, y, g_aps, n_aps, n_apsides):
+    """Append the apsis the apsis function (sign ``g_aps`` before it) just crossed at time t with
+    state y. Returns (new event count or -1 if full, the new sign, apsides so far, whether the
+    run's ``n_apsides`` (if > 0) are reached)."""
+    kind = APOCENTRE if g_aps > 0.0 else PERICENTRE
+    n_ev = push_event(ev_t, ev_kind, ev_y, n_ev, t, kind, y)
+    n_aps += 1
+    return n_ev, -g_aps, n_aps, n_apsides > 0 and n_aps >= n_apsides
+
+
+# -------------------------------------------------------------------------------- events
+@kernel
+def event_value(kind, y, p):
+    """Event function g(y) of an event kind; a terminal event fires where g crosses 0 upwards
+    (apsides: either way, the direction tells pericentre from apocentre)."""
+    if kind == SPILL:
+        return rim_margin(y, p)
+    if kind == SLIP:
+        return slip_margin(y, p)
+    return y[2]
+
+
+@kernel
+def terminal_fired(kind, g):
+    """True where the terminal event function value g means the event has happened (the rim
+    is reached at g = 0, slipping needs g > 0)."""
+    return g > 0.0 or (kind == SPILL and g == 0.0)
+
+
+@kernel
+def terminal_at(effects, y, p):
+    """Terminal event kind already on at state y (SPILL, SLIP) or -1; rim first."""
+    if effects & RIM:
+        if terminal_fired(SPILL, rim_margin(y, p)):
+            return SPILL
+    if effects & SLIP_CHECK:
+        if terminal_fired(SLIP, slip_margin(y, p)):
+            return SLIP
+    return -1
+
+
+@kernel
+def status_of(kind):
+    """Exit status of a run that stopped at terminal event ``kind``."""
+    return SPILLED if kind == SPILL else SLIPPED
+
+
+@kernel
+def start_protocol(effects, y, p, record, ev_t, ev_kind, ev_y, tr_t, tr_y):
+    """Shared start of every run at t = 0: record the first state, and stop at once if a
+    terminal event is already on. Returns (status, n_ev, n_tr); status OK means run on."""
+    n_tr = 0
+    if record != RECORD_NONE:
+        n_tr = push_state(tr_t, tr_y, 0, 0.0, y)
+        if n_tr < 0:
+            return BUFFER_FULL, 0, 0
+    kind = terminal_at(effects, y, p)
+    if kind < 0:
+        return OK, 0, n_tr
+    n_ev = push_event(ev_t, ev_kind, ev_y, 0, 0.0, kind, y)
+    if n_ev < 0:
+        return BUFFER_FULL, 0, n_tr
+    return status_of(kind), n_ev, n_tr
+
+
+# ---------------------------------------------------------------------- Brent's zeroin
+@kernel
+def brent_start(st, a, b, fa, fb):
+    """Start a reverse-communication Brent search on [a, b] with fa fb <= 0 (state ``st``[8])."""
+    st[0] = a
+    st[1] = b
+    st[2] = a
+    st[3] = fa
+    st[4] = fb
+    st[5] = fa
+    st[6] = b - a
+    st[7] = b - a
+
+
+@kernel
+def _brent_save(st, a, b, c, fa, fb, fc):
+    st[0] = a
+    st[1] = b
+    st[2] = c
+    st[3] = fa
+    st[4] = fb
+    st[5] = fc
+
+
+@kernel
+def brent_next(st, xtol):
+    """Brent's zeroin step: (done, x). When not done the caller evaluates f(x) and calls
+    :func:`brent_update`; when done x is the root within 2 eps |x| + xtol/2."""
+    a, b, c, fa, fb, fc, d, e = st[0], st[1], st[2], st[3], st[4], st[5], st[6], st[7]
+    if (fb > 0.0 and fc > 0.0) or (fb < 0.0 and fc < 0.0):
+        c = a
+        fc = fa
+        d = b - a
+        e = d
+    if abs(fc) < abs(fb):
+        a = b
+        b = c
+        c = a
+        fa = fb
+        fb = fc
+        fc = fa
+    tol = 2.0 * EPS * abs(b) + 0.5 * xtol
+    m = 0.5 * (c - b)
+    if abs(m) <= tol or fb == 0.0:
+        _brent_save(st, a, b, c, fa, fb, fc)
+        return True, b
+    if abs(e) >= tol and abs(fa) > abs(fb):
+        s = fb / fa
+        if a == c:
+            pp = 2.0 * m * s
+            qq = 1.0 - s
+        else:
+            qq = fa / fc
+            rr = fb / fc
+            pp = s * (2.0 * m * qq * (qq - rr) - (b - a) * (rr - 1.0))
+            qq = (qq - 1.0) * (rr - 1.0) * (s - 1.0)
+        if pp > 0.0:
+            qq = -qq
+        else:
+            pp = -pp
+        if 2.0 * pp < min(3.0 * m * qq - abs(tol * qq), abs(e * qq)):
+            e = d
+            d = pp / qq
+        else:
+            d = m
+            e = m
+    else:
+        d = m
+        e = m
+    a = b
+    fa = fb
+    if abs(d) > tol:
+        b = b + d
+    else:
+        b = b + (tol if m > 0.0 else -tol)
+    _brent_save(st, a, b, c, fa, fb, fc)
+    st[6] = d
+    st[7] = e
+    return False, b
+
+
+@kernel
+def brent_update(st, fx):
+    """Report f at the x that :func:`brent_next` asked for."""
+    st[4] = fx

@@ -1,0 +1,241 @@
+"""Runge-Kutta code generated from tableau data, for a literal method id.
+
+Each function here is a jit-only stub with an ``@overload`` that builds, for the literal
+``method`` (a position in :data:`.tableaux.RK_TABLEAUX`) and the state size, plain Python source
+with the coefficients as constants (zero terms left out), compiled by numba inside the
+(disk-cached) callers. A straight-line step keeps the stages in local scalars, so the generic
+stepper runs as fast as one written by hand (``scripts/bench_effects.py``). :func:`generated_source`
+shows the code.
+
+- :func:`tableau` the tableau's arrays and constants;
+- :func:`rk_attempt` one step plus its error estimate (RMS norm; with a 3rd-order companion,
+  Hairer's stretched norm);
+- :func:`rk_dense_stages` the extra stages only the dense output needs;
+- :func:`rk_dense_component` one component of the dense output (for events on one component).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+from numba.core import errors, types
+from numba.extending import overload
+
+from .model import N_ATTITUDE, N_BASE, ATTITUDE, rates5, rates9, rhs, state_size
+from .tableaux import RK_TABLEAUX
+
+_GEN_OPTS = {"error_model": "numpy", "fastmath": False, "nogil": True}
+
+
+def _lincomb(coefs, term: str) -> str:
+    """Source of sum_m coefs[m] * term.format(m=m) over the nonzero coefficients."""
+    out = [f"{float(c)!r} * {term.format(m=m)}" for m, c in enumerate(coefs) if c != 0.0]
+    return " + ".join(out) if out else "0.0"
+
+
+def _norm_lines(stretched: bool, n: str) -> list[str]:
+    """The return statement(s) of the error norm from the sums e5 (and e3)."""
+    if stretched:
+        return [
+            "    if e5 == 0.0 and e3 == 0.0:",
+            "        return 0.0",
+            f"    return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * {n})",
+        ]
+    return [f"    return abs(h) * math.sqrt(e5 / {n})"]
+
+
+def _attempt_source_loops(method: int) -> str:
+    """Like :func:`_attempt_source` with a loop over the components (less code to compile)."""
+    tb = RK_TABLEAUX[method]
+    A, E, E3, ns = tb.A, tb.E, tb.E3, tb.n_stages
+    stretched = bool(E3.any())
+    lines = ["def impl(method, effects, y, h, pt, K, ynew, rtol, atol):", "    n = y.shape[0]"]
+    for i in range(1, ns + 1):
+        lines += [
+            "    for j in range(n):",
+            f"        ynew[j] = y[j] + h * ({_lincomb(A[i, :i], 'K[{m}, j]')})",
+            f"    rhs(ynew, pt, effects, K, {i})",
+        ]
+    lines += ["    e5 = 0.0", "    e3 = 0.0", "    for j in range(n):"]
+    lines += ["        sc = atol[j] + rtol * max(abs(y[j]), abs(ynew[j]))"]
+    lines += [f"        d = ({_lincomb(E, 'K[{m}, j]')}) / sc", "        e5 += d * d"]
+    if stretched:
+        lines += [f"        d = ({_lincomb(E3, 'K[{m}, j]')}) / sc", "        e3 += d * d"]
+    return "\n".join(lines + _norm_lines(stretched, "n")) + "\n"
+
+
+def _attempt_source(method: int, n: int) -> str:
+    """Source of ``impl(method, effects, y, h, pt, K, ynew, rtol, atol) -> err``: one step of
+    size h from y with K[0] = f(y); writes the stages K[1..ns], y_new and K[ns] = f(y_new).
+    Straight-line code on scalars where the tableau says ``unroll``, else loops."""
+    tb = RK_TABLEAUX[method]
+    if not tb.unroll:
+        return _attempt_source_loops(method)
+    A, E, E3, ns = tb.A, tb.E, tb.E3, tb.n_stages
+    stretched = bool(E3.any())
+    comps = range(n)
+    rates = "rates9" if n == N_ATTITUDE else "rates5"
+    lines = ["def impl(method, effects, y, h, pt, K, ynew, rtol, atol):"]
+    lines += [f"    y_{j} = y[{j}]" for j in comps]
+    lines += [f"    k0_{j} = K[0, {j}]" for j in comps]
+    for i in range(1, ns + 1):
+        args = [f"y_{j} + h * ({_lincomb(A[i, :i], 'k{m}_' + str(j))})" for j in comps]
+        if i == ns:
+            lines += [f"    n_{j} = {args[j]}" for j in comps]
+            lines += [f"    ynew[{j}] = n_{j}" for j in comps]
+            args = [f"n_{j}" for j in comps]
+        targets = ", ".join(f"k{i}_{j}" for j in comps)
+        lines.append(f"    {targets} = {rates}({', '.join(args)}, pt, effects)")
+    lines += [f"    K[{i}, {j}] = k{i}_{j}" for i in range(1, ns + 1) for j in comps]
+    lines += ["    e5 = 0.0", "    e3 = 0.0"]
+    for j in comps:
+        lines.append(f"    sc = atol[{j}] + rtol * max(abs(y_{j}), abs(n_{j}))")
+        lines.append(f"    d = ({_lincomb(E, 'k{m}_' + str(j))}) / sc")
+        lines.append("    e5 += d * d")
+        if stretched:
+            lines.append(f"    d = ({_lincomb(E3, 'k{m}_' + str(j))}) / sc")
+            lines.append("    e3 += d * d")
+    return "\n".join(lines + _norm_lines(stretched, str(n))) + "\n"
+
+
+def _dense_stages_source(method: int) -> str:
+    """Source of ``impl(method, effects, y, h, p, K, ytmp)``: the extra stages (array form)."""
+    tb = RK_TABLEAUX[method]
+    A, ns = tb.A, tb.n_stages
+    lines = ["def impl(method, effects, y, h, p, K, ytmp):", "    n = state_size(effects)"]
+    for i in range(ns + 1, A.shape[0]):
+        lines += [
+            "    for j in range(n):",
+            f"        ytmp[j] = y[j] + h * ({_lincomb(A[i, :i], 'K[{m}, j]')})",
+            f"    rhs(ytmp, p, effects, K, {i})",
+        ]
+    if A.shape[0] == ns + 1:
+        lines.append("    return")
+    return "\n".join(lines) + "\n"
+
+
+def _dense_component_source(method: int) -> str:
+    """Source of ``impl(method, y, K, h, theta, j)``: one component of the dense output."""
+    P = RK_TABLEAUX[method].P
+    lines = ["def impl(method, y, K, h, theta, j):", "    acc = 0.0"]
+    for i in range(P.shape[0]):
+        if not P[i].any():
+            continue
+        horner = "0.0"
+        for c in P[i][::-1]:
+            horner = (
+                f"({horner} + {float(c)!r}) * theta" if horner != "0.0" else f"{float(c)!r} * theta"
+            )
+        lines.append(f"    acc += ({horner}) * K[{i}, j]")
+    lines.append("    return y[j] + h * acc")
+    return "\n".join(lines) + "\n"
+
+
+def _tableau_source(method: int) -> str:
+    """Source of ``impl(method)``: the tableau's arrays (frozen globals) and its constants."""
+    tb = RK_TABLEAUX[method]
+    consts = (tb.n_stages, tb.A.shape[0], tb.error_order, float(tb.beta), float(tb.beta_weight))
+    return "def impl(method):\n    return T_A, T_C, T_E, T_E3, T_P, " + ", ".join(map(repr, consts))
+
+
+_SOURCES = {
+    "attempt": lambda method, n: _attempt_source(method, n),
+    "dense_stages": lambda method, n: _dense_stages_source(method),
+    "dense_component": lambda method, n: _dense_component_source(method),
+    "tableau": lambda method, n: _tableau_source(method),
+}
+
+
+def generated_source(kind: str, method: int, n: int = N_BASE) -> str:
+    """The generated source of an unrolled kernel: "attempt" (step + error), "dense_stages",
+    "dense_component" or "tableau"."""
+    return _SOURCES[kind](method, n)
+
+
+@functools.cache
+def _generated(kind: str, method: int, n: int):
+    src = generated_source(kind, method, n)
+    tb = RK_TABLEAUX[method]
+    namespace = {
+        "math": math,
+        "rhs": rhs,
+        "rates5": rates5,
+        "rates9": rates9,
+        "state_size": state_size,
+        "T_A": tb.A,
+        "T_C": tb.C,
+        "T_E": tb.E,
+        "T_E3": tb.E3,
+        "T_P": tb.P,
+    }
+    exec(compile(src, f"<conesurvey {kind} method={method} n={n}>", "exec"), namespace)  # noqa: S102
+    return namespace["impl"]
+
+
+def _literal(arg, name: str) -> int:
+    if not isinstance(arg, types.IntegerLiteral):
+        raise errors.TypingError(f"{name} must be a numba literal here (use numba.literally)")
+    return int(arg.literal_value)
+
+
+def _rk_method(arg) -> int:
+    m = _literal(arg, "method")
+    if not 0 <= m < len(RK_TABLEAUX):
+        raise errors.TypingError(f"no Runge-Kutta tableau with id {m}")
+    return m
+
+
+def tableau(method):
+    """(A, C, E, E3, P, n_stages, n_all_stages, error_order, beta, beta_weight) of the
+    Runge-Kutta pair ``method`` (literal). Jit-only."""
+    raise NotImplementedError("tableau runs inside numba kernels only")
+
+
+def rk_attempt(method, effects, y, h, pt, K, ynew, rtol, atol):
+    """Attempt one step of size h [s] from y with K[0] = f(y) given; returns the scaled error
+    estimate (accept when <= 1). ``pt`` is the parameter tuple (:func:`.model.param_tuple`:
+    read once, kept in registers). Writes the stages K[1..ns], ``ynew`` and K[ns] = f(ynew)
+    (first same as last). Jit-only."""
+    raise NotImplementedError("rk_attempt runs inside numba kernels only")
+
+
+def rk_dense_stages(method, effects, y, h, p, K, ytmp):
+    """The extra stages the dense output needs (DOP853: 3; Dormand-Prince 5: none). Jit-only."""
+    raise NotImplementedError("rk_dense_stages runs inside numba kernels only")
+
+
+def rk_dense_component(method, y, K, h, theta, j):
+    """Component j of the dense output at theta (events that need one component only).
+    Jit-only."""
+    raise NotImplementedError("rk_dense_component runs inside numba kernels only")
+
+
+def _inline_unrolled(expr, caller_info, callee_info) -> bool:
+    """Inline a straight-line step into the loop at numba-IR level (a few percent faster: no
+    reference counting of its array arguments); a looped step stays a call (it costs compile
+    time, and its steps are few)."""
+    method = callee_info.signature.args[0]
+    return isinstance(method, types.IntegerLiteral) and RK_TABLEAUX[method.literal_value].unroll
+
+
+@overload(tableau, jit_options=_GEN_OPTS)
+def _ol_tableau(method):
+    return _generated("tableau", _rk_method(method), 0)
+
+
+@overload(rk_attempt, jit_options=_GEN_OPTS, inline=_inline_unrolled)
+def _ol_rk_attempt(method, effects, y, h, pt, K, ynew, rtol, atol):
+    m = _rk_method(method)
+    n = N_ATTITUDE if _literal(effects, "effects") & ATTITUDE else N_BASE
+    return _generated("attempt", m, n)
+
+
+@overload(rk_dense_stages, jit_options=_GEN_OPTS)
+def _ol_rk_dense_stages(method, effects, y, h, p, K, ytmp):
+    return _generated("dense_stages", _rk_method(method), 0)
+
+
+@overload(rk_dense_component, jit_options=_GEN_OPTS)
+def _ol_rk_dense_component(method, y, K, h, theta, j):
+    return _generated("dense_component", _rk_method(method), 0)

@@ -1,0 +1,185 @@
+"""The output vocabulary: every axis, variable, dtype, unit, CF flag table and global attribute
+that conesurvey writes, and which variables a (method, scene) produces.
+
+The API (:func:`engine.evaluate`, :func:`engine.survey`), the streamed survey runs and
+:func:`engine.simulate` all read their names and attributes from here; nothing else defines an
+output name. Units follow CF/UDUNITS (``radian``, ``m s-1``, ``"1"`` for dimensionless); no CF
+standard_name fits these quantities, so none is invented. Flag variables are int8 with int8
+``flag_values`` and space-separated ``flag_meanings`` (CF 1.11, section 3.5).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ._version import __version__
+from .kernels.geometry import CLASS_NAMES
+from .kernels.protocol import EVENT_NAMES, STATUS_FLAGS
+from .methods import get_method
+
+if TYPE_CHECKING:
+    from .scene import Scene
+
+__all__ = [
+    "DIMS",
+    "Variable",
+    "AXES",
+    "RESULTS",
+    "TRAJECTORY",
+    "axis_attrs",
+    "variable_attrs",
+    "result_variables",
+    "result_attrs",
+    "survey_attrs",
+]
+
+#: The four survey axes, in the order of a survey's dims.
+DIMS = ("alpha", "energy", "h", "Lz")
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One output variable: dtype, units (None for flag variables), long name, CF flags."""
+
+    dtype: str
+    units: str | None
+    long_name: str
+    flags: tuple[str, ...] | None = None
+
+    def attrs(self) -> dict[str, Any]:
+        """CF attributes: units and long_name, or long_name and int8 flag_values/meanings."""
+        out: dict[str, Any] = {}
+        if self.units is not None:
+            out["units"] = self.units
+        out["long_name"] = self.long_name
+        if self.flags is not None:
+            out["flag_values"] = np.arange(len(self.flags), dtype=self.dtype)
+            out["flag_meanings"] = " ".join(self.flags)
+        return out
+
+
+def _f(units: str, long_name: str) -> Variable:
+    return Variable("float64", units, long_name)
+
+
+#: The survey axes (also the coordinates of :func:`engine.evaluate`'s results).
+AXES: dict[str, Variable] = {
+    "alpha": _f("radian", "half-aperture of the cone"),
+    "energy": _f("J", "radial energy calE = E/(1+k) - k M h^2/(2(1+k))"),
+    "h": _f("m s-1", "spin invariant h = w - L_z cos(alpha)/(M r sin^2 alpha)"),
+    "Lz": _f("kg m2 s-1", "axial angular momentum of the centre of mass"),
+}
+_ENERGY_RELATIVE = _f("1", "energy offset from the potential minimum, (calE - V_min)/|V_min|")
+
+#: Every result variable of a map, in file order.
+RESULTS: dict[str, Variable] = {
+    "orbit_class": Variable("int8", None, "orbit class", CLASS_NAMES),
+    "r_min": _f("m", "inner turning point (distance from the vertex of the centre's cone)"),
+    "r_max": _f("m", "outer turning point (+inf for escaping orbits)"),
+    "r_circ": _f("m", "radius of the circular orbit (minimum of the effective potential)"),
+    "period": _f("s", "radial period (time from r_max to the next r_max)"),
+    "apsidal_angle": _f(
+        "radian", "azimuth swept from r_min to r_max (to infinity for escaping orbits)"
+    ),
+    "precession_rate": _f("radian s-1", "apsidal precession rate (2 psi - 2 pi) / T_r"),
+    "mu_required": _f("1", "smallest friction coefficient that keeps the sphere rolling"),
+    # integrator methods
+    "n_steps": Variable("int64", "1", "accepted integrator steps over one radial period"),
+    "energy_drift": _f(
+        "1", "|E(T) - E(0)| / max(|E(0)|, kinetic energy at start) over one radial period"
+    ),
+    "status": Variable("int8", None, "integrator status", STATUS_FLAGS),
+    # integrator methods with rolling resistance
+    "energy_loss": _f("J", "total energy lost over the first radial period"),
+    # surveys with an energy axis relative to V_min
+    "energy_absolute": _f("J", "radial energy calE (absolute)"),
+}
+#: The closed form's variables (every method produces them).
+CLOSED_FORM = tuple(RESULTS)[:8]
+#: What an integrator adds; it also replaces period, apsidal angle and precession rate.
+INTEGRATED = ("n_steps", "energy_drift", "status")
+#: Closed-form variables an integrator method replaces by its own values.
+REPLACED_BY_INTEGRATION = ("period", "apsidal_angle", "precession_rate")
+
+#: Variables of :func:`engine.simulate` along its ``time`` and ``event`` dims.
+TRAJECTORY: dict[str, Variable] = {
+    "time": _f("s", "time since the start at r_min"),
+    "r": _f("m", "distance of the centre from the vertex of its cone"),
+    "theta": _f("radian", "azimuth of the centre (unwrapped)"),
+    "u": _f("m s-1", "radial velocity dr/dt along the generatrix"),
+    "v": _f("m s-1", "azimuthal velocity r sin(alpha) dtheta/dt"),
+    "w": _f("m s-1", "spin about the normal times the radius, a omega_nu"),
+    "x": _f("m", "Cartesian x of the centre"),
+    "y": _f("m", "Cartesian y of the centre"),
+    "z": _f("m", "Cartesian z of the centre (cone axis, up)"),
+    "E_drift": _f("J", "total energy minus its initial value"),
+    "Lz_drift": _f("kg m2 s-1", "L_z minus its initial value"),
+    "h_drift": _f("m s-1", "spin invariant h minus its initial value"),
+    "friction_ratio": _f("1", "friction needed over normal force |F|/N (slip where > mu)"),
+    **{
+        f"quat_{c}": _f("1", f"attitude quaternion, {c} component (body to fixed frame)")
+        for c in "wxyz"
+    },
+    "quat_norm_error": _f("1", "|q| - 1 of the attitude quaternion"),
+    "contact_speed": _f(
+        "m s-1",
+        "speed of the sphere's material point at the contact |R_dot + omega x (-a nu)|, "
+        "omega from the quaternion (0 when rolling)",
+    ),
+    "event_time": _f("s", "time of the event"),
+    "event_kind": Variable("int8", None, "event kind", EVENT_NAMES),
+    "event_r": _f("m", "r at the event"),
+    "event_theta": _f("radian", "theta at the event"),
+}
+
+
+def axis_attrs(name: str, energy_relative: bool = False) -> dict[str, Any]:
+    """``units`` and ``long_name`` of a survey axis (the energy axis may be relative)."""
+    if name == "energy" and energy_relative:
+        return _ENERGY_RELATIVE.attrs()
+    return AXES[name].attrs()
+
+
+def variable_attrs(name: str) -> dict[str, Any]:
+    """CF attributes of a result or trajectory variable."""
+    var = RESULTS.get(name) or TRAJECTORY[name]
+    return var.attrs()
+
+
+def result_variables(
+    method: str, scene: Scene, energy_relative: bool = False
+) -> dict[str, np.dtype]:
+    """Names and dtypes of the variables a map of ``scene`` by ``method`` holds, in file order."""
+    names = list(CLOSED_FORM)
+    if get_method(method).integrates:
+        names += INTEGRATED
+        if "rolling_resistance" in scene.effects:
+            names.append("energy_loss")
+    if energy_relative:
+        names.append("energy_absolute")
+    return {n: np.dtype(RESULTS[n].dtype) for n in names}
+
+
+def result_attrs(scene: Scene, method: str, circular_tol: float, rtol: float) -> dict[str, Any]:
+    """Global attributes of a map: source, method, tolerances, the scene's parameters."""
+    attrs: dict[str, Any] = {
+        "source": f"conesurvey {__version__}",
+        "method": method,
+        "circular_tol": circular_tol,
+    }
+    if get_method(method).integrates:
+        attrs["rtol"] = rtol
+    attrs.update(scene.as_attrs())
+    return attrs
+
+
+def survey_attrs(
+    scene: Scene, method: str, circular_tol: float, rtol: float, energy_relative: bool
+) -> dict[str, Any]:
+    """Global attributes of a survey (:func:`result_attrs` plus the energy axis' meaning)."""
+    attrs = result_attrs(scene, method, circular_tol, rtol)
+    attrs["energy_axis"] = "relative to V_min" if energy_relative else "absolute"
+    return attrs
