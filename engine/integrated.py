@@ -101,9 +101,7 @@ def evaluate_integrated(
     within the period ends with "step size fell below 16 eps |t|" (the friction force turns
     discontinuously at zero speed).
     """
-    m = check_method(method, scene)
-    if not m.integrates:
-        raise ValueError(f"method {method!r} is not an integrator")
+    m = check_method(method, scene, integrator=True)
     r = check_rtol(rtol)
     arrays = []
     for name, arr in (("alpha", alpha), ("energy", energy), ("h", h), ("Lz", Lz)):

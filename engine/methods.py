@@ -32,6 +32,7 @@ __all__ = [
 
 #: Relative tolerances the integrators accept (tighter is below rounding; looser is not a map).
 RTOL_RANGE = (1e-14, 1e-3)
+_RTOL_TEXT = "[1e-14, 1e-3]"
 DEFAULT_RTOL = 1e-10
 
 
@@ -97,17 +98,20 @@ METHODS: dict[str, Method] = {
 }
 
 
-def get_method(name: Any) -> Method:
-    """The registered method ``name``; ValueError listing the methods otherwise."""
-    if not isinstance(name, str) or name not in METHODS:
-        raise ValueError(f"method must be one of {', '.join(METHODS)}; got {name!r}")
+def get_method(name: Any, *, integrator: bool = False) -> Method:
+    """The registered method ``name`` (an integrator if ``integrator``); ValueError listing the
+    methods otherwise."""
+    choices = [m for m in METHODS.values() if m.integrates or not integrator]
+    if not isinstance(name, str) or name not in [m.name for m in choices]:
+        names = ", ".join(m.name for m in choices)
+        raise ValueError(f"method must be one of {names}; got {name!r}")
     return METHODS[name]
 
 
-def check_method(name: Any, scene: Scene) -> Method:
+def check_method(name: Any, scene: Scene, *, integrator: bool = False) -> Method:
     """The method ``name`` if it honours every effect of ``scene``; otherwise ValueError naming
     the effects it cannot honour and the methods that can."""
-    method = get_method(name)
+    method = get_method(name, integrator=integrator)
     refused = method.refused_effects(scene)
     if refused:
         able = [m.name for m in METHODS.values() if not m.refused_effects(scene) and m.integrates]
@@ -129,5 +133,5 @@ def check_rtol(rtol: Any) -> float:
         raise ValueError(f"rtol must be a number; got {rtol!r}") from None
     lo, hi = RTOL_RANGE
     if not (lo <= r <= hi) or math.isnan(r):
-        raise ValueError(f"rtol must lie in [{lo:g}, {hi:g}]; got {rtol!r}")
+        raise ValueError(f"rtol must lie in {_RTOL_TEXT}; got {rtol!r}")
     return r

@@ -152,9 +152,7 @@ def simulate(
     Lz = _real("Lz", Lz)
     if Lz == 0.0:
         raise ValueError("Lz must be nonzero (Lz=0.0 is a radial orbit through the axis)")
-    m = check_method(method, scene)
-    if not m.integrates:
-        raise ValueError(f"method {method!r} is not an integrator; give one of rk45, dop853, ...")
+    m = check_method(method, scene, integrator=True)
     rtol = check_rtol(rtol)
     if (t_end is None) == (periods is None):
         raise ValueError(f"give exactly one of t_end and periods; got t_end={t_end!r}, "

@@ -23,35 +23,18 @@ import numpy as np
 from numba import prange
 
 from engine._jit import parallel_kernel
-from engine.integrated import integrate_points, scene_params
-from engine.kernels.integrators import (
-    BETA,
-    BETA_WEIGHT,
-    DP5_ERR_ORDER,
-    EPS,
-    ERR_FLOOR,
-    MAX_FACTOR,
-    MIN_FACTOR,
-    RK45,
-    SAFETY,
-    brent_next,
-    brent_start,
-    brent_update,
-    initial_step,
-    orbit_start,
-    tolerance_scales,
-)
-from engine.kernels.integrators import initial_state as generic_initial_state
-from engine.kernels.scenes import (
-    ATTITUDE,
-    RIM,
-    ROLLING_RESISTANCE,
-    SLIP_CHECK,
-    effects_mask,
-    set_alpha,
-)
-from engine.kernels.symplectic import DEFAULT_ORDER  # noqa: F401  (documented default)
+from engine.integrated import integrate_points
+from engine.kernels.model import ATTITUDE, RIM, ROLLING_RESISTANCE, SLIP_CHECK, set_alpha
+from engine.kernels.orbit import initial_state as generic_initial_state
+from engine.kernels.orbit import orbit_start, tolerance_scales
+from engine.kernels.protocol import EPS, brent_next, brent_start, brent_update
+from engine.kernels.rk import ERR_FLOOR, MAX_FACTOR, MIN_FACTOR, SAFETY, initial_step
+from engine.kernels.tableaux import DP5_ERR_ORDER, RK_TABLEAUX
+from engine.methods import METHODS
 from engine.scene import Scene
+
+RK45 = METHODS["rk45"].kernel_id
+_DP5 = RK_TABLEAUX[RK45]
 
 # Dormand-Prince 5(4) as literals (Hairer's dopri5).
 A21 = 1 / 5
@@ -69,8 +52,8 @@ P4 = (0.0, 127303824393 / 49829197408, -318862633887 / 49829197408,
       701980252875 / 199316789632)  # fmt: skip
 P5 = (0.0, -282668133 / 205662961, 2019193451 / 616988883, -1453857185 / 822651844)
 P6 = (0.0, 40617522 / 29380423, -110615467 / 29380423, 69997945 / 29380423)
-K1 = 1.0 / (DP5_ERR_ORDER + 1) - BETA_WEIGHT[RK45] * BETA[RK45]
-KB = BETA[RK45]
+K1 = 1.0 / (DP5_ERR_ORDER + 1) - _DP5.beta_weight * _DP5.beta
+KB = _DP5.beta
 
 
 @numba.njit(inline="always")
@@ -275,8 +258,6 @@ def main() -> None:
         "dop853, gravity only": (base, "dop853"),
         "symplectic, gravity only": (base, "symplectic"),
     }
-    from engine.integrated import METHOD_IDS
-
     runs = {}
     first = {}
 
@@ -284,15 +265,14 @@ def main() -> None:
         out_f = np.empty((5, n))
         out_n = np.empty(n, np.int64)
         out_s = np.empty(n, np.int8)
-        p = scene_params(scene)
-        integrate_points(alpha, energy, hh, Lz, p, METHOD_IDS[method], effects_mask(scene.effects),
-                         args.rtol, max_steps, out_f, out_n, out_s)  # fmt: skip
+        integrate_points(alpha, energy, hh, Lz, scene.params(), METHODS[method].kernel_id,
+                         scene.effects_mask, args.rtol, max_steps, out_f, out_n, out_s)  # fmt: skip
         return out_f, out_n, out_s
 
     def run_hand():
         out_f = np.empty((2, n))
         out_n = np.empty(n, np.int64)
-        hand_points(alpha, energy, hh, Lz, scene_params(base), args.rtol, max_steps, out_f, out_n)
+        hand_points(alpha, energy, hh, Lz, base.params(), args.rtol, max_steps, out_f, out_n)
         return out_f, out_n
 
     t0 = time.perf_counter()

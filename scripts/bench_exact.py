@@ -35,8 +35,7 @@ import numba
 import numpy as np
 
 import engine
-from engine.kernels.geometry import CIRCULAR_TOL, empty_outputs, orbit_batch
-from engine.kernels.physics import BOUNDED
+from engine.kernels.geometry import BOUNDED, CIRCULAR_TOL, empty_outputs, orbit_batch
 
 M, G, K = 1.0, 9.81, 0.4
 TARGET_VS_PEER = 4.0

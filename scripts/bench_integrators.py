@@ -10,8 +10,9 @@ closed form (``engine.evaluate``, method "exact").
 
 (a) The engine's integrators (rk45, dop853, symplectic) at rtol 1e-6, 1e-9, 1e-10, 1e-12 on 1 and
     2 numba threads: orbits/s, 2-thread speedup and parallel efficiency. "half period" is a
-    prange kernel defined here that calls the engine's own ``rk_run`` / ``sym_run`` with the
-    engine's start (``orbit_start``, ``initial_state``, ``tolerance_scales``) and stops at the
+    prange kernel defined here that calls the engine's own run kernel
+    (``engine.kernels.orbit.run``) with the engine's start (``orbit_start``,
+    ``initial_state``, ``tolerance_scales``) and stops at the
     first apsis (n_apsides = 1); "API, full period" is ``engine.integrated.evaluate_integrated``,
     which integrates r_min -> r_max -> r_min (twice the work) and is what ``engine.evaluate``
     runs.
@@ -47,21 +48,12 @@ import numpy as np
 from numba import literally, prange
 
 import engine
-from engine.integrated import call_specialized, evaluate_integrated, scene_params
-from engine.kernels.integrators import (
-    APOCENTRE,
-    METHOD_IDS,
-    OK,
-    RECORD_NONE,
-    SYMPLECTIC,
-    event_buffers,
-    initial_state,
-    orbit_start,
-    rk_run,
-    tolerance_scales,
-)
-from engine.kernels.scenes import set_alpha
-from engine.kernels.symplectic import DEFAULT_ORDER, initial_z, sym_run
+from engine._jit import call_specialized
+from engine.integrated import evaluate_integrated
+from engine.kernels.model import set_alpha
+from engine.kernels.orbit import initial_state, orbit_start, run, tolerance_scales
+from engine.kernels.protocol import APOCENTRE, OK, RECORD_NONE, event_buffers
+from engine.methods import METHODS as REGISTRY
 
 M, G, K = 1.0, 9.81, 0.4
 METHODS = ("rk45", "dop853", "symplectic")
@@ -109,7 +101,7 @@ def start_states(o: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     y0 = np.empty((n, 5))
     sc = np.empty((n, 5))
     for i in range(n):
-        p = scene_params(scene, float(o["alpha"][i]))
+        p = scene.params(float(o["alpha"][i]))
         args = (float(o["energy"][i]), float(o["h"][i]), float(o["Lz"][i]))
         ok, r1, r2, rc = orbit_start(p, *args)
         y = initial_state(p, 0, r1, *args)
@@ -124,10 +116,10 @@ _JIT = {"parallel": True, "cache": True, "nogil": True, "error_model": "numpy"}
 
 
 @numba.njit(**_JIT)
-def half_period_rk(alpha, energy, h, Lz, params, method, rtol, max_steps, psi, t_half, steps):
-    """Integrate each orbit from r_min to the first apsis (r_max) with the engine's RK kernels
-    (literal ``method``); writes psi [rad] (NaN on failure), the time [s] and the accepted
-    steps."""
+def half_period(alpha, energy, h, Lz, params, method, rtol, max_steps, psi, t_half, steps):
+    """Integrate each orbit from r_min to the first apsis (r_max) with the engine's run kernel
+    of the literal ``method`` id; writes psi [rad] (NaN on failure), the time [s] and the
+    accepted steps."""
     literally(method)
     for i in prange(alpha.shape[0]):
         p = params.copy()
@@ -142,31 +134,9 @@ def half_period_rk(alpha, energy, h, Lz, params, method, rtol, max_steps, psi, t
         y0[2] = 0.0
         atol = tolerance_scales(p, 0, y0, energy[i], h[i], Lz[i], r1, r2, rc) * rtol
         ev_t, ev_kind, ev_y = event_buffers(2, y0.shape[0])
-        res = rk_run(method, 0, y0, p, rtol, atol, math.inf, np.int64(1), max_steps,
-                     np.int64(RECORD_NONE), 0.0, ev_t, ev_kind, ev_y, ev_t, ev_y, ev_y)  # fmt: skip
-        steps[i] = res[1]
-        if res[0] == OK and res[5] >= 1 and ev_kind[0] == APOCENTRE:
-            psi[i] = abs(ev_y[0, 1])
-            t_half[i] = ev_t[0]
-
-
-@numba.njit(**_JIT)
-def half_period_sym(alpha, energy, h, Lz, params, rtol, max_steps, psi, t_half, steps):
-    """:func:`half_period_rk` with the engine's symplectic (time-transformed Yoshida) kernel."""
-    for i in prange(alpha.shape[0]):
-        p = params.copy()
-        set_alpha(p, alpha[i])
-        psi[i] = math.nan
-        t_half[i] = math.nan
-        steps[i] = 0
-        ok, r1, r2, rc = orbit_start(p, energy[i], h[i], Lz[i])
-        if not ok:
-            continue
-        z0 = initial_z(p, r1, 0.0, energy[i], h[i], Lz[i])
-        ev_t, ev_kind, ev_y = event_buffers(2, 5)
-        res = sym_run(0, z0, p, energy[i], h[i], Lz[i], np.int64(DEFAULT_ORDER), rtol, math.inf,
-                      np.int64(1), max_steps, np.int64(RECORD_NONE), 0.0, ev_t, ev_kind, ev_y,
-                      ev_t, ev_y)  # fmt: skip
+        res = run(method, 0, y0, p, (energy[i], h[i], Lz[i]), rtol, atol, math.inf,
+                  np.int64(1), max_steps, np.int64(RECORD_NONE), 0.0, ev_t, ev_kind, ev_y, ev_t,
+                  ev_y, ev_y)  # fmt: skip
         steps[i] = res[1]
         if res[0] == OK and res[5] >= 1 and ev_kind[0] == APOCENTRE:
             psi[i] = abs(ev_y[0, 1])
@@ -201,8 +171,8 @@ class EngineHalf:
 
     def __init__(self, o: dict[str, np.ndarray], method: str, rtol: float):
         self.args_in = [o[k] for k in ("alpha", "energy", "h", "Lz")]
-        self.params = scene_params(engine.Scene(M=M, g=G, k=K))
-        self.method = METHOD_IDS[method]
+        self.params = engine.Scene(M=M, g=G, k=K).params()
+        self.method = REGISTRY[method].kernel_id
         self.rtol = float(rtol)
         n = o["alpha"].size
         self.psi = np.empty(n)
@@ -211,11 +181,8 @@ class EngineHalf:
 
     def __call__(self) -> np.ndarray:
         out = (self.psi, self.t, self.steps)
-        if self.method == SYMPLECTIC:
-            half_period_sym(*self.args_in, self.params, self.rtol, 1_000_000, *out)
-        else:
-            args = (*self.args_in, self.params, self.method, self.rtol, 1_000_000, *out)
-            call_specialized(half_period_rk, args, (5,))
+        args = (*self.args_in, self.params, self.method, self.rtol, 1_000_000, *out)
+        call_specialized(half_period, args, (5,))
         return self.psi
 
 

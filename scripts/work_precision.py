@@ -14,7 +14,7 @@ gives the radial period, the apsidal angle, the precession rate, the accepted st
 energy drift of every orbit; their relative errors are taken against the closed form
 (method "exact"). The closed form itself is checked against the mpmath oracle
 (``tests/oracle.py``, 60 digits, with condition numbers) on a subset. Cost per orbit: wall time
-(best of 3, 1 and 2 numba threads) of ``engine.api.evaluate_flat`` (the path of
+(best of 3, 1 and 2 numba threads) of ``engine.evaluation.evaluate_flat`` (the path of
 ``engine.evaluate`` without the xarray assembly) over the whole set, and right-hand-side
 evaluations (stages x steps, see the file's attributes).
 
@@ -57,9 +57,9 @@ import numpy as np
 import xarray as xr
 
 import engine
-from engine.api import evaluate_flat
+from engine.evaluation import evaluate_flat
 from engine.integrated import evaluate_integrated
-from engine.kernels.physics import BOUNDED, CIRCULAR, CLASS_NAMES, HYPERBOLIC
+from engine.kernels.geometry import BOUNDED, CIRCULAR, CLASS_NAMES, HYPERBOLIC
 
 ROOT = Path(__file__).resolve().parents[1]
 METHODS = ("rk45", "dop853", "symplectic")
@@ -80,7 +80,7 @@ EVAL_NOTE = (
     "to locate the 2 apsides (Brent, about 10 composed steps each)"
 )
 TIME_NOTE = (
-    "wall time of engine.api.evaluate_flat (engine.evaluate without the xarray assembly: "
+    "wall time of engine.evaluation.evaluate_flat (engine.evaluate without the xarray assembly: "
     "closed-form classification, then the integrator batch kernel with numba prange over "
     "points) on the whole orbit set, one call per scene, repeated so that one timing lasts "
     ">= {target} s, best of {repeats}, divided by the number of orbits integrated; numba "

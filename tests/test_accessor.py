@@ -9,7 +9,7 @@ import xarray as xr
 
 import engine
 import engine.accessor  # noqa: F401  (registers ds.cone)
-from engine.kernels.physics import CLASS_NAMES
+from engine.kernels.geometry import CLASS_NAMES
 
 matplotlib.use("Agg")
 

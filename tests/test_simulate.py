@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 import pytest
-from test_integrators import HARD, P003, RTOL, closed_form, kappa
+from cases import HARD, P003, RTOL, closed_form, kappa
 
 import engine
 from engine.simulate import simulate

@@ -336,17 +336,22 @@ def rk_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_step
 
         g_new = ynew[2]
         aps_cross = (g_aps > 0.0 and g_new <= 0.0) or (g_aps < 0.0 and g_new >= 0.0)
-        term_cross = terminal_at(effects, ynew, p) >= 0
+        term_cross = False
+        if effects & (RIM | SLIP_CHECK):
+            term_cross = terminal_at(effects, ynew, p) >= 0
         sample = record == RECORD_EVERY_DT and next_out <= t + h and next_out < t_end
         if S > ns + 1 and (aps_cross or term_cross or sample):
             rk_dense_stages(method, effects, y, h, p, K, buf)
-        ok, th_stop, stop_status, g_aps, n_aps, n_ev = _step_events(
-            method, effects, y, ynew, K, h, t, p, buf, st, g_aps, n_aps, n_apsides,
-            ev_t, ev_kind, ev_y, n_ev, term_cross)  # fmt: skip
-        if not ok:
-            n_ev = ev_t.shape[0]
-            status = BUFFER_FULL
-            break
+        th_stop = 2.0
+        stop_status = OK
+        if aps_cross or term_cross:  # a call only when needed: its array arguments cost refcounts
+            ok, th_stop, stop_status, g_aps, n_aps, n_ev = _step_events(
+                method, effects, y, ynew, K, h, t, p, buf, st, g_aps, n_aps, n_apsides,
+                ev_t, ev_kind, ev_y, n_ev, term_cross)  # fmt: skip
+            if not ok:
+                n_ev = ev_t.shape[0]
+                status = BUFFER_FULL
+                break
         stopping = th_stop <= 1.0 or last
         if sample:
             t_lim = t + min(th_stop, 1.0) * h

@@ -22,7 +22,7 @@ import math
 from numba.core import errors, types
 from numba.extending import overload
 
-from .model import N_ATTITUDE, N_BASE, ATTITUDE, rates5, rates9, rhs, state_size
+from .model import ATTITUDE, N_ATTITUDE, N_BASE, rates5, rates9, rhs, state_size
 from .tableaux import RK_TABLEAUX
 
 _GEN_OPTS = {"error_model": "numpy", "fastmath": False, "nogil": True}

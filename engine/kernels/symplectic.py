@@ -262,8 +262,6 @@ def initial_z(p, r0, u0, energy, h, Lz):
     return z
 
 
-
-
 @kernel
 def _step_events(effects, z, zn, hstep, wts, cf, p, h, Lz, t_end, g_aps, n_aps, n_apsides,
                  ev_t, ev_kind, ev_y, n_ev, zt, buf, st):  # fmt: skip

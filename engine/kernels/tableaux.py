@@ -76,6 +76,7 @@ class Tableau(NamedTuple):
     beta_weight: float
     unroll: bool
 
+
 # --------------------------------------------------------------------------- Dormand-Prince 5(4)
 DP5_N_STAGES = 6
 DP5_ORDER = 5

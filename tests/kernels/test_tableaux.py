@@ -6,20 +6,12 @@ import numpy as np
 import pytest
 
 from engine.kernels import tableaux as tb
-from engine.kernels.integrators import generated_source
+from engine.kernels.rk_codegen import generated_source
 
+#: Every Runge-Kutta pair the engine offers: (A, C, B, E, E3, P, n_stages, order).
 RK = {
-    "dp5": (tb.DP5_A, tb.DP5_C, tb.DP5_B, tb.DP5_E, np.zeros(7), tb.DP5_P, tb.DP5_N_STAGES, 5),
-    "dop853": (
-        tb.DOP853_A,
-        tb.DOP853_C,
-        tb.DOP853_B,
-        tb.DOP853_E,
-        tb.DOP853_E3,
-        tb.DOP853_P,
-        tb.DOP853_N_STAGES,
-        8,
-    ),
+    t.name: (t.A, t.C, t.A[t.n_stages, : t.n_stages], t.E, t.E3, t.P, t.n_stages, t.order)
+    for t in tb.RK_TABLEAUX
 }
 EPS = np.finfo(float).eps
 
@@ -59,7 +51,7 @@ def test_embedded_solution_is_one_order_lower(name):
     c = C[: ns + 1]
     b = np.append(B, 0.0)
     bhat = b - E
-    q_err = 4 if name == "dp5" else 5  # DOP853's E is the 5th-order companion
+    q_err = 4 if name == "rk45" else 5  # DOP853's E is the 5th-order companion
     for q in range(1, q_err + 1):
         assert bhat @ c ** (q - 1) == pytest.approx(1.0 / q, rel=1e-13), q
     assert abs(bhat @ c**q_err - 1.0 / (q_err + 1)) > 1e-6
@@ -93,7 +85,7 @@ def test_dense_output_order(name):
     S = A.shape[0]
     errs = []
     # step sizes in the asymptotic range and above rounding (DOP853 reaches 1e-12 at h = 0.2)
-    hs = np.array([0.1, 0.05, 0.025, 0.0125]) if name == "dp5" else np.array([0.8, 0.4, 0.2])
+    hs = np.array([0.1, 0.05, 0.025, 0.0125]) if name == "rk45" else np.array([0.8, 0.4, 0.2])
     for h in hs:
         K = np.zeros(S)
         for i in range(S):
@@ -122,11 +114,11 @@ def test_composition_weights_rejects_other_orders():
         tb.composition_weights(3)
 
 
-@pytest.mark.parametrize("method", [0, 1])
+@pytest.mark.parametrize("method", range(len(tb.RK_TABLEAUX)))
 def test_generated_stepper_holds_every_nonzero_coefficient(method):
     """The unrolled step is generated from the data: every nonzero A and E entry appears in it
     exactly as a float literal, and no zero does."""
-    A, C, B, E, E3, P, ns, order = RK["dp5" if method == 0 else "dop853"]
+    A, C, B, E, E3, P, ns, order = RK[tb.RK_TABLEAUX[method].name]
     src = generated_source("attempt", method, 5)
     for i in range(1, ns + 1):
         for m in range(i):

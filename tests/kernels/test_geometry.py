@@ -7,23 +7,21 @@ import numpy as np
 import pytest
 from hypothesis import assume, given
 from hypothesis import strategies as st
+from model_oracle import contact_forces, state_from_invariants
 from oracle import reference, tolerance
 
 import engine
-from engine.kernels.geometry import mu_required, orbit_point
-from engine.kernels.physics import (
+from engine.kernels.geometry import (
     BOUNDED,
     CIRCULAR,
     FORBIDDEN,
     HYPERBOLIC,
     RADIAL,
     SPILLS,
-    coefficients,
-    contact_forces,
-    potential,
-    potential_d1,
-    state_from_invariants,
+    mu_required,
+    orbit_point,
 )
+from engine.kernels.model import coefficients, potential, potential_d1
 from engine.kernels.roots import circular_radius
 
 EPS = 2.220446049250313e-16
