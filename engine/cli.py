@@ -13,14 +13,18 @@ import shutil
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, TextIO
+from typing import TextIO
 
+from ._version import __version__
 from .grid import BLOCK_POINTS
+from .io import OutputError
+from .io.blocks import estimate_bytes
+from .io.netcdf import ZLIB_LEVEL, read_info
+from .kernels.geometry import CLASS_NAMES
+from .progress import Progress
+from .runner import AlreadyComplete, RunError, RunStats, run_survey
 from .schema import DIMS
-
-if TYPE_CHECKING:
-    from .runner import RunStats
-    from .surveyfile import Survey
+from .surveyfile import Survey, SurveyError, load_survey
 
 __all__ = ["main", "build_parser"]
 
@@ -62,8 +66,6 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=PROG, description=DESCRIPTION, epilog=EPILOG, formatter_class=fmt
     )
-    from . import __version__
-
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     run = sub.add_parser(
@@ -73,6 +75,26 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=EPILOG,
         formatter_class=fmt,
     )
+    _add_run_arguments(run)
+    info = sub.add_parser(
+        "info",
+        help="show the definition, completion state, class counts and provenance of a result",
+        description="Describe a conesurvey result file (or the unfinished run behind it).",
+        formatter_class=fmt,
+    )
+    info.add_argument("file", metavar="FILE.nc", help="a conesurvey netCDF result")
+    validate = sub.add_parser(
+        "validate",
+        help="check a survey definition; print grid size, output size and run-time estimate",
+        description="Check SURVEY.toml without running it (exit 2 if it is invalid).",
+        formatter_class=fmt,
+    )
+    validate.add_argument("survey", metavar="SURVEY.toml", help="survey definition (TOML)")
+    return parser
+
+
+def _add_run_arguments(run: argparse.ArgumentParser) -> None:
+    """The options of ``conesurvey run``."""
     run.add_argument("survey", metavar="SURVEY.toml", help="survey definition (TOML)")
     run.add_argument(
         "-o",
@@ -87,20 +109,24 @@ def build_parser() -> argparse.ArgumentParser:
         "-q", "--quiet", action="store_true", help="no progress bar and no summary; errors only"
     )
     run.add_argument(
-        "--chunk-points",
+        "--block-points",
         type=_positive_int,
         metavar="N",
         help=f"points per block computed and stored at a time (default {BLOCK_POINTS:,}); "
         "memory grows with N, not with the grid",
     )
+    # The option's former name, hidden ("chunk" means the netCDF storage chunk): old scripts run.
+    run.add_argument(
+        "--chunk-points", dest="block_points", type=_positive_int, help=argparse.SUPPRESS
+    )
     run.add_argument(
         "--complevel",
         type=int,
         choices=range(10),
-        default=1,
+        default=ZLIB_LEVEL,
         metavar="0-9",
-        help="zlib level of the output (default 1; 0 = uncompressed, several times faster "
-        "to write, ~1.7x larger)",
+        help=f"zlib level of the output (default {ZLIB_LEVEL}; 0 = uncompressed, several "
+        "times faster to write, ~1.7x larger)",
     )
     run.add_argument(
         "--force",
@@ -119,21 +145,6 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="N",
         help="start a local dask cluster of N worker processes (numba threads split among them)",
     )
-    info = sub.add_parser(
-        "info",
-        help="show the definition, completion state, class counts and provenance of a result",
-        description="Describe a conesurvey result file (or the unfinished run behind it).",
-        formatter_class=fmt,
-    )
-    info.add_argument("file", metavar="FILE.nc", help="a conesurvey netCDF result")
-    validate = sub.add_parser(
-        "validate",
-        help="check a survey definition; print grid size, output size and run-time estimate",
-        description="Check SURVEY.toml without running it (exit 2 if it is invalid).",
-        formatter_class=fmt,
-    )
-    validate.add_argument("survey", metavar="SURVEY.toml", help="survey definition (TOML)")
-    return parser
 
 
 def _positive_int(text: str) -> int:
@@ -177,8 +188,6 @@ def _error(message: str) -> None:
 
 
 def _load(path: str) -> Survey:
-    from .surveyfile import SurveyError, load_survey
-
     source = Path(path)
     try:
         return load_survey(source)
@@ -200,16 +209,11 @@ INTEGRATOR_RATE = 2.0e4
 
 def _estimates(survey: Survey) -> tuple[int, float]:
     """(uncompressed output bytes, estimated run time [s])."""
-    from .runner import estimate_bytes
-
     rate = EXACT_RATE if survey.method == "exact" else INTEGRATOR_RATE
     return estimate_bytes(survey), survey.size / rate
 
 
 def _run(args: argparse.Namespace, command: str) -> int:
-    from .progress import Progress
-    from .runner import AlreadyComplete, RunError, run_survey
-
     source = Path(args.survey)
     survey = _load(args.survey)
     out = Path(args.output) if args.output else Path.cwd() / (source.stem + ".nc")
@@ -229,7 +233,7 @@ def _run(args: argparse.Namespace, command: str) -> int:
         stats = run_survey(
             survey,
             out,
-            chunk_points=args.chunk_points,
+            block_points=args.block_points,
             overwrite=args.overwrite,
             progress=progress,
             scheduler=args.scheduler,
@@ -282,12 +286,10 @@ def _validate(args: argparse.Namespace) -> int:
 
 
 def _info(args: argparse.Namespace) -> int:
-    from .runner import RunError, read_info
-
     path = Path(args.file)
     try:
         info = read_info(path)
-    except RunError as exc:
+    except OutputError as exc:
         raise _InputError(str(exc)) from None
     attrs = info.get("attrs", {})
     print(f"{path}")
@@ -317,8 +319,6 @@ def _info(args: argparse.Namespace) -> int:
 def print_summary(stats: RunStats, *, title: str, method: str, file: TextIO | None = None) -> None:
     """Print the grid, class counts and fractions, the range of each result variable over its
     finite values, the time taken and the output path."""
-    from .kernels.geometry import CLASS_NAMES
-
     out = sys.stdout if file is None else file
     total = stats.points
     shape = " x ".join(f"{d} {n}" for d, n in zip(DIMS, stats.shape, strict=True))

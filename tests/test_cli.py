@@ -213,12 +213,12 @@ def test_interrupt_exit_130_keeps_blocks_for_resume(workdir, capsys, monkeypatch
 
 
 def test_write_failure_exit_1(workdir, capsys, monkeypatch):
-    from engine import runner
+    from engine.io import netcdf
 
     def full_disk(*args, **kwargs):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(runner, "_merge", full_disk)
+    monkeypatch.setattr(netcdf, "merge", full_disk)
     assert cli.main(["run", "small.toml"]) == 1
     err = capsys.readouterr().err
     assert "conesurvey: error: cannot write" in err and "No space left on device" in err

@@ -58,7 +58,7 @@ def _keep_environment():
 @pytest.fixture(scope="module")
 def local_result(tmp_path_factory):
     out = tmp_path_factory.mktemp("local") / "local.nc"
-    stats = run_survey(parse_survey(SURVEY), out, chunk_points=CHUNK)
+    stats = run_survey(parse_survey(SURVEY), out, block_points=CHUNK)
     assert stats.blocks_total >= 6
     return _values(out)
 
@@ -88,7 +88,7 @@ def test_existing_cluster_with_a_worker_killed_mid_run(tmp_path, local_result):
         stats = run_survey(
             parse_survey(SURVEY),
             out,
-            chunk_points=CHUNK,
+            block_points=CHUNK,
             scheduler=cluster.scheduler_address,
             on_block=kill_one,
         )
@@ -102,7 +102,7 @@ def test_existing_cluster_with_a_worker_killed_mid_run(tmp_path, local_result):
 def test_local_cluster_started_by_workers_flag(tmp_path, local_result):
     out = tmp_path / "workers.nc"
     before = dict(os.environ)
-    run_survey(parse_survey(SURVEY), out, chunk_points=CHUNK, workers=2)
+    run_survey(parse_survey(SURVEY), out, block_points=CHUNK, workers=2)
     assert dict(os.environ) == before  # the runner restores what the nannies changed
     got = _values(out)
     for name, arr in local_result.items():

@@ -14,9 +14,10 @@ import numpy as np
 import pytest
 import xarray as xr
 
-import engine
 from engine import runner
-from engine.runner import RunError, read_info, run_survey
+from engine.io import blocks as io_blocks
+from engine.io.netcdf import read_info
+from engine.runner import RunError, run_survey
 from engine.surveyfile import parse_survey
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -83,7 +84,7 @@ def reference_run(tmp_path_factory):
     d = tmp_path_factory.mktemp("ref")
     (d / "s.toml").write_text(SURVEY)
     proc = subprocess.run(
-        _cli("run", "s.toml", "-o", "ref.nc", "-q", "--chunk-points", str(CHUNK)),
+        _cli("run", "s.toml", "-o", "ref.nc", "-q", "--block-points", str(CHUNK)),
         cwd=d,
         env=_env(),
         capture_output=True,
@@ -97,6 +98,7 @@ def reference_run(tmp_path_factory):
 def test_sigkill_mid_run_then_resume_gives_identical_file(tmp_path, reference_run):
     (tmp_path / "s.toml").write_text(SURVEY)
     parts = tmp_path / "out.nc.parts"
+    # the option's old spelling, still accepted: the file must equal the --block-points one
     cmd = _cli("run", "s.toml", "-o", "out.nc", "-q", "--chunk-points", str(CHUNK))
     kills = 0
     for target in (3, 12, 22):  # kill three times at increasing progress
@@ -146,29 +148,29 @@ def test_resume_refuses_another_survey_or_engine_version(tmp_path, monkeypatch):
     out = tmp_path / "o.nc"
     s = parse_survey(SMALL.replace("num = 33", "num = 330"))
     with pytest.raises(KeyboardInterrupt):
-        run_survey(s, out, chunk_points=CHUNK, on_block=_kill_after(1))
+        run_survey(s, out, block_points=CHUNK, on_block=_kill_after(1))
     other = parse_survey(SMALL.replace("num = 33", "num = 330").replace("runner test", "x"))
     with pytest.raises(RunError, match="another survey"):
-        run_survey(other, out, chunk_points=CHUNK)
-    monkeypatch.setattr(engine, "__version__", "9.9.9")
+        run_survey(other, out, block_points=CHUNK)
+    monkeypatch.setattr(io_blocks, "__version__", "9.9.9")  # the version the block store records
     with pytest.raises(RunError, match="engine version"):
-        run_survey(s, out, chunk_points=CHUNK)
+        run_survey(s, out, block_points=CHUNK)
     assert not out.exists()
 
 
 def test_corrupt_block_is_reported_and_recomputed(tmp_path):
     s = parse_survey(SMALL.replace("num = 33", "num = 330"))
-    ref = run_survey(s, tmp_path / "ref.nc", chunk_points=CHUNK)
+    ref = run_survey(s, tmp_path / "ref.nc", block_points=CHUNK)
     assert ref.blocks_total >= 3
     out = tmp_path / "o.nc"
     with pytest.raises(KeyboardInterrupt):
-        run_survey(s, out, chunk_points=CHUNK, on_block=_kill_after(2))
+        run_survey(s, out, block_points=CHUNK, on_block=_kill_after(2))
     blocks = sorted((tmp_path / "o.nc.parts").glob("b*.npz"))
     assert len(blocks) == 2
     blocks[0].write_bytes(blocks[0].read_bytes()[:100])  # truncated: a torn write
     (tmp_path / "o.nc.parts" / "b00000099.npz.tmp").write_bytes(b"stale")
     warnings: list[str] = []
-    stats = run_survey(s, out, chunk_points=CHUNK, warn=warnings.append)
+    stats = run_survey(s, out, block_points=CHUNK, warn=warnings.append)
     assert any("corrupt" in w and blocks[0].name in w for w in warnings)
     assert stats.blocks_reused == 1
     _same_content(out, tmp_path / "ref.nc")
@@ -181,7 +183,7 @@ def test_completed_output_is_not_recomputed_and_info_reports_it(tmp_path, capsys
     with pytest.raises(runner.AlreadyComplete):
         run_survey(s, out)
     info = read_info(out)
-    assert info["complete"] and info["attrs"]["survey_fingerprint"] == runner.fingerprint(s)
+    assert info["complete"] and info["attrs"]["survey_fingerprint"] == io_blocks.fingerprint(s)
     assert sum(info["counts"].values()) == stats.points
     assert info["counts"]["bounded"] == int(stats.counts[1])
     from engine import cli
@@ -222,12 +224,21 @@ def test_chunk_points_flag_must_be_positive(tmp_path, capsys):
     assert "--chunk-points" in capsys.readouterr().err
 
 
+def test_block_points_flag_must_be_positive(tmp_path, capsys):
+    from engine import cli
+
+    with pytest.raises(SystemExit) as e:
+        cli.main(["run", "x.toml", "--block-points", "0"])
+    assert e.value.code == 2
+    assert "--block-points" in capsys.readouterr().err
+
+
 def _peak_rss_mb(tmp_path: Path, text: str, name: str) -> float:
     code = f"""
 import resource, sys
 from engine.surveyfile import parse_survey
 from engine.runner import run_survey
-run_survey(parse_survey(open(sys.argv[1]).read()), sys.argv[2], chunk_points={CHUNK})
+run_survey(parse_survey(open(sys.argv[1]).read()), sys.argv[2], block_points={CHUNK})
 print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
 """
     (tmp_path / f"{name}.toml").write_text(text)

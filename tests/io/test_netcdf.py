@@ -1,4 +1,4 @@
-"""netCDF output: CF attributes, encodings, round trip and crash safety."""
+"""engine.io.netcdf: CF attributes, encodings, round trip and crash safety."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import pytest
 import xarray as xr
 
 import engine
-from engine import output
-from engine.output import cf_dataset, encoding_for, write_netcdf, write_survey
+from engine.io import netcdf
+from engine.io.netcdf import cf_dataset, encoding_for, write_netcdf, write_survey
 from engine.surveyfile import parse_survey
 
 # Free fall: B of both signs, so several classes and NaN fields occur. Non-ASCII and quotes
@@ -210,7 +210,7 @@ def test_interrupt_before_rename_leaves_nothing(tmp_path, ds, monkeypatch):
         assert p.exists()  # the full .tmp file was written before the interrupt
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(output, "_fsync_path", interrupted)
+    monkeypatch.setattr(netcdf, "fsync_path", interrupted)
     with pytest.raises(KeyboardInterrupt):
         write_netcdf(ds, tmp_path / "out.nc")
     assert seen == [tmp_path / "out.nc.tmp"]
@@ -220,13 +220,13 @@ def test_interrupt_before_rename_leaves_nothing(tmp_path, ds, monkeypatch):
 def test_output_created_meanwhile_is_not_clobbered(tmp_path, ds, monkeypatch):
     """Another process creates the output while we write: the final rename must not replace it."""
     path = tmp_path / "out.nc"
-    real_fsync_path = output._fsync_path
+    real_fsync_path = netcdf.fsync_path
 
     def racing(p):
         real_fsync_path(p)
         path.write_bytes(b"theirs")
 
-    monkeypatch.setattr(output, "_fsync_path", racing)
+    monkeypatch.setattr(netcdf, "fsync_path", racing)
     with pytest.raises(FileExistsError):
         write_netcdf(ds, path)
     assert path.read_bytes() == b"theirs"
