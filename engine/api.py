@@ -146,7 +146,8 @@ def survey(
     circular_tol: float = CIRCULAR_TOL,
     rtol: float = DEFAULT_RTOL,
     progress: Callable[[int, int], None] | None = None,
-    chunk_points: int = BLOCK_POINTS,
+    block_points: int = BLOCK_POINTS,
+    chunk_points: int | None = None,
 ) -> xr.Dataset:
     """Outer product of four 1-D axes -> Dataset with dims (alpha, energy, h, Lz).
 
@@ -154,7 +155,7 @@ def survey(
     each (alpha, h, Lz)'s potential minimum, and ``energy_absolute`` [J] is added; where V has
     no minimum (free fall with B >= 0, or L_z = 0) the energy is undefined and the point is
     classed forbidden. ``progress(done, total)`` is called after each block of
-    about ``chunk_points`` points.
+    about ``block_points`` points (``chunk_points`` is its former name, still accepted).
     """
     scene = Scene() if scene is None else scene
     rtol = _check_method_and_rtol(method, scene, rtol)
@@ -162,7 +163,7 @@ def survey(
     axes = {n: _axis(n, v) for n, v in (("alpha", alpha), ("energy", energy), ("h", h), ("Lz", Lz))}
     validate_inputs(axes["alpha"], axes["energy"], axes["h"], axes["Lz"])
     shape = tuple(a.size for a in axes.values())
-    tiling = Tiling.for_grid(shape, chunk_points)
+    tiling = Tiling.for_grid(shape, block_points if chunk_points is None else chunk_points)
     spec = dict(
         axes,
         scene=scene,

@@ -54,7 +54,7 @@ class Tiling:
     @classmethod
     def for_grid(cls, shape: tuple[int, ...], points: int = BLOCK_POINTS) -> Tiling:
         if points < 1:
-            raise ValueError(f"chunk points must be >= 1; got {points!r}")
+            raise ValueError(f"block points must be >= 1; got {points!r}")
         chunk = storage_chunks(shape)
         return cls(tuple(shape), chunk, block_shape(shape, chunk, points))
 

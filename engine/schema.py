@@ -25,6 +25,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DIMS",
+    "FINGERPRINT_ATTR",
     "Variable",
     "AXES",
     "RESULTS",
@@ -38,6 +39,8 @@ __all__ = [
 
 #: The four survey axes, in the order of a survey's dims.
 DIMS = ("alpha", "energy", "h", "Lz")
+#: Global attribute of a finished survey file holding the survey's fingerprint.
+FINGERPRINT_ATTR = "survey_fingerprint"
 
 
 @dataclass(frozen=True)

@@ -47,8 +47,6 @@ the offending value; unknown keys come with a did-you-mean suggestion.
 from __future__ import annotations
 
 import dataclasses
-import datetime
-import difflib
 import math
 import os
 import re
@@ -60,6 +58,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .api import survey as api_survey
+from .errortext import join_key, suggest, toml_repr, toml_type
 from .kernels.geometry import CIRCULAR_TOL as DEFAULT_CIRCULAR_TOL
 from .methods import DEFAULT_RTOL, METHODS
 from .scene import Scene
@@ -145,9 +145,7 @@ class Survey:
 
     def run(self, progress: Callable[[int, int], None] | None = None) -> xr.Dataset:
         """Evaluate the survey with :func:`engine.survey`; ``progress(done, total)`` per chunk."""
-        from . import survey
-
-        return survey(
+        return api_survey(
             self.alpha,
             self.energy,
             self.h,
@@ -197,61 +195,6 @@ def parse_survey(text: str, *, origin: str = "<string>") -> Survey:
 # --- validation -----------------------------------------------------------------------------
 
 
-def _toml_repr(value: Any, depth: int = 0) -> str:
-    """A value as it would be written in TOML (for error messages)."""
-    if depth > 8 and isinstance(value, list | dict):
-        return "[...]" if isinstance(value, list) else "{...}"
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        if math.isnan(value):
-            return "nan"
-        if math.isinf(value):
-            return "inf" if value > 0 else "-inf"
-    if isinstance(value, str):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(value, list):
-        return "[" + ", ".join(_toml_repr(v, depth + 1) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{k} = {_toml_repr(v, depth + 1)}" for k, v in value.items()) + "}"
-    if isinstance(value, datetime.date | datetime.time):  # datetime is a date
-        return value.isoformat()
-    return repr(value) if not isinstance(value, int | float) else str(value)
-
-
-def _toml_type(value: Any) -> str:
-    """The TOML type name of a parsed value."""
-    if isinstance(value, bool):
-        return "a boolean"
-    if isinstance(value, int):
-        return "an integer"
-    if isinstance(value, float):
-        return "a float"
-    if isinstance(value, str):
-        return "a string"
-    if isinstance(value, list):
-        return "an array"
-    if isinstance(value, dict):
-        return "a table"
-    return f"a {type(value).__name__}"  # dates and times
-
-
-def _suggest(key: str, candidates: tuple[str, ...]) -> str:
-    """A did-you-mean hint for an unknown key (case-insensitive first, then difflib)."""
-    for c in candidates:
-        if c.lower() == key.lower():
-            return f"; did you mean {c!r}?"
-    lowered = {c.lower(): c for c in candidates}
-    close = difflib.get_close_matches(key.lower(), list(lowered), n=1, cutoff=0.6)
-    if close:
-        return f"; did you mean {lowered[close[0]]!r}?"
-    return f"; expected one of {', '.join(candidates)}"
-
-
-def _join(path: str, key: str) -> str:
-    return f"{path}.{key}" if path else key
-
-
 class _Reader:
     """Validates a parsed TOML document, raising :class:`SurveyError` at the first problem."""
 
@@ -262,31 +205,31 @@ class _Reader:
         return SurveyError(self.origin, key, problem)
 
     def bad_value(self, key: str, value: Any, problem: str) -> SurveyError:
-        return self.fail(key, f"{problem}, got {_toml_repr(value)}")
+        return self.fail(key, f"{problem}, got {toml_repr(value)}")
 
     # -- generic checks --
 
     def table(self, parent: dict, key: str, path: str, *, required: bool) -> dict | None:
         if key not in parent:
             if required:
-                raise self.fail(_join(path, key), "missing (a table is required)")
+                raise self.fail(join_key(path, key), "missing (a table is required)")
             return None
         value = parent[key]
         if not isinstance(value, dict):
             raise self.fail(
-                _join(path, key), f"must be a table, got {_toml_type(value)} {_toml_repr(value)}"
+                join_key(path, key), f"must be a table, got {toml_type(value)} {toml_repr(value)}"
             )
         return value
 
     def check_keys(self, table: dict, allowed: tuple[str, ...], path: str) -> None:
         for key in table:
             if key not in allowed:
-                where = _join(path, key)
-                raise self.fail(where, f"unknown key{_suggest(key, allowed)}")
+                where = join_key(path, key)
+                raise self.fail(where, f"unknown key{suggest(key, allowed)}")
 
     def number(self, value: Any, key: str) -> float:
         if isinstance(value, bool) or not isinstance(value, int | float):
-            raise self.fail(key, f"must be a number, got {_toml_type(value)} {_toml_repr(value)}")
+            raise self.fail(key, f"must be a number, got {toml_type(value)} {toml_repr(value)}")
         try:
             x = float(value)
         except OverflowError:  # a TOML integer beyond the range of a double
@@ -297,14 +240,14 @@ class _Reader:
 
     def string(self, value: Any, key: str) -> str:
         if not isinstance(value, str):
-            raise self.fail(key, f"must be a string, got {_toml_type(value)} {_toml_repr(value)}")
+            raise self.fail(key, f"must be a string, got {toml_type(value)} {toml_repr(value)}")
         return value
 
     def choice(self, value: Any, key: str, choices: tuple[str, ...]) -> str:
         s = self.string(value, key)
         if s not in choices:
-            hint = _suggest(s, choices)
-            raise self.fail(key, f"unknown value {_toml_repr(s)}{hint}")
+            hint = suggest(s, choices)
+            raise self.fail(key, f"unknown value {toml_repr(s)}{hint}")
         return s
 
     # -- sections --
@@ -351,7 +294,7 @@ class _Reader:
             if isinstance(field.default, bool):
                 if not isinstance(value, bool):
                     raise self.fail(
-                        key, f"must be true or false, got {_toml_type(value)} {_toml_repr(value)}"
+                        key, f"must be true or false, got {toml_type(value)} {toml_repr(value)}"
                     )
                 kwargs[field.name] = value
             else:
@@ -439,7 +382,7 @@ class _Reader:
     def values(self, value: Any, key: str) -> np.ndarray:
         if not isinstance(value, list):
             raise self.fail(
-                key, f"must be an array of numbers, got {_toml_type(value)} {_toml_repr(value)}"
+                key, f"must be an array of numbers, got {toml_type(value)} {toml_repr(value)}"
             )
         if not value:
             raise self.fail(key, "must not be empty")

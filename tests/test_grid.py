@@ -31,5 +31,5 @@ def test_large_grid_blocks_and_chunks():
     assert math.prod(t.block) <= 1 << 20
     assert t.size == 10**8
     assert sum(t.points(i) for i in range(t.nblocks)) == 10**8
-    with pytest.raises(ValueError, match="chunk points"):
+    with pytest.raises(ValueError, match="block points"):
         Tiling.for_grid((2, 2, 2, 2), 0)

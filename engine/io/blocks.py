@@ -27,7 +27,7 @@ import numpy as np
 from .._version import __version__
 from ..grid import Tiling
 from ..kernels.geometry import CLASS_NAMES
-from ..schema import DIMS, result_variables, variable_attrs
+from ..schema import DIMS, FINGERPRINT_ATTR, result_variables, variable_attrs
 from . import OutputError
 from .atomic import write_atomic
 
@@ -50,8 +50,6 @@ __all__ = [
 ]
 
 MANIFEST = "manifest.json"
-#: Global attribute of a finished output holding the survey fingerprint.
-FINGERPRINT_ATTR = "survey_fingerprint"
 
 
 def parts_dir(out: Path) -> Path:
