@@ -10,12 +10,13 @@ import numpy as np
 import xarray as xr
 
 from .evaluation import evaluate_block, evaluate_flat, minimum_energy_flat
+from .fates import Horizon, require_horizon
 from .grid import BLOCK_POINTS, Tiling
 from .kernels.geometry import CIRCULAR_TOL
 from .kernels.model import radial_energy as _radial_energy
 from .methods import DEFAULT_RTOL, check_method, check_rtol
 from .scene import Scene
-from .schema import DIMS, axis_attrs, result_attrs, survey_attrs, variable_attrs
+from .schema import DIMS, axis_attrs, map_kind, result_attrs, survey_attrs, variable_attrs
 
 __all__ = ["evaluate", "survey", "minimum_energy", "radial_energy", "validate_inputs"]
 
@@ -52,6 +53,23 @@ def _check_method_and_rtol(method: str, scene: Scene, rtol: float) -> float:
     return rtol
 
 
+def _check_horizon(
+    method: str, scene: Scene, time: float | None, revolutions: float | None
+) -> Horizon | None:
+    """The horizon of a fate map (required there), None elsewhere (and refused if given, since
+    nothing would use it)."""
+    horizon = Horizon(time, revolutions)
+    if map_kind(method, scene) == "fate":
+        return require_horizon(horizon)
+    if horizon.given:
+        raise ValueError(
+            f"horizon_time / horizon_revolutions apply to fate maps only (an integrator on a "
+            f"scene with rolling resistance, a rim or a friction limit); this is a "
+            f"{map_kind(method, scene)} map"
+        )
+    return None
+
+
 def _check_tol(circular_tol: float) -> float:
     t = float(circular_tol)
     if not (t >= 0.0 and math.isfinite(t)):
@@ -69,6 +87,8 @@ def evaluate(
     *,
     circular_tol: float = CIRCULAR_TOL,
     rtol: float = DEFAULT_RTOL,
+    horizon_time: float | None = None,
+    horizon_revolutions: float | None = None,
 ) -> xr.Dataset:
     """Class and orbit geometry at points (alpha [rad], energy [J], h [m/s], Lz [kg m^2/s]).
 
@@ -77,10 +97,18 @@ def evaluate(
     inputs as coordinates, and the variables ``orbit_class``, ``r_min``, ``r_max``, ``r_circ``,
     ``period``, ``apsidal_angle``, ``precession_rate``, ``mu_required``. ``energy`` is the
     radial energy calE (see :func:`engine.radial_energy`). NaN marks an undefined quantity.
+
+    What else the map holds depends on the scene and the method (its ``map_kind`` attribute,
+    README "What a map means for each scene"): with a rim or a friction limit the closed form
+    adds where rolling ends (``end_r``, ``end_time``, ``end_theta``); an integrator on the ideal
+    cone integrates one radial period; an integrator on a scene with rolling resistance, a rim or
+    a friction limit follows each orbit from r_min to its fate (``fate`` and the variables after
+    it), up to ``horizon_time`` [s] and/or ``horizon_revolutions`` (one is required then).
     """
     scene = Scene() if scene is None else scene
     rtol = _check_method_and_rtol(method, scene, rtol)
     circular_tol = _check_tol(circular_tol)
+    horizon = _check_horizon(method, scene, horizon_time, horizon_revolutions)
     inputs = {"alpha": alpha, "energy": energy, "h": h, "Lz": Lz}
     if any(isinstance(v, xr.DataArray) for v in inputs.values()):
         das = xr.broadcast(
@@ -94,9 +122,10 @@ def evaluate(
     validate_inputs(*arrays)
     shape = arrays[0].shape
     flat = [np.ascontiguousarray(a).reshape(-1) for a in arrays]
-    res = evaluate_flat(*flat, scene, method, circular_tol=circular_tol, rtol=rtol)
+    res = evaluate_flat(*flat, scene, method, circular_tol=circular_tol, rtol=rtol, horizon=horizon)
+    kind = map_kind(method, scene)
     data_vars = {
-        name: (dims, col.reshape(shape), variable_attrs(name)) for name, col in res.items()
+        name: (dims, col.reshape(shape), variable_attrs(name, kind)) for name, col in res.items()
     }
     coords = {}
     for (name, value), arr in zip(inputs.items(), arrays, strict=True):
@@ -107,7 +136,7 @@ def evaluate(
         else:
             coords[name] = (dims, arr, attrs)
     return xr.Dataset(
-        data_vars, coords=coords, attrs=result_attrs(scene, method, circular_tol, rtol)
+        data_vars, coords=coords, attrs=result_attrs(scene, method, circular_tol, rtol, horizon)
     )
 
 
@@ -145,6 +174,8 @@ def survey(
     energy_relative: bool = False,
     circular_tol: float = CIRCULAR_TOL,
     rtol: float = DEFAULT_RTOL,
+    horizon_time: float | None = None,
+    horizon_revolutions: float | None = None,
     progress: Callable[[int, int], None] | None = None,
     block_points: int = BLOCK_POINTS,
     chunk_points: int | None = None,
@@ -160,6 +191,7 @@ def survey(
     scene = Scene() if scene is None else scene
     rtol = _check_method_and_rtol(method, scene, rtol)
     circular_tol = _check_tol(circular_tol)
+    horizon = _check_horizon(method, scene, horizon_time, horizon_revolutions)
     axes = {n: _axis(n, v) for n, v in (("alpha", alpha), ("energy", energy), ("h", h), ("Lz", Lz))}
     validate_inputs(axes["alpha"], axes["energy"], axes["h"], axes["Lz"])
     shape = tuple(a.size for a in axes.values())
@@ -171,6 +203,7 @@ def survey(
         energy_relative=energy_relative,
         circular_tol=circular_tol,
         rtol=rtol,
+        horizon=horizon,
     )
     results: dict[str, np.ndarray] = {}
     done = 0
@@ -184,9 +217,10 @@ def survey(
         if progress is not None:
             progress(done, tiling.size)
     dims = DIMS
-    data_vars = {name: (dims, col, variable_attrs(name)) for name, col in results.items()}
+    kind = map_kind(method, scene)
+    data_vars = {name: (dims, col, variable_attrs(name, kind)) for name, col in results.items()}
     coords = {}
     for name, arr in axes.items():
         coords[name] = (name, arr, axis_attrs(name, energy_relative))
-    attrs = survey_attrs(scene, method, circular_tol, rtol, energy_relative)
+    attrs = survey_attrs(scene, method, circular_tol, rtol, energy_relative, horizon)
     return xr.Dataset(data_vars, coords=coords, attrs=attrs)

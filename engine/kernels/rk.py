@@ -30,31 +30,34 @@ import numpy as np
 from numba import literally
 
 from .._jit import kernel
-from .model import ATTITUDE, P_RIM, RIM, SLIP_CHECK, param_tuple, rhs, slip_margin, state_size
+from .model import ATTITUDE, P_RIM, param_tuple, rhs, state_size
 from .protocol import (
     BUFFER_FULL,
     EPS,
+    FIRST_TERMINAL,
+    LAST_TERMINAL,
     MAX_STEPS,
     OK,
     PERICENTRE,
     RECORD_EVERY_DT,
     RECORD_STEPS,
-    SLIP,
     SPILL,
     STEP_TOO_SMALL,
+    TERMINAL_EFFECTS,
     brent_next,
     brent_start,
     brent_update,
     copy_into,
     copy_row,
     event_value,
+    kind_enabled,
     push_event,
     push_state,
     record_apsis,
     start_protocol,
     status_of,
-    terminal_at,
-    terminal_fired,
+    terminal_between,
+    terminal_crossed,
 )
 from .rk_codegen import rk_attempt, rk_dense_component, rk_dense_stages, tableau
 
@@ -183,7 +186,7 @@ def rk_fixed(method, effects, y0, p, h, n_steps):
 
 
 @kernel
-def rk_locate(method, kind, y, K, h, p, g0, g1, buf, st):
+def rk_locate(method, effects, kind, y, K, h, p, g0, g1, buf, st):
     """theta in [0, 1] where the event function crosses 0 on the step's dense output (Brent,
     xtol 4 eps)."""
     brent_start(st, 0.0, 1.0, g0, g1)
@@ -192,13 +195,13 @@ def rk_locate(method, kind, y, K, h, p, g0, g1, buf, st):
         done, theta = brent_next(st, 4.0 * EPS)
         if done:
             break
-        if kind == SLIP:
-            rk_dense(method, y, K, h, theta, buf)
-            g = slip_margin(buf, p)
-        elif kind == SPILL:
+        if kind == SPILL:
             g = rk_dense_component(method, y, K, h, theta, 0) - p[P_RIM]
-        else:
+        elif kind == PERICENTRE:
             g = rk_dense_component(method, y, K, h, theta, 2)
+        else:
+            rk_dense(method, y, K, h, theta, buf)
+            g = event_value(kind, buf, p, effects)
         brent_update(st, g)
     return min(max(theta, 0.0), 1.0)
 
@@ -214,22 +217,21 @@ def _step_events(method, effects, y, ynew, K, h, t, p, buf, st, g_aps, n_aps, n_
     stop_status = OK
     stop_kind = 0
     if term_cross:
-        for kind in range(SPILL, SLIP + 1):
-            if kind == SPILL and not effects & RIM:
+        for kind in range(FIRST_TERMINAL, LAST_TERMINAL + 1):
+            if not kind_enabled(effects, kind):
                 continue
-            if kind == SLIP and not effects & SLIP_CHECK:
-                continue
-            g1 = event_value(kind, ynew, p)
-            if terminal_fired(kind, g1):
-                g0 = event_value(kind, y, p)
-                th = rk_locate(method, kind, y, K, h, p, g0, g1, buf, st)
+            g1 = event_value(kind, ynew, p, effects)
+            g0 = event_value(kind, y, p, effects)
+            if terminal_crossed(kind, g0, g1):
+                th = rk_locate(method, effects, kind, y, K, h, p, g0, g1, buf, st)
                 if th < th_stop:
                     th_stop = th
                     stop_kind = kind
                     stop_status = status_of(kind)
     g_new = ynew[2]
-    if (g_aps > 0.0 and g_new <= 0.0) or (g_aps < 0.0 and g_new >= 0.0):
-        th = rk_locate(method, np.int64(PERICENTRE), y, K, h, p, y[2], g_new, buf, st)
+    if n_apsides >= 0 and ((g_aps > 0.0 and g_new <= 0.0) or (g_aps < 0.0 and g_new >= 0.0)):
+        th = rk_locate(method, effects, np.int64(PERICENTRE), y, K, h, p, y[2], g_new, buf,
+                       st)  # fmt: skip
         if th <= th_stop:
             rk_dense(method, y, K, h, th, buf)
             n_ev, g_aps, n_aps, reached = record_apsis(ev_t, ev_kind, ev_y, n_ev, t + th * h,
@@ -269,8 +271,9 @@ def _samples(method, effects, y, K, h, t, t_lim, t_end, dt_out, next_out, tr_t, 
 @kernel
 def rk_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_steps, record,
            dt_out, ev_t, ev_kind, ev_y, tr_t, tr_y, tr_rate):  # fmt: skip
-    """Integrate from t = 0 until t_end [s], the ``n_apsides``-th apsis (if > 0), a terminal
-    event (spill, slip) or a failure (the run protocol, :mod:`.protocol`).
+    """Integrate from t = 0 until t_end [s], the ``n_apsides``-th apsis (if > 0; apsides are
+    not even looked for if < 0), a terminal event or a failure (the run protocol,
+    :mod:`.protocol`).
 
     Events go to the preallocated ``ev_t`` [s], ``ev_kind`` (int8), ``ev_y`` (state). ``record``:
     RECORD_NONE, RECORD_STEPS (every accepted step) or RECORD_EVERY_DT (every ``dt_out``
@@ -335,10 +338,12 @@ def rk_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_step
         err_old = max(err, ERR_FLOOR)
 
         g_new = ynew[2]
-        aps_cross = (g_aps > 0.0 and g_new <= 0.0) or (g_aps < 0.0 and g_new >= 0.0)
+        aps_cross = n_apsides >= 0 and (
+            (g_aps > 0.0 and g_new <= 0.0) or (g_aps < 0.0 and g_new >= 0.0)
+        )
         term_cross = False
-        if effects & (RIM | SLIP_CHECK):
-            term_cross = terminal_at(effects, ynew, p) >= 0
+        if effects & TERMINAL_EFFECTS:
+            term_cross = terminal_between(effects, y, ynew, p)
         sample = record == RECORD_EVERY_DT and next_out <= t + h and next_out < t_end
         if S > ns + 1 and (aps_cross or term_cross or sample):
             rk_dense_stages(method, effects, y, h, p, K, buf)

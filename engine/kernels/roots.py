@@ -60,7 +60,8 @@ def _newton_step(target, rc, irc2, A, C, lo, hi, r):
     (new r, lo, hi, converged).
     """
     ir = 1.0 / r
-    G = C * ir + A * ir * ir * irc2
+    GA = A * ir * ir * irc2
+    G = C * ir + GA
     sG = math.sqrt(G)
     x = r - rc
     F = x * sG - target
@@ -70,9 +71,10 @@ def _newton_step(target, rc, irc2, A, C, lo, hi, r):
         hi = r
     else:
         lo = r
-    dG = -C * ir * ir - 2.0 * A * ir * ir * ir * irc2
-    Fp = sG + x * dG / (2.0 * sG)
-    rn = r - F / Fp if Fp > 0.0 else math.nan
+    # F' = sG + x G'/(2 sG) with G' = -(G + GA)/r, grouped so that nothing overflows when r is
+    # many decades below rc (L_z -> 0); a non-finite F' falls back to bisection.
+    Fp = sG - (x * ir) * ((G + GA) / (2.0 * sG))
+    rn = r - F / Fp if 0.0 < Fp < math.inf else math.nan
     if abs(rn - r) <= 2.0 * _EPS * r:
         return rn, lo, hi, True
     if not (lo < rn < hi):
@@ -136,7 +138,11 @@ def turning_points(energy, A, B, C, rc):
     r2g = max(rc + x0, energy / C)
     # Both roots in one loop: two independent dependency chains overlap in the CPU.
     irc2 = 1.0 / (rc * rc)
-    r1, lo1, hi1, done1 = r1g, 0.0, rc, False
+    # A positive lower bound of r1 (A/r1^2 = energy - B/r1 - C r1 <= |energy| + |B|/r1) lets the
+    # safeguard bisect geometrically: r1 may lie many decades below r_c (L_z -> 0).
+    lo1 = 2.0 * A / (abs(B) + math.hypot(B, 2.0 * math.sqrt(A * abs(energy))))
+    r1g = max(r1g, lo1)
+    r1, hi1, done1 = r1g, rc, False
     r2, lo2, hi2, done2 = r2g, rc, math.inf, False
     for _ in range(_MAX_NEWTON):
         if not done1:

@@ -11,7 +11,15 @@ from hypothesis import HealthCheck, given, settings, target
 from hypothesis import strategies as st
 
 import engine
-from engine.kernels.geometry import BOUNDED, CIRCULAR, FORBIDDEN, HYPERBOLIC, RADIAL, SPILLS
+from engine.kernels.geometry import (
+    BOUNDED,
+    CIRCULAR,
+    FORBIDDEN,
+    HYPERBOLIC,
+    OFF_CONE,
+    RADIAL,
+    SPILLS,
+)
 
 PI_2 = math.pi / 2
 BELOW_PI_2 = math.nextafter(PI_2, 0.0)
@@ -216,13 +224,17 @@ def test_kernels_follow_the_class_table(pts, M, g, k, rim):
         w = check_point(int(cls[i]), o, alpha[i], E[i], h[i], Lz[i], M, g, k, off, vmin[i])
         worst = max(worst, w)
     target(math.log10(worst + 1e-300), label="log10 relative turning-point residual")
-    if rim is not None:  # the rim only relabels orbits reaching beyond it
-        cls_r, f_r = _run_points(alpha, E, h, Lz, engine.Scene(M=M, g=g, k=k, rim=rim))
+    if rim is not None:  # the rim relabels orbits: off this cone, or reaching beyond it
+        scene_r = engine.Scene(M=M, g=g, k=k, rim=rim)
+        cls_r, f_r = _run_points(alpha, E, h, Lz, scene_r)
         for name in FLOAT_NAMES:
             np.testing.assert_array_equal(f_r[name], f[name])
-        finite_cls = np.isin(cls, [BOUNDED, CIRCULAR, RADIAL])
-        spills = finite_cls & (f["r_max"] > rim)
-        np.testing.assert_array_equal(cls_r, np.where(spills, SPILLS, cls))
+        r_rim = rim - scene_r.a / np.tan(alpha)  # the rim is measured on the real cone
+        has_orbit = np.isin(cls, [BOUNDED, CIRCULAR, RADIAL, HYPERBOLIC])
+        off = has_orbit & (f["r_min"] > r_rim)
+        spills = has_orbit & ~off & (f["r_max"] > r_rim)  # every escape spills
+        expected = np.where(off, OFF_CONE, np.where(spills, SPILLS, cls))
+        np.testing.assert_array_equal(cls_r, expected)
 
 
 def test_regression_mu_required_point_particle_escape():
