@@ -112,10 +112,13 @@ def plan(
     sizes = {d: int(ds.sizes[d]) for d in dims}
     free = default_axes(sizes, exclude=[*chosen, *at])
     if x is None or y is None:
-        rest = iter(free + default_axes(sizes, exclude=chosen))
         pair = [a for a in (x, y) if a is not None]
-        while len(pair) < 2:
-            pair.append(next(a for a in rest if a not in pair and a != facet))
+        pair += free[: 2 - len(pair)]
+        if len(pair) < 2:
+            raise LookError(
+                f"no axis left to draw: {', '.join(chosen + list(at))} are taken by --x, --y, "
+                "--facet or --at; fix fewer axes with --at"
+            )
         if x is None and y is None:  # y takes the preferred of the two (energy over Lz)
             rank = {a: i for i, a in enumerate(AXIS_PREFERENCE)}
             pair.sort(key=lambda a: rank.get(a, len(rank)))

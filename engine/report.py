@@ -213,7 +213,8 @@ def _provenance(result: Result) -> str:
     keys = [k for k in PROVENANCE if k in attrs]
     keys += [k for k in attrs if k.startswith("scene_") and k not in keys]
     keys += [k for k in attrs if k not in keys and k not in skip]
-    rows = "".join(
+    rows = f"<tr><th>file</th><td><code>{_e(result.path.resolve())}</code></td></tr>"
+    rows += "".join(
         f'<tr data-attr="{_e(k)}"><th>{_e(k)}</th><td><code>{_e(attrs[k])}</code></td></tr>'
         for k in keys
     )
@@ -250,7 +251,7 @@ def build_report(result: Result, *, now: datetime | None = None) -> str:
         "--y AXIS --at AXIS=VALUE</code>.</p>"
     )
     sections = [
-        f'<header><h1>{_e(title)}</h1><p class="meta">{_e(result.path)} &middot; {state}'
+        f'<header><h1>{_e(title)}</h1><p class="meta">{_e(result.path.name)} &middot; {state}'
         f" &middot; grid {grid} = {result.tiling.size:,} points, "
         f'<span id="points" data-points="{stats.points}">{stats.points:,}</span> computed'
         f" &middot; method <code>{_e(ds.attrs.get('method', '?'))}</code></p>",

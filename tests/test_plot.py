@@ -79,6 +79,10 @@ def test_defaults_are_the_longest_axes_with_energy_up_and_middle_values(nc):
         spec = plan(r.ds)
     assert (spec.variable, spec.x, spec.y, spec.facet) == ("orbit_class", "Lz", "energy", None)
     assert spec.fixed == {"alpha": (1, "middle value"), "h": (1, "middle value")}
+    with open_result(nc) as r:  # one axis given: the other is the longest left
+        assert (plan(r.ds, x="h").y, plan(r.ds, y="alpha").x) == ("Lz", "Lz")
+        spec = plan(r.ds, facet="Lz")
+    assert (spec.x, spec.y, list(spec.fixed)) == ("h", "energy", ["alpha"])
 
 
 def test_parse_at_and_nearest_value(nc):
@@ -305,6 +309,7 @@ ERRORS = [
     (["-o", "map.jpg"], "unknown format '.jpg'"),
     (["-o", "missing/map.png"], "output directory does not exist"),
     (["--dpi", "0"], "--dpi must be at least 10"),
+    (["--x", "h", "--at", "alpha=1,energy=1,Lz=1"], "no axis left to draw"),
 ]
 
 
