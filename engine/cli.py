@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TextIO
 
+from . import commands_look
 from ._version import __version__
 from .grid import BLOCK_POINTS
 from .io import OutputError
@@ -90,6 +91,7 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=fmt,
     )
     validate.add_argument("survey", metavar="SURVEY.toml", help="survey definition (TOML)")
+    commands_look.register(sub)
     return parser
 
 
@@ -174,6 +176,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _info(args)
         if args.command == "validate":
             return _validate(args)
+        if args.command in commands_look.COMMANDS:
+            return commands_look.run(args)
         raise AssertionError(f"unhandled command {args.command!r}")  # pragma: no cover
     except _InputError as exc:
         _error(str(exc))
