@@ -23,6 +23,7 @@ from .kernels.geometry import (
     minimum_energy_batch,
     orbit_batch,
 )
+from .kernels.protocol import NOT_BOUNDED
 from .methods import DEFAULT_RTOL
 from .scene import Scene
 from .schema import (
@@ -81,15 +82,16 @@ def evaluate_flat(
 
 
 def _integrate_bounded(a, e, hh, lz, scene, method, rtol, cls) -> dict[str, np.ndarray]:
-    """The one-period variables for every point: bounded points integrated, the others NaN,
-    no steps, status 0."""
+    """The one-period variables for every point: bounded points integrated; the others NaN,
+    no steps and the status "not_bounded" (nothing to integrate over a period)."""
     n = a.shape[0]
     sel = np.flatnonzero(cls == BOUNDED)
     res = evaluate_integrated(a[sel], e[sel], hh[sel], lz[sel], scene, method, rtol)
     upd: dict[str, np.ndarray] = {}
     for name in (*REPLACED_BY_INTEGRATION, *INTEGRATED):
         dtype = np.dtype(RESULTS[name].dtype)
-        col = np.full(n, np.nan if dtype.kind == "f" else 0, dtype)
+        fill = NOT_BOUNDED if name == "status" else (np.nan if dtype.kind == "f" else 0)
+        col = np.full(n, fill, dtype)
         col[sel] = res[name]
         upd[name] = col
     return upd
