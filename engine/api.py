@@ -16,9 +16,24 @@ from .kernels.geometry import CIRCULAR_TOL
 from .kernels.model import radial_energy as _radial_energy
 from .methods import DEFAULT_RTOL, check_method, check_rtol
 from .scene import Scene
-from .schema import DIMS, axis_attrs, map_kind, result_attrs, survey_attrs, variable_attrs
+from .schema import (
+    DIMS,
+    LAUNCH_DIMS,
+    axis_attrs,
+    map_kind,
+    result_attrs,
+    survey_attrs,
+    variable_attrs,
+)
 
-__all__ = ["evaluate", "survey", "minimum_energy", "radial_energy", "validate_inputs"]
+__all__ = [
+    "evaluate",
+    "survey",
+    "launch_survey",
+    "minimum_energy",
+    "radial_energy",
+    "validate_inputs",
+]
 
 
 def _check_array(
@@ -35,6 +50,18 @@ def _check_array(
                 f"{name} must lie in the open interval ({lo:g}, {hi:.17g}); "
                 f"got {values[out].flat[0]!r}"
             )
+
+
+def validate_axes(axes: dict[str, np.ndarray]) -> None:
+    """ValueError naming the first offending axis value (either kind of grid)."""
+    if "r0" in axes:
+        validate_inputs(axes["alpha"], 0.0, 0.0, 0.0)
+        for name in ("r0", "v0", "w0"):
+            _check_array(name, axes[name])
+        if (axes["r0"] <= 0.0).any():
+            raise ValueError(f"r0 must be > 0; got {axes['r0'][axes['r0'] <= 0.0][0]!r}")
+        return
+    validate_inputs(axes["alpha"], axes["energy"], axes["h"], axes["Lz"])
 
 
 def validate_inputs(alpha, energy, h, Lz) -> None:
@@ -187,24 +214,52 @@ def survey(
     no minimum (free fall with B >= 0, or L_z = 0) the energy is undefined and the point is
     classed forbidden. ``progress(done, total)`` is called after each block of
     about ``block_points`` points (``chunk_points`` is its former name, still accepted).
+    Fate maps (see :func:`evaluate`) start each orbit at its r_min.
     """
+    values = (alpha, energy, h, Lz)
+    return _grid(DIMS, values, scene, method, energy_relative, circular_tol, rtol, horizon_time,
+                 horizon_revolutions, progress, block_points if chunk_points is None else
+                 chunk_points)  # fmt: skip
+
+
+def launch_survey(
+    alpha: Any,
+    r0: Any,
+    v0: Any,
+    w0: Any,
+    scene: Scene | None = None,
+    method: str = "exact",
+    *,
+    circular_tol: float = CIRCULAR_TOL,
+    rtol: float = DEFAULT_RTOL,
+    horizon_time: float | None = None,
+    horizon_revolutions: float | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    block_points: int = BLOCK_POINTS,
+) -> xr.Dataset:
+    """A map over launch states: the sphere released at distance ``r0`` [m] from its cone's
+    vertex (along the generatrix) with radial speed 0, azimuthal speed ``v0`` [m/s] and spin
+    ``w0`` = a omega_nu [m/s], on cones of half-aperture ``alpha``. Dims (alpha, r0, v0, w0);
+    the invariants ``energy`` (calE), ``h`` and ``Lz`` of each launch are variables
+    (:func:`engine.invariants`); fate maps start each orbit at its launch point."""
+    values = (alpha, r0, v0, w0)
+    return _grid(LAUNCH_DIMS, values, scene, method, False, circular_tol, rtol, horizon_time,
+                 horizon_revolutions, progress, block_points)  # fmt: skip
+
+
+def _grid(dims, values, scene, method, energy_relative, circular_tol, rtol, horizon_time,
+          horizon_revolutions, progress, points) -> xr.Dataset:  # fmt: skip
+    """A 4-D survey over the axes ``dims`` (invariants or launch states), block by block."""
     scene = Scene() if scene is None else scene
     rtol = _check_method_and_rtol(method, scene, rtol)
     circular_tol = _check_tol(circular_tol)
     horizon = _check_horizon(method, scene, horizon_time, horizon_revolutions)
-    axes = {n: _axis(n, v) for n, v in (("alpha", alpha), ("energy", energy), ("h", h), ("Lz", Lz))}
-    validate_inputs(axes["alpha"], axes["energy"], axes["h"], axes["Lz"])
+    axes = {n: _axis(n, v) for n, v in zip(dims, values, strict=True)}
+    validate_axes(axes)
     shape = tuple(a.size for a in axes.values())
-    tiling = Tiling.for_grid(shape, block_points if chunk_points is None else chunk_points)
-    spec = dict(
-        axes,
-        scene=scene,
-        method=method,
-        energy_relative=energy_relative,
-        circular_tol=circular_tol,
-        rtol=rtol,
-        horizon=horizon,
-    )
+    tiling = Tiling.for_grid(shape, points)
+    spec = dict(axes, dims=dims, scene=scene, method=method, energy_relative=energy_relative,
+                circular_tol=circular_tol, rtol=rtol, horizon=horizon)  # fmt: skip
     results: dict[str, np.ndarray] = {}
     done = 0
     for slices in tiling:
@@ -216,11 +271,9 @@ def survey(
         done += arr.size
         if progress is not None:
             progress(done, tiling.size)
-    dims = DIMS
     kind = map_kind(method, scene)
     data_vars = {name: (dims, col, variable_attrs(name, kind)) for name, col in results.items()}
-    coords = {}
-    for name, arr in axes.items():
-        coords[name] = (name, arr, axis_attrs(name, energy_relative))
-    attrs = survey_attrs(scene, method, circular_tol, rtol, energy_relative, horizon)
+    coords = {name: (name, arr, axis_attrs(name, energy_relative)) for name, arr in axes.items()}
+    attrs = survey_attrs(scene, method, circular_tol, rtol, energy_relative, horizon,
+                         launch=dims == LAUNCH_DIMS)  # fmt: skip
     return xr.Dataset(data_vars, coords=coords, attrs=attrs)

@@ -24,11 +24,13 @@ from .kernels.geometry import (
     orbit_batch,
 )
 from .kernels.protocol import NOT_BOUNDED
+from .launch import invariants
 from .methods import DEFAULT_RTOL
 from .scene import Scene
 from .schema import (
     DIMS,
     INTEGRATED,
+    LAUNCH_DIMS,
     REPLACED_BY_INTEGRATION,
     RESULTS,
     map_kind,
@@ -49,6 +51,7 @@ def evaluate_flat(
     circular_tol: float = CIRCULAR_TOL,
     rtol: float = DEFAULT_RTOL,
     horizon: Horizon | None = None,
+    r_start: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """Kernel call on equal-length 1-D float64 arrays (validated by the caller).
 
@@ -56,7 +59,8 @@ def evaluate_flat(
     ``energy_absolute``. Every map holds the closed form; what else depends on the kind of map
     (:func:`engine.schema.map_kind`): where rolling ends on a cone with a rim or a friction
     limit (closed form), one integrated radial period, or each orbit's fate (integrated up to
-    ``horizon``; then the closed form describes the launch orbit on the ideal cone).
+    ``horizon`` from ``r_start``, by default r_min; then the closed form describes the launch
+    orbit on the ideal cone).
     """
     a = np.ascontiguousarray(alpha, np.float64)
     e = np.ascontiguousarray(energy, np.float64)
@@ -76,7 +80,8 @@ def evaluate_flat(
     if kind == "one period":
         out.update(_integrate_bounded(a, e, hh, lz, scene, method, rtol, cls))
     elif kind == "fate":
-        out.update(fates(a, e, hh, lz, f[0], scene, method, rtol, require_horizon(horizon),
+        start = f[0] if r_start is None else np.ascontiguousarray(r_start, np.float64)
+        out.update(fates(a, e, hh, lz, start, scene, method, rtol, require_horizon(horizon),
                          classes=cls))  # fmt: skip
     return out
 
@@ -107,32 +112,33 @@ def minimum_energy_flat(alpha: np.ndarray, h: np.ndarray, Lz: np.ndarray, scene:
 def evaluate_block(spec: dict[str, Any], slices: tuple[slice, ...]) -> dict[str, np.ndarray]:
     """Results on one hyperslab of the grid, each array shaped like the slab.
 
-    ``spec``: axes ``alpha``, ``energy``, ``h``, ``Lz`` (1-D float64), ``scene`` (Scene),
+    ``spec``: ``dims`` (:data:`engine.schema.DIMS`, the default, or
+    :data:`engine.schema.LAUNCH_DIMS`) and each axis (1-D float64), ``scene`` (Scene),
     ``method``, ``energy_relative``, ``circular_tol``, ``rtol``, ``horizon`` (fate maps).
     With a relative energy axis the absolute energy (``energy_absolute``) is V_min + offset
-    |V_min| from the slab's own V_min; where V has no minimum it is NaN and the point is
-    classed forbidden.
+    |V_min| from the slab's own V_min; where V has no minimum it is NaN and the point is classed
+    forbidden. On a grid of launch states the invariants of each launch are computed
+    (:func:`engine.launch.invariants`) and returned too, and fates start at the launch.
     """
-    sub = [np.asarray(spec[d])[s] for d, s in zip(DIMS, slices, strict=False)]
+    dims = spec.get("dims", DIMS)
+    sub = [np.asarray(spec[d])[s] for d, s in zip(dims, slices, strict=True)]
     shape = tuple(x.size for x in sub)
-    A, E, H, L = (x.reshape(-1) for x in np.meshgrid(*sub, indexing="ij"))
+    A, X1, X2, X3 = (x.reshape(-1) for x in np.meshgrid(*sub, indexing="ij"))
     scene = spec["scene"]
     e_abs = None
-    if spec["energy_relative"]:
-        vmin = minimum_energy_flat(A, H, L, scene)
-        e_abs = vmin + E * np.abs(vmin)
-        E = e_abs
-    res = evaluate_flat(
-        A,
-        E,
-        H,
-        L,
-        scene,
-        spec["method"],
-        circular_tol=spec["circular_tol"],
-        rtol=spec["rtol"],
-        horizon=spec.get("horizon"),
-    )
+    r_start = None
+    if dims == LAUNCH_DIMS:
+        inv = invariants(A, X1, 0.0, X2, X3, scene)
+        E, H, L, r_start = inv["energy"], inv["h"], inv["Lz"], X1
+    else:
+        E, H, L = X1, X2, X3
+        if spec["energy_relative"]:
+            vmin = minimum_energy_flat(A, H, L, scene)
+            e_abs = vmin + E * np.abs(vmin)
+            E = e_abs
+    res = evaluate_flat(A, E, H, L, scene, spec["method"], circular_tol=spec["circular_tol"],
+                        rtol=spec["rtol"], horizon=spec.get("horizon"),
+                        r_start=r_start)  # fmt: skip
     if e_abs is not None:
         undefined = np.isnan(e_abs)
         if undefined.any():
@@ -143,4 +149,6 @@ def evaluate_block(spec: dict[str, Any], slices: tuple[slice, ...]) -> dict[str,
             if "fate" in res:
                 res["fate"][undefined] = 0  # no orbit
         res["energy_absolute"] = e_abs
+    if r_start is not None:
+        res.update(energy=E, h=H, Lz=L)
     return {name: col.reshape(shape) for name, col in res.items()}

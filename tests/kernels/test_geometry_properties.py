@@ -181,8 +181,8 @@ def check_point(cls: int, o: dict, alpha, E, h, Lz, M, g, k, offset, vmin=None) 
     if cls in (BOUNDED, HYPERBOLIC):
         for r in (r1, r2):
             if _fin(r):
-                scale = 2 * A / r**2 + abs(B) / r + C * r + abs(E)
-                residual = abs(A / r**2 + B / r + C * r - E)
+                scale = 2 * (A / r) / r + abs(B) / r + C * r + abs(E)  # no overflow of r^2
+                residual = abs((A / r) / r + B / r + C * r - E)
                 worst = max(worst, residual / scale)
                 tol = 1e-12 * scale
                 assert residual <= tol, (r, where)
