@@ -20,9 +20,10 @@ from typing import Any
 
 from ..io import OutputError
 from ..io.lock import Locked, LockError, OutputLock, describe_holder
-from ..io.manifest import MANIFEST, parts_dir
+from ..io.manifest import MANIFEST, parts_dir, read_manifest
 from ..io.netcdf import read_info
 from ..runner import remove_leftovers
+from ..surveyfile import SurveyError, parse_survey
 from . import Command, InputError
 
 __all__ = ["COMMAND"]
@@ -50,9 +51,22 @@ def _running(path: Path) -> str | None:
     return None
 
 
+def _store_problem(path: Path) -> str | None:
+    """Why the unfinished run behind ``path`` cannot be resumed by the survey its manifest
+    records (None if it can, or if that definition no longer parses)."""
+    try:
+        m = read_manifest(parts_dir(path))
+        why = m.mismatch(parse_survey(m.survey_definition))
+    except (OutputError, SurveyError):
+        return None
+    return None if why is None else f"its manifest does not match its own survey ({why})"
+
+
 def _state(info: dict[str, Any], path: Path, verify: bool) -> tuple[str, int]:
     """The state line and the exit status."""
     if not info.get("complete"):
+        if "blocks_done" in info and (problem := _store_problem(path)):
+            info["problem"] = problem
         if "problem" in info:
             hint = (
                 "the next run removes it and starts over"

@@ -136,7 +136,7 @@ def _run(args: argparse.Namespace, command: str) -> int:
     survey = load(args.survey)
     out = _output(args, source)
     if args.scheduler is not None or args.workers is not None:
-        logging.getLogger("distributed").setLevel(logging.CRITICAL)  # errors are ours, 1 line
+        _quiet_dask()
     progress = None if args.quiet else Progress(sys.stderr)
     try:
         stats = run_survey(
@@ -173,6 +173,19 @@ def _run(args: argparse.Namespace, command: str) -> int:
     if not args.quiet:
         print_summary(stats, title=survey.title, method=survey.method)
     return 0
+
+
+def _quiet_dask() -> None:
+    """Silence distributed's loggers (they print tracebacks when a cluster goes away): the
+    command reports a failed cluster itself, in one line. distributed sets its loggers' levels
+    when it is imported, so it is imported first."""
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        return  # the backend says how to install it
+    for name in list(logging.root.manager.loggerDict):
+        if name == "distributed" or name.startswith("distributed."):
+            logging.getLogger(name).setLevel(logging.CRITICAL)
 
 
 def _close(progress: Progress | None) -> None:
