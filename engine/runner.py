@@ -53,7 +53,14 @@ from .io.blocks import (
     remove_store,
 )
 from .io.lock import Locked, LockError, OutputLock, describe_holder
-from .io.manifest import MANIFEST, Manifest, fingerprint, parts_dir, read_manifest
+from .io.manifest import (
+    MANIFEST,
+    Manifest,
+    fingerprint,
+    parts_dir,
+    read_manifest,
+    survey_variables,
+)
 from .progress import format_bytes
 from .schema import DIMS, FINGERPRINT_ATTR
 
@@ -209,7 +216,7 @@ def _inspect(
 def _check_space(out: Path, survey: Survey, tiling: Tiling, pending: list[int]) -> None:
     """RunError unless the blocks still to compute and the output merged beside all of them
     fit on the output's file system."""
-    names = Manifest.new(survey, tiling).names
+    names = survey_variables(survey)
     blocks = sum(block_file_bytes(names, tiling.points(i)) for i in pending)
     merged = netcdf.output_bytes(names, tiling.shape)
     free = shutil.disk_usage(out.parent).free

@@ -16,6 +16,65 @@ import xarray as xr
 ROOT = Path(__file__).resolve().parent.parent
 
 
+def gravity_survey(
+    title: str,
+    *,
+    alpha: tuple[float, ...] = (0.3, 0.6, 0.9, 1.2),
+    energy: int = 100,
+    h: int = 33,
+    lz: int = 100,
+) -> str:
+    """A survey under gravity with energies relative to V_min (log), h and Lz ranges; the
+    default is 4 x 100 x 33 x 100 = 1.32e6 points, 32 storage chunks."""
+    return f"""\
+title = "{title}"
+
+[axes.alpha]
+values = [{", ".join(map(repr, alpha))}]
+
+[axes.energy]
+start = 1e-6
+stop = 10.0
+num = {energy}
+scale = "log"
+relative_to = "V_min"
+
+[axes.h]
+start = -2.0
+stop = 2.0
+num = {h}
+
+[axes.Lz]
+start = 0.05
+stop = 1.0
+num = {lz}
+"""
+
+
+def free_fall_survey(title: str, *, energy: int = 7, lz: tuple[float, ...] = (-0.5, 0.5)) -> str:
+    """A small free-fall survey (several classes, NaN fields): 2 x 7 x 2 x 2 = 56 points."""
+    return f"""\
+title = "{title}"
+
+[scene]
+g = 0.0
+
+[axes.alpha]
+values = [0.5, 1.0]
+
+[axes.energy]
+start = -0.3
+stop = 0.3
+num = {energy}
+
+[axes.h]
+values = [-2.0, 2.0]
+
+[axes.Lz]
+values = [{", ".join(map(repr, lz))}]
+"""
+
+
 def env(**extra: str) -> dict[str, str]:
     """The environment of a subprocess that imports this checkout's ``engine``."""
     out = dict(os.environ)

@@ -22,29 +22,7 @@ import runs
 from engine.io import manifest as io_manifest
 
 # 4 x 100 x 33 x 100 = 1.32e6 points in 32 blocks of one storage chunk each
-SURVEY = """\
-title = "attack test"
-
-[axes.alpha]
-values = [0.3, 0.6, 0.9, 1.2]
-
-[axes.energy]
-start = 1e-6
-stop = 10.0
-num = 100
-scale = "log"
-relative_to = "V_min"
-
-[axes.h]
-start = -2.0
-stop = 2.0
-num = 33
-
-[axes.Lz]
-start = 0.05
-stop = 1.0
-num = 100
-"""
+SURVEY = runs.gravity_survey("attack test")
 BLOCK = "65536"
 ARGS = ("run", "s.toml", "-o", "out.nc", "-q", "--block-points", BLOCK)
 #: A command that imports everything, says "ready", and runs when a line arrives on stdin: its

@@ -20,29 +20,7 @@ from engine.surveyfile import parse_survey
 
 distributed = pytest.importorskip("distributed")
 
-SURVEY = """\
-title = "dask test"
-
-[axes.alpha]
-values = [0.3, 0.6, 0.9, 1.2]
-
-[axes.energy]
-start = 1e-6
-stop = 10.0
-num = 40
-scale = "log"
-relative_to = "V_min"
-
-[axes.h]
-start = -2.0
-stop = 2.0
-num = 33
-
-[axes.Lz]
-start = 0.05
-stop = 1.0
-num = 100
-"""
+SURVEY = runs.gravity_survey("dask test", energy=40)
 CHUNK = 1 << 16
 
 

@@ -25,29 +25,7 @@ from engine.runner import run_survey
 from engine.surveyfile import parse_survey
 
 # 4 x 10 x 330 x 10 = 132,000 points in 4 blocks of 33,200 (2.2 MB of block files each)
-SURVEY = """\
-title = "enospc test"
-
-[axes.alpha]
-values = [0.3, 0.6, 0.9, 1.2]
-
-[axes.energy]
-start = 1e-6
-stop = 10.0
-num = 10
-scale = "log"
-relative_to = "V_min"
-
-[axes.h]
-start = -2.0
-stop = 2.0
-num = 330
-
-[axes.Lz]
-start = 0.05
-stop = 1.0
-num = 10
-"""
+SURVEY = runs.gravity_survey("enospc test", energy=10, h=330, lz=10)
 ENOSPC = OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
 

@@ -8,32 +8,13 @@ import subprocess
 import netCDF4
 import numpy as np
 import pytest
-
 import runs
+
 from engine import cli
 from engine.runner import run_survey
 from engine.surveyfile import parse_survey
 
-SURVEY = """\
-title = "info test"
-
-[scene]
-g = 0.0
-
-[axes.alpha]
-values = [0.5, 1.0]
-
-[axes.energy]
-start = -0.3
-stop = 0.3
-num = 7
-
-[axes.h]
-values = [-2.0, 2.0]
-
-[axes.Lz]
-values = [-0.5, 0.5]
-"""
+SURVEY = runs.free_fall_survey("info test")
 
 
 @pytest.fixture(scope="module")

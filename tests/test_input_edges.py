@@ -12,26 +12,7 @@ import subprocess
 import pytest
 import runs
 
-SURVEY = """\
-title = "edges"
-
-[scene]
-g = 0.0
-
-[axes.alpha]
-values = [0.5, 1.0]
-
-[axes.energy]
-start = -0.3
-stop = 0.3
-num = 7
-
-[axes.h]
-values = [-2.0, 2.0]
-
-[axes.Lz]
-values = [-0.5, 0.5]
-"""
+SURVEY = runs.free_fall_survey("edges")
 
 
 @pytest.fixture

@@ -24,15 +24,15 @@ print(abs(float(sy.period) / float(exact.period) - 1))
 
 def _files(root: Path) -> dict[str, tuple[int, int]]:
     return {
-        str(p.relative_to(root)): (p.stat().st_size, p.stat().st_mtime_ns)
-        for p in root.rglob("*")
+        str(p.relative_to(root)): (p.stat().st_size, p.stat().st_mtime_ns) for p in root.rglob("*")
     }
 
 
 def test_evaluating_writes_only_into_the_user_cache(tmp_path):
     """A copy of the package, byte-compiled as pip installs it; the exact method and an
-    integrator (symplectic: the cheapest to compile, ~25 s) compiled from a cold cache in a subprocess whose HOME and XDG_CACHE_HOME are
-    temporary: every new file is under the cache, none under the package."""
+    integrator (symplectic: the cheapest to compile, ~25 s) compiled from a cold cache in a
+    subprocess whose HOME and XDG_CACHE_HOME are temporary: every new file is under the
+    cache, none under the package."""
     pkg = tmp_path / "site" / "engine"
     shutil.copytree(runs.ROOT / "engine", pkg, ignore=shutil.ignore_patterns("__pycache__"))
     assert compileall.compile_dir(pkg, quiet=1)

@@ -23,32 +23,8 @@ from engine.surveyfile import parse_survey
 ROOT = Path(__file__).resolve().parent.parent
 
 # 4 x 100 x 33 x 100 = 1.32e6 points in 32 blocks of one storage chunk each
-SURVEY = """\
-title = "runner test"
-
-[axes.alpha]
-values = [0.3, 0.6, 0.9, 1.2]
-
-[axes.energy]
-start = 1e-6
-stop = 10.0
-num = 100
-scale = "log"
-relative_to = "V_min"
-
-[axes.h]
-start = -2.0
-stop = 2.0
-num = 33
-
-[axes.Lz]
-start = 0.05
-stop = 1.0
-num = 100
-"""
-SMALL = SURVEY.replace("num = 100\nscale", "num = 10\nscale").replace(
-    "stop = 1.0\nnum = 100", "stop = 1.0\nnum = 10"
-)
+SURVEY = runs.gravity_survey("runner test")
+SMALL = runs.gravity_survey("runner test", energy=10, lz=10)
 CHUNK = 1 << 16
 
 

@@ -12,6 +12,7 @@ import os
 
 import numpy as np
 import pytest
+import runs
 
 from engine.grid import Tiling
 from engine.io import OutputError
@@ -28,27 +29,7 @@ from engine.io.blocks import (
 from engine.io.manifest import MANIFEST, Manifest, parts_dir, survey_variables
 from engine.surveyfile import parse_survey
 
-SURVEY = """\
-title = "blocks test"
-
-[axes.alpha]
-values = [0.3, 0.6]
-
-[axes.energy]
-start = 1e-6
-stop = 10.0
-num = 5
-scale = "log"
-relative_to = "V_min"
-
-[axes.h]
-values = [-1.0, 1.0]
-
-[axes.Lz]
-start = 0.05
-stop = 1.0
-num = 3
-"""
+SURVEY = runs.gravity_survey("blocks test", alpha=(0.3, 0.6), energy=5, h=2, lz=3)
 
 
 @pytest.fixture

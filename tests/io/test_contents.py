@@ -3,37 +3,15 @@
 from __future__ import annotations
 
 import netCDF4
-import numpy as np
 import pytest
+import runs
 
 from engine.grid import Tiling
 from engine.io.contents import CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, verify_file
 from engine.runner import run_survey
 from engine.surveyfile import parse_survey
 
-SURVEY = """\
-title = "contents test"
-
-[axes.alpha]
-values = [0.3, 0.6, 0.9]
-
-[axes.energy]
-start = 1e-6
-stop = 10.0
-num = 40
-scale = "log"
-relative_to = "V_min"
-
-[axes.h]
-start = -2.0
-stop = 2.0
-num = 33
-
-[axes.Lz]
-start = 0.05
-stop = 1.0
-num = 60
-"""
+SURVEY = runs.gravity_survey("contents test", alpha=(0.3, 0.6, 0.9), energy=40, lz=60)
 
 
 @pytest.fixture(scope="module")

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import netCDF4
 import numpy as np
+import runs
 from hypothesis import settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, rule
@@ -28,28 +29,7 @@ from engine.io.blocks import JOURNAL, BlockStore, _line
 from engine.io.manifest import Manifest, fingerprint, parts_dir
 from engine.surveyfile import parse_survey
 
-SURVEY = parse_survey(
-    """\
-title = "store machine"
-
-[scene]
-g = 0.0
-
-[axes.alpha]
-values = [0.5, 1.0]
-
-[axes.energy]
-start = -0.3
-stop = 0.3
-num = 5
-
-[axes.h]
-values = [-2.0, 2.0]
-
-[axes.Lz]
-values = [-0.5, 0.2, 0.5]
-"""
-)
+SURVEY = parse_survey(runs.free_fall_survey("store machine", energy=5, lz=(-0.5, 0.2, 0.5)))
 TILING = Tiling(SURVEY.shape, (1, 1, 2, 3), (1, 1, 2, 3))  # 60 points in 10 blocks
 N = TILING.nblocks
 FP = fingerprint(SURVEY)
