@@ -36,7 +36,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import netCDF4
 import numpy as np
 
 from .backends import BackendError, block_spec, check_address, open_backend
@@ -62,7 +61,7 @@ from .io.manifest import (
     survey_variables,
 )
 from .progress import format_bytes
-from .schema import DIMS, FINGERPRINT_ATTR
+from .schema import DIMS
 
 if TYPE_CHECKING:
     from .surveyfile import Survey
@@ -72,7 +71,6 @@ __all__ = [
     "RunError",
     "RunFailed",
     "RunStats",
-    "output_fingerprint",
     "remove_leftovers",
     "run_survey",
 ]
@@ -112,19 +110,6 @@ class RunStats:
         return math.prod(self.shape)
 
 
-def output_fingerprint(out: Path) -> str | None:
-    """The survey fingerprint a finished output records (None if it has none or is not a
-    readable netCDF file)."""
-    if not_regular(out) is not None:
-        return None
-    try:
-        with netCDF4.Dataset(out) as nc:
-            fp = nc.getncattr(FINGERPRINT_ATTR) if FINGERPRINT_ATTR in nc.ncattrs() else None
-    except Exception:  # not netCDF, damaged, a directory ...
-        return None
-    return fp if isinstance(fp, str) else None
-
-
 def _is_debris(root: Path, finished: str | None) -> bool:
     """Whether the store ``root`` holds nothing to resume: it has no manifest (a killed cleanup
     or start), or it is the store of the finished output's own survey."""
@@ -144,7 +129,7 @@ def remove_leftovers(out: Path) -> bool:
     root = parts_dir(out)
     try:
         with OutputLock.acquire(out, "conesurvey info"):
-            if not check_parts_dir(root) or not _is_debris(root, output_fingerprint(out)):
+            if not check_parts_dir(root) or not _is_debris(root, netcdf.read_fingerprint(out)):
                 return False
             if not os.path.lexists(out):
                 return False
@@ -179,7 +164,7 @@ def _inspect(
     if kind is not None and kind != "a symbolic link":
         raise RunError(f"output path {out} is {kind}; give a file name")
     if os.path.lexists(out) and not overwrite:
-        finished = output_fingerprint(out)
+        finished = netcdf.read_fingerprint(out)
         if finished != plan.fp:
             raise RunError(f"output file exists: {out} (use --overwrite to replace it)")
         if has_store and _is_debris(root, finished):

@@ -1,13 +1,17 @@
 """The netCDF-4 backend: CF-1.11 files, written crash-safely (:mod:`engine.io.atomic`).
 
-Backend interface (a second format, e.g. ``engine/io/zarr.py``, provides the same three):
+Backend interface (a second format, e.g. ``engine/io/zarr.py``, provides the same five):
 
 - ``write_survey(ds, path, survey, *, command, overwrite) -> Path``: an in-memory survey
   Dataset with the survey's title, definition and scene;
 - ``merge(store, survey, out, *, fingerprint, command, overwrite, complevel) -> Summary``: the
-  blocks of a streamed run (:class:`engine.io.blocks.BlockStore`), one storage chunk per block
-  part, into ``out``; returns the class counts and value ranges gathered on the way;
-- ``read_info(path) -> dict``: provenance of a result, or of the unfinished run behind it.
+  blocks of a streamed run (:class:`engine.io.blocks.BlockStore`), each verified as it is
+  read, one storage chunk per block part, into ``out`` with its content checksum
+  (:mod:`engine.io.contents`); returns the class counts and value ranges gathered on the way;
+- ``output_bytes(names, shape) -> int``: an upper bound of the size of what ``merge`` writes;
+- ``read_fingerprint(path) -> str | None``: the survey fingerprint a finished result records;
+- ``read_info(path, *, verify) -> dict``: provenance of a result, or of the unfinished run
+  behind it; with ``verify``, every value checked against the content checksum.
 
 No half-written file ever carries the output's name; an existing output is kept unless
 ``overwrite``. :func:`cf_dataset` adds the global attributes (Conventions, title, history,
@@ -54,6 +58,7 @@ __all__ = [
     "history_line",
     "merge",
     "output_bytes",
+    "read_fingerprint",
     "read_info",
     "write_netcdf",
     "write_survey",
@@ -297,6 +302,19 @@ def read_info(path: str | os.PathLike[str], *, verify: bool = False) -> dict[str
     else:
         raise OutputError(f"no such file: {path}")
     return info
+
+
+def read_fingerprint(path: Path) -> str | None:
+    """The survey fingerprint a finished result records (None if it has none, or is not a
+    readable netCDF file; a FIFO or device is not opened)."""
+    if not_regular(path) is not None:
+        return None
+    try:
+        with netCDF4.Dataset(path) as nc:
+            fp = nc.getncattr(FINGERPRINT_ATTR) if FINGERPRINT_ATTR in nc.ncattrs() else None
+    except Exception:  # not netCDF, damaged, a directory ...
+        return None
+    return fp if isinstance(fp, str) else None
 
 
 def _parts_state(parts: Path) -> dict[str, Any]:
