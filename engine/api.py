@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from numbers import Integral, Real
 from typing import Any
 
 import numpy as np
@@ -64,6 +65,47 @@ def validate_axes(axes: dict[str, np.ndarray]) -> None:
     validate_inputs(axes["alpha"], axes["energy"], axes["h"], axes["Lz"])
 
 
+def _check_numeric(name: str, value: Any) -> None:
+    """ValueError naming ``name`` unless ``value`` holds real numbers. Booleans, text (even
+    ``"0.5"``), complex numbers and dates are not numbers; a masked array with masked values
+    is refused (the engine has no masks: fill or drop them first), one without is its data."""
+    data = value.values if isinstance(value, xr.DataArray) else value
+    if np.ma.isMaskedArray(data):
+        masked = int(np.ma.count_masked(data))
+        if masked:
+            raise ValueError(
+                f"{name} has {masked} masked value(s); the engine does not carry masks: fill "
+                "them (numpy.ma.filled) or drop them (.compressed()) first"
+            )
+        data = np.ma.getdata(data)
+    arr = np.asarray(data)
+    kind = arr.dtype.kind
+    if kind == "O":
+        bad = [x for x in arr.flat if isinstance(x, bool | np.bool_) or not isinstance(x, Real)]
+        if bad:
+            raise ValueError(f"{name} must hold real numbers; got {bad[0]!r}")
+    elif kind not in "iuf":
+        what = {"b": "booleans", "U": "text", "S": "bytes", "c": "complex numbers"}
+        first = arr.flat[0] if arr.size else arr
+        raise ValueError(
+            f"{name} must hold real numbers, not {what.get(kind, arr.dtype.name)}; got {first!r}"
+        )
+
+
+def _check_flag(name: str, value: Any) -> bool:
+    """``value`` if it is True or False; ValueError otherwise (``"no"`` is not false)."""
+    if not isinstance(value, bool | np.bool_):
+        raise ValueError(f"{name} must be True or False; got {value!r}")
+    return bool(value)
+
+
+def _check_count(name: str, value: Any) -> int:
+    """``value`` if it is an integer >= 1 (not a boolean, not a float); ValueError otherwise."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, Integral) or value < 1:
+        raise ValueError(f"{name} must be a positive integer; got {value!r}")
+    return int(value)
+
+
 def validate_inputs(alpha, energy, h, Lz) -> None:
     """Raise ValueError naming the first offending argument (non-finite, alpha out of range)."""
     _check_array("alpha", np.asarray(alpha, float), open_interval=(0.0, math.pi / 2))
@@ -73,10 +115,12 @@ def validate_inputs(alpha, energy, h, Lz) -> None:
 
 
 def _check_method_and_rtol(method: str, scene: Scene, rtol: float) -> float:
-    """ValueError for a method that is unknown or cannot honour the scene; rtol checked where
-    the method uses it."""
+    """ValueError for a method that is unknown or cannot honour the scene; rtol must be a
+    number, and lie in the registry's range where the method uses it."""
     if check_method(method, scene).integrates:
         return check_rtol(rtol)
+    if isinstance(rtol, bool | np.bool_) or not isinstance(rtol, Real):
+        raise ValueError(f"rtol must be a number; got {rtol!r}")
     return rtol
 
 
@@ -98,6 +142,8 @@ def _check_horizon(
 
 
 def _check_tol(circular_tol: float) -> float:
+    if isinstance(circular_tol, bool | np.bool_) or not isinstance(circular_tol, Real):
+        raise ValueError(f"circular_tol must be a number; got {circular_tol!r}")
     t = float(circular_tol)
     if not (t >= 0.0 and math.isfinite(t)):
         raise ValueError(f"circular_tol must be finite and >= 0; got {circular_tol!r}")
@@ -137,6 +183,8 @@ def evaluate(
     circular_tol = _check_tol(circular_tol)
     horizon = _check_horizon(method, scene, horizon_time, horizon_revolutions)
     inputs = {"alpha": alpha, "energy": energy, "h": h, "Lz": Lz}
+    for name, value in inputs.items():
+        _check_numeric(name, value)
     if any(isinstance(v, xr.DataArray) for v in inputs.values()):
         das = xr.broadcast(
             *[xr.DataArray(v) if not isinstance(v, xr.DataArray) else v for v in inputs.values()]
@@ -170,6 +218,8 @@ def evaluate(
 def minimum_energy(alpha: Any, h: Any, Lz: Any, scene: Scene | None = None) -> np.ndarray:
     """V_min [J] of the effective potential at (alpha, h, Lz); NaN where V has no minimum."""
     scene = Scene() if scene is None else scene
+    for name, value in (("alpha", alpha), ("h", h), ("Lz", Lz)):
+        _check_numeric(name, value)
     a, hh, lz = np.broadcast_arrays(*[np.asarray(v, np.float64) for v in (alpha, h, Lz)])
     validate_inputs(a, 0.0, hh, lz)
     flat = (np.ascontiguousarray(x).reshape(-1) for x in (a, hh, lz))
@@ -184,6 +234,7 @@ def radial_energy(E: Any, h: Any, scene: Scene | None = None) -> Any:
 
 
 def _axis(name: str, values: Any) -> np.ndarray:
+    _check_numeric(name, values)
     arr = np.atleast_1d(np.asarray(values, np.float64))
     if arr.ndim != 1 or arr.size == 0:
         raise ValueError(f"axis {name} must be a non-empty 1-D sequence; got shape {arr.shape}")
@@ -254,6 +305,8 @@ def _grid(dims, values, scene, method, energy_relative, circular_tol, rtol, hori
     rtol = _check_method_and_rtol(method, scene, rtol)
     circular_tol = _check_tol(circular_tol)
     horizon = _check_horizon(method, scene, horizon_time, horizon_revolutions)
+    energy_relative = _check_flag("energy_relative", energy_relative)
+    points = _check_count("block_points", points)
     axes = {n: _axis(n, v) for n, v in zip(dims, values, strict=True)}
     validate_axes(axes)
     shape = tuple(a.size for a in axes.values())

@@ -59,9 +59,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .api import survey as api_survey
-from .errortext import join_key, suggest, toml_repr, toml_type
+from .errortext import TomlChecker, toml_repr, toml_type
+from .io.atomic import read_regular
 from .kernels.geometry import CIRCULAR_TOL as DEFAULT_CIRCULAR_TOL
-from .methods import DEFAULT_RTOL, METHODS
+from .methods import DEFAULT_RTOL, METHODS, RTOL_RANGE, check_method, check_rtol
 from .scene import Scene
 from .schema import DIMS as AXES
 
@@ -83,6 +84,8 @@ SCALES = ("linear", "log")
 DEFAULT_METHOD = "exact"
 #: Largest ``num`` of a range axis (the axes are held in memory: 8 bytes a point).
 MAX_AXIS_POINTS = 10**8
+#: Largest survey file read [bytes] (``values`` lists of ~10^5 numbers fit).
+MAX_SURVEY_BYTES = 4 << 20
 
 _TOP_KEYS = ("title", "method", "rtol", "circular_tol", "scene", "axes")
 _RANGE_KEYS = ("start", "stop", "num", "scale")
@@ -162,11 +165,21 @@ class Survey:
 def load_survey(path: str | os.PathLike[str]) -> Survey:
     """Read and validate the survey definition in the TOML file ``path``.
 
-    Raises :class:`SurveyError` for an invalid definition (or a file that is not UTF-8 text)
-    and :class:`OSError` (e.g. ``FileNotFoundError``) when the file cannot be read.
+    Raises :class:`SurveyError` for an invalid definition (a file that is not UTF-8 text, or
+    larger than ``MAX_SURVEY_BYTES``) and :class:`OSError` (e.g. ``FileNotFoundError``) when
+    the file cannot be read; a FIFO, a device or a directory raises
+    :class:`engine.io.atomic.NotRegularFile` (an OSError) without being read.
     """
     p = Path(path)
-    data = p.read_bytes()
+    try:
+        data = read_regular(p, MAX_SURVEY_BYTES)
+    except ValueError:
+        raise SurveyError(
+            str(p),
+            "",
+            f"larger than {MAX_SURVEY_BYTES >> 20} MiB: not a survey definition "
+            "(give long axes as start, stop and num)",
+        ) from None
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
@@ -195,7 +208,7 @@ def parse_survey(text: str, *, origin: str = "<string>") -> Survey:
 # --- validation -----------------------------------------------------------------------------
 
 
-class _Reader:
+class _Reader(TomlChecker):
     """Validates a parsed TOML document, raising :class:`SurveyError` at the first problem."""
 
     def __init__(self, origin: str) -> None:
@@ -204,57 +217,13 @@ class _Reader:
     def fail(self, key: str, problem: str) -> SurveyError:
         return SurveyError(self.origin, key, problem)
 
-    def bad_value(self, key: str, value: Any, problem: str) -> SurveyError:
-        return self.fail(key, f"{problem}, got {toml_repr(value)}")
-
-    # -- generic checks --
-
-    def table(self, parent: dict, key: str, path: str, *, required: bool) -> dict | None:
-        if key not in parent:
-            if required:
-                raise self.fail(join_key(path, key), "missing (a table is required)")
-            return None
-        value = parent[key]
-        if not isinstance(value, dict):
-            raise self.fail(
-                join_key(path, key), f"must be a table, got {toml_type(value)} {toml_repr(value)}"
-            )
-        return value
-
-    def check_keys(self, table: dict, allowed: tuple[str, ...], path: str) -> None:
-        for key in table:
-            if key not in allowed:
-                where = join_key(path, key)
-                raise self.fail(where, f"unknown key{suggest(key, allowed)}")
-
-    def number(self, value: Any, key: str) -> float:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise self.fail(key, f"must be a number, got {toml_type(value)} {toml_repr(value)}")
-        try:
-            x = float(value)
-        except OverflowError:  # a TOML integer beyond the range of a double
-            raise self.bad_value(key, value, "must be finite (|x| < 1.8e308)") from None
-        if not math.isfinite(x):
-            raise self.bad_value(key, value, "must be finite")
-        return x
-
-    def string(self, value: Any, key: str) -> str:
-        if not isinstance(value, str):
-            raise self.fail(key, f"must be a string, got {toml_type(value)} {toml_repr(value)}")
-        return value
-
-    def choice(self, value: Any, key: str, choices: tuple[str, ...]) -> str:
-        s = self.string(value, key)
-        if s not in choices:
-            hint = suggest(s, choices)
-            raise self.fail(key, f"unknown value {toml_repr(s)}{hint}")
-        return s
-
     # -- sections --
 
     def survey(self, doc: dict, text: str) -> Survey:
         self.check_keys(doc, _TOP_KEYS, "")
         title = self.string(doc.get("title", "conesurvey survey"), "title")
+        if "\0" in title:
+            raise self.bad_value("title", title, "must not contain NUL (netCDF text ends there)")
         method = self.choice(doc.get("method", DEFAULT_METHOD), "method", tuple(METHODS))
         rtol = self.number(doc.get("rtol", DEFAULT_RTOL), "rtol")
         if not 0.0 < rtol < 1.0:
@@ -263,6 +232,7 @@ class _Reader:
         if circular_tol < 0.0:
             raise self.bad_value("circular_tol", doc["circular_tol"], "must be >= 0")
         scene = self.scene(self.table(doc, "scene", "", required=False) or {})
+        self.method_for(method, scene, rtol, doc.get("rtol", DEFAULT_RTOL))
         axes = self.table(doc, "axes", "", required=True)
         self.check_keys(axes, AXES, "axes")
         for name in AXES:
@@ -282,6 +252,22 @@ class _Reader:
             source_text=text,
             **arrays,
         )
+
+    def method_for(self, method: str, scene: Scene, rtol: float, raw_rtol: Any) -> None:
+        """The checks ``run`` makes (engine.methods): the method honours the scene's effects,
+        and an integrator's rtol lies in the registry's range."""
+        try:
+            integrates = check_method(method, scene).integrates
+        except ValueError as exc:
+            raise self.fail("method", str(exc)) from None
+        if integrates:
+            try:
+                check_rtol(rtol)
+            except ValueError:
+                lo, hi = RTOL_RANGE
+                raise self.bad_value(
+                    "rtol", raw_rtol, f"must lie in [{lo:g}, {hi:g}] for the integrator {method}"
+                ) from None
 
     def scene(self, table: dict) -> Scene:
         self.check_keys(table, _SCENE_FIELDS, "scene")
