@@ -11,7 +11,7 @@ import numpy as np
 import xarray as xr
 
 from .evaluation import evaluate_block, evaluate_flat, minimum_energy_flat
-from .fates import Horizon, require_horizon
+from .fates import check_horizon
 from .grid import BLOCK_POINTS, Tiling
 from .kernels.geometry import CIRCULAR_TOL
 from .kernels.model import radial_energy as _radial_energy
@@ -124,23 +124,6 @@ def _check_method_and_rtol(method: str, scene: Scene, rtol: float) -> float:
     return rtol
 
 
-def _check_horizon(
-    method: str, scene: Scene, time: float | None, revolutions: float | None
-) -> Horizon | None:
-    """The horizon of a fate map (required there), None elsewhere (and refused if given, since
-    nothing would use it)."""
-    horizon = Horizon(time, revolutions)
-    if map_kind(method, scene) == "fate":
-        return require_horizon(horizon)
-    if horizon.given:
-        raise ValueError(
-            f"horizon_time / horizon_revolutions apply to fate maps only (an integrator on a "
-            f"scene with rolling resistance, a rim or a friction limit); this is a "
-            f"{map_kind(method, scene)} map"
-        )
-    return None
-
-
 def _check_tol(circular_tol: float) -> float:
     if isinstance(circular_tol, bool | np.bool_) or not isinstance(circular_tol, Real):
         raise ValueError(f"circular_tol must be a number; got {circular_tol!r}")
@@ -181,7 +164,7 @@ def evaluate(
     scene = Scene() if scene is None else scene
     rtol = _check_method_and_rtol(method, scene, rtol)
     circular_tol = _check_tol(circular_tol)
-    horizon = _check_horizon(method, scene, horizon_time, horizon_revolutions)
+    horizon = check_horizon(method, scene, horizon_time, horizon_revolutions)
     inputs = {"alpha": alpha, "energy": energy, "h": h, "Lz": Lz}
     for name, value in inputs.items():
         _check_numeric(name, value)
@@ -304,7 +287,7 @@ def _grid(dims, values, scene, method, energy_relative, circular_tol, rtol, hori
     scene = Scene() if scene is None else scene
     rtol = _check_method_and_rtol(method, scene, rtol)
     circular_tol = _check_tol(circular_tol)
-    horizon = _check_horizon(method, scene, horizon_time, horizon_revolutions)
+    horizon = check_horizon(method, scene, horizon_time, horizon_revolutions)
     energy_relative = _check_flag("energy_relative", energy_relative)
     points = _check_count("block_points", points)
     axes = {n: _axis(n, v) for n, v in zip(dims, values, strict=True)}

@@ -29,7 +29,6 @@ import numpy as np
 
 from .evaluation import evaluate_block
 from .grid import Tiling
-from .schema import DIMS
 
 if TYPE_CHECKING:
     from .surveyfile import Survey
@@ -62,13 +61,15 @@ class BackendError(Exception):
 
 def block_spec(survey: Survey) -> dict[str, Any]:
     """What :func:`engine.evaluation.evaluate_block` needs (picklable, for dask workers too)."""
-    spec: dict[str, Any] = {d: np.array(getattr(survey, d)) for d in DIMS}
+    spec: dict[str, Any] = {d: np.array(getattr(survey, d)) for d in survey.dims}
     spec.update(
+        dims=survey.dims,
         scene=survey.scene,
         method=survey.method,
         energy_relative=survey.energy_relative,
         circular_tol=survey.circular_tol,
         rtol=survey.rtol,
+        horizon=survey.horizon,
     )
     return spec
 

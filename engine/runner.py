@@ -98,6 +98,8 @@ class RunStats:
     shape: tuple[int, ...]
     counts: np.ndarray
     ranges: dict[str, tuple[float, float, str]]
+    dims: tuple[str, ...] = DIMS
+    flags: dict[str, np.ndarray] = field(default_factory=dict)
     compute_seconds: float = 0.0
     write_seconds: float = 0.0
     compile_seconds: float = 0.0
@@ -299,6 +301,8 @@ def run_survey(
         tiling.shape,
         summary.counts,
         summary.ranges,
+        survey.dims,
+        summary.flags,
         compute_seconds=t1 - t0,
         write_seconds=time.perf_counter() - t1,
         compile_seconds=t0 - tc,

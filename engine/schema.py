@@ -245,7 +245,9 @@ def result_variables(
     return {n: np.dtype(RESULTS[n].dtype) for n in names}
 
 
-def map_summary(method: str, scene: Scene, energy_relative: bool = False) -> list[str]:
+def map_summary(
+    method: str, scene: Scene, energy_relative: bool = False, launch: bool = False
+) -> list[str]:
     """What a map of ``scene`` by ``method`` will hold, in lines for people (``conesurvey
     validate``): which methods honour each effect the scene names, the kind of map, its
     variables."""
@@ -255,7 +257,8 @@ def map_summary(method: str, scene: Scene, energy_relative: bool = False) -> lis
         lines.append(f"effect {effect}: honoured by {', '.join(able)}")
     kind = map_kind(method, scene)
     lines.append(f"map    {kind}: {MAP_KINDS[kind]}")
-    lines.append("holds  " + ", ".join(result_variables(method, scene, energy_relative)))
+    names = result_variables(method, scene, energy_relative, launch)
+    lines.append("holds  " + ", ".join(names))
     return lines
 
 

@@ -17,10 +17,10 @@ from typing import TextIO
 
 from ..grid import BLOCK_POINTS
 from ..io.netcdf import ZLIB_LEVEL
+from ..kernels.fate import FATE_NAMES
 from ..kernels.geometry import CLASS_NAMES
 from ..progress import Progress
 from ..runner import AlreadyComplete, RunError, RunFailed, RunStats, run_survey
-from ..schema import DIMS
 from . import PROG, Command, InputError, error, load
 
 __all__ = ["COMMAND", "print_summary"]
@@ -198,11 +198,15 @@ def print_summary(stats: RunStats, *, title: str, method: str, file: TextIO | No
     finite values, the time taken and the output path."""
     out = sys.stdout if file is None else file
     total = stats.points
-    shape = " x ".join(f"{d} {n}" for d, n in zip(DIMS, stats.shape, strict=True))
+    shape = " x ".join(f"{d} {n}" for d, n in zip(stats.dims, stats.shape, strict=True))
     lines = [title, f"  grid    {shape} = {total:,} points", f"  method  {method}", ""]
     lines.append(f"  {'class':<12}{'count':>12}{'fraction':>10}")
     for name, n in zip(CLASS_NAMES, stats.counts, strict=True):
         lines.append(f"  {name:<12}{n:>12,}{n / max(total, 1):>10.4f}")
+    if "fate" in stats.flags:
+        lines += ["", f"  {'fate':<12}{'count':>12}{'fraction':>10}"]
+        for name, n in zip(FATE_NAMES, stats.flags["fate"], strict=True):
+            lines.append(f"  {name:<12}{n:>12,}{n / max(total, 1):>10.4f}")
     lines.append("")
     lines.append(f"  {'variable':<16}{'min':>13}{'max':>13}  units  (finite values)")
     for name, (lo, hi, units) in stats.ranges.items():

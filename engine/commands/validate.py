@@ -11,7 +11,7 @@ import argparse
 
 from ..io.blocks import estimate_bytes
 from ..progress import format_bytes
-from ..schema import DIMS
+from ..schema import map_summary
 from ..surveyfile import Survey
 from . import Command, load
 
@@ -36,7 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _validate(args: argparse.Namespace, command: str) -> int:
     survey = load(args.survey)
     need, seconds = _estimates(survey)
-    shape = " x ".join(f"{d} {n}" for d, n in zip(DIMS, survey.shape, strict=True))
+    shape = " x ".join(f"{d} {n}" for d, n in zip(survey.dims, survey.shape, strict=True))
     print(f"{args.survey}: valid")
     print(f"  title   {survey.title}")
     print(
@@ -46,6 +46,8 @@ def _validate(args: argparse.Namespace, command: str) -> int:
     print(f"  grid    {shape} = {survey.size:,} points")
     print(f"  output  about {format_bytes(need)} uncompressed (zlib shrinks it, class maps ~150x)")
     print(f"  time    about {seconds:.3g} s on 2 cores")
+    for line in map_summary(survey.method, survey.scene, survey.energy_relative, survey.launch):
+        print(f"  {line}")
     return 0
 
 

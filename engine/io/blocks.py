@@ -31,6 +31,7 @@ import os
 import re
 import shutil
 import stat
+import tomllib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -40,7 +41,7 @@ import numpy as np
 
 from ..grid import Tiling
 from ..kernels.geometry import CLASS_NAMES
-from ..schema import DIMS, variable_attrs
+from ..schema import DIMS, LAUNCH_DIMS, RESULTS, variable_attrs
 from . import OutputError
 from .atomic import (
     NEW_FILE,
@@ -308,6 +309,19 @@ def remove_store(root: Path) -> None:
     shutil.rmtree(root)
 
 
+def _dims(definition: str) -> tuple[str, ...]:
+    """The axes named in a survey definition (launch states or invariants)."""
+    return LAUNCH_DIMS if "r0" in _axes_table(definition) else DIMS
+
+
+def _axes_table(definition: str) -> dict[str, Any]:
+    try:
+        axes = tomllib.loads(definition).get("axes", {})
+    except (tomllib.TOMLDecodeError, RecursionError):
+        return {}
+    return axes if isinstance(axes, dict) else {}
+
+
 def parts_info(root: Path) -> dict[str, Any]:
     """What an unfinished run's block store says about it (``read_info`` of a backend):
     OutputError if the manifest is missing or invalid. Blocks are counted, not verified."""
@@ -317,25 +331,34 @@ def parts_info(root: Path) -> dict[str, Any]:
     return {
         "complete": False,
         "attrs": {"survey_definition": m.survey_definition, "engine": m.engine},
-        "dims": dict(zip(DIMS, m.tiling.shape, strict=True)),
+        "dims": dict(zip(_dims(m.survey_definition), m.tiling.shape, strict=True)),
         "blocks_done": len({i for i in done if i < m.tiling.nblocks}),
         "blocks_total": m.tiling.nblocks,
     }
 
 
 class Summary:
-    """Class counts and finite value ranges of the results, gathered block by block."""
+    """Counts of every flag variable (orbit classes, fates, statuses) and finite value ranges
+    of the results, gathered block by block."""
 
     def __init__(self) -> None:
-        self.counts = np.zeros(len(CLASS_NAMES), np.int64)
+        self.flags: dict[str, np.ndarray] = {}
         self._lo: dict[str, float] = {}
         self._hi: dict[str, float] = {}
 
+    @property
+    def counts(self) -> np.ndarray:
+        """Counts of the orbit classes."""
+        return self.flags.get("orbit_class", np.zeros(len(CLASS_NAMES), np.int64))
+
     def add(self, block: dict[str, np.ndarray]) -> None:
-        """Count the classes of ``block`` and widen the ranges of its float variables."""
+        """Count the flags of ``block`` and widen the ranges of its float variables."""
         for name, arr in block.items():
-            if name == "orbit_class":
-                self.counts += np.bincount(arr.ravel(), minlength=len(CLASS_NAMES))
+            meanings = RESULTS[name].flags if name in RESULTS else None
+            if meanings is not None:
+                n = len(meanings)
+                seen = np.bincount(arr.ravel(), minlength=n)[:n]
+                self.flags[name] = self.flags.get(name, np.zeros(n, np.int64)) + seen
             elif arr.dtype.kind == "f":
                 fin = arr[np.isfinite(arr)]
                 if fin.size:

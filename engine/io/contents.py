@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..grid import Tiling
-from ..schema import DIMS
+from ..schema import DIMS, LAUNCH_DIMS
 
 __all__ = ["CHECKSUM_ATTR", "CHECKSUM_BLOCK_ATTR", "SCHEME", "ContentHasher", "verify_file"]
 
@@ -120,7 +120,7 @@ def verify_file(nc: Any) -> tuple[bool, str]:
     for name, var in nc.variables.items():
         slabs = (
             iter(Tiling(tuple(var.shape), block, block))
-            if tuple(var.dimensions) == DIMS
+            if tuple(var.dimensions) in (DIMS, LAUNCH_DIMS)
             else iter([tuple(slice(None) for _ in var.shape)])
         )
         for slab in slabs:

@@ -25,7 +25,7 @@ import numpy as np
 
 from .._version import __version__
 from ..grid import Tiling
-from ..schema import DIMS, RESULTS, result_variables
+from ..schema import DIMS, RESULTS
 from . import OutputError
 from .atomic import NotRegularFile, read_regular, write_atomic
 
@@ -57,12 +57,13 @@ def parts_dir(out: Path) -> Path:
 
 def survey_variables(survey: Survey) -> dict[str, np.dtype]:
     """Names and dtypes of the result variables of ``survey``, in file order."""
-    return result_variables(survey.method, survey.scene, survey.energy_relative)
+    return survey.variables()
 
 
 def fingerprint(survey: Survey) -> str:
-    """SHA-256 of everything that determines the results: axes (their float64 bytes), scene,
-    method, tolerances, title and the engine version."""
+    """SHA-256 of everything that determines the results: axes (their names and float64
+    bytes), scene, method, tolerances, the horizon of a fate map, title and the engine
+    version."""
     doc = {
         "engine": __version__,
         "title": survey.title,
@@ -71,10 +72,12 @@ def fingerprint(survey: Survey) -> str:
         "circular_tol": survey.circular_tol.hex(),
         "energy_relative": survey.energy_relative,
         "scene": {k: str(v) for k, v in survey.scene.as_attrs().items()},
-        "axes": {d: int(np.size(getattr(survey, d))) for d in DIMS},
+        "axes": {d: int(np.size(getattr(survey, d))) for d in survey.dims},
     }
+    if survey.horizon is not None:  # fate maps: how long each orbit is followed
+        doc["horizon"] = {k: str(v) for k, v in survey.horizon.as_attrs().items()}
     h = hashlib.sha256(json.dumps(doc, sort_keys=True).encode())
-    for d in DIMS:
+    for d in survey.dims:
         h.update(d.encode())
         h.update(np.ascontiguousarray(getattr(survey, d), dtype="<f8"))  # no copy
     return h.hexdigest()

@@ -35,7 +35,7 @@ import numpy as np
 from .._jit import threading_layer
 from .._version import __version__
 from ..kernels.geometry import CLASS_NAMES
-from ..schema import DIMS, FINGERPRINT_ATTR, axis_attrs, survey_attrs, variable_attrs
+from ..schema import FINGERPRINT_ATTR, axis_attrs, map_kind, variable_attrs
 from . import OutputError, WriteError
 from .atomic import fsync_path, not_regular, replacing
 from .blocks import BlockStore, Summary, check_parts_dir, parts_info
@@ -215,10 +215,7 @@ def merge(
     or fails its checksum; WriteError if the netCDF library fails to write (a full disk
     shows up as "NetCDF: HDF error"); nothing is left under ``out`` in any of these cases.
     """
-    base = survey_attrs(
-        survey.scene, survey.method, survey.circular_tol, survey.rtol, survey.energy_relative
-    )
-    attrs = cf_attrs(base, **_provenance(survey, command))
+    attrs = cf_attrs(survey.attrs(), **_provenance(survey, command))
     with replacing(out, overwrite=overwrite, tmp_dir=store.root) as tmp:
         try:
             summary = _write_merged(store, survey, tmp, attrs, fingerprint, complevel)
@@ -238,6 +235,7 @@ def _write_merged(
 ) -> Summary:
     summary = Summary()
     hasher = ContentHasher(store.tiling.block)
+    kind = map_kind(survey.method, survey.scene)
     with netCDF4.Dataset(tmp, "w", format="NETCDF4") as nc:
         nc.setncatts(
             {
@@ -246,7 +244,7 @@ def _write_merged(
                 CHECKSUM_BLOCK_ATTR: np.asarray(store.tiling.block, np.int64),
             }
         )
-        for d in DIMS:
+        for d in survey.dims:
             values = np.asarray(getattr(survey, d), np.float64)
             nc.createDimension(d, values.size)
             v = nc.createVariable(d, "f8", (d,), fill_value=False)
@@ -258,12 +256,12 @@ def _write_merged(
             v = nc.createVariable(
                 name,
                 dt,
-                DIMS,
+                survey.dims,
                 **compression(complevel),
                 chunksizes=store.tiling.chunk,
                 fill_value=False if dt.kind in "iu" else np.nan,
             )
-            v.setncatts(_typed_flags(variable_attrs(name), dt))
+            v.setncatts(_typed_flags(variable_attrs(name, kind), dt))
             variables[name] = v
         for slab, block in store.blocks():
             for name, arr in block.items():
