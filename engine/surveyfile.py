@@ -274,6 +274,14 @@ class _Reader(AxisReader):
         horizon = self.horizon(doc, method, scene)
         axes = self.table(doc, "axes", "", required=True)
         dims = LAUNCH_DIMS if any(n in axes for n in LAUNCH_DIMS[1:]) else AXES
+        other = AXES if dims == LAUNCH_DIMS else LAUNCH_DIMS
+        for name in axes:
+            if name in other and name not in dims:
+                raise self.fail(
+                    f"axes.{name}",
+                    "a survey spans invariants (alpha, energy, h, Lz) or launch states "
+                    "(alpha, r0, v0, w0), not both",
+                )
         self.check_keys(axes, dims, "axes")
         for name in dims:
             if name not in axes:

@@ -17,6 +17,7 @@ import engine
 from engine.cli import main as cli_main
 from engine.methods import METHODS as _REGISTRY
 from engine.methods import RTOL_RANGE
+from engine.schema import map_kind
 from engine.surveyfile import AXES, SurveyError, parse_survey
 
 METHODS = tuple(_REGISTRY)
@@ -229,6 +230,8 @@ def valid_docs(draw) -> dict:
     method = _REGISTRY[doc.get("method", "exact")]
     scene = {k: (v if isinstance(v, bool) else float(v)) for k, v in doc.get("scene", {}).items()}
     assume(not method.refused_effects(engine.Scene(**scene)))  # a method that honours the scene
+    if map_kind(method.name, engine.Scene(**scene)) == "fate":  # a fate map needs a horizon
+        doc["horizon"] = {"time": draw(st.floats(1e-3, 1e3))}
     order = draw(st.permutations(AXES))
     doc["axes"] = {name: draw(axis_specs(name)) for name in order}
     return doc
@@ -413,9 +416,9 @@ def invalid_cases(draw) -> dict:
     if kind == "unknown":
         level = draw(st.sampled_from([(), ("scene",), ("axes",)] + [("axes", n) for n in AXES]))
         allowed = {
-            (): {"title", "method", "rtol", "circular_tol", "scene", "axes"},
+            (): {"title", "method", "rtol", "circular_tol", "scene", "horizon", "axes"},
             ("scene",): {"M", "g", "a", "k", "rim", "mu", "c_rr", "attitude"},
-            ("axes",): set(AXES),
+            ("axes",): set(AXES) | {"r0", "v0", "w0"},  # launch-state axes are known keys
         }.get(level, {"values", "start", "stop", "num", "scale", "relative_to"})
         if level == ("axes", "energy"):
             allowed = allowed | {"relative_to"}
