@@ -358,5 +358,3 @@ class _Reader(AxisReader):
             if m:  # "Scene.M must be > 0, got -1.0" -> "must be > 0, got -1.0"
                 message = message[m.end() :].strip()
             raise self.fail(key, message) from None
-
-
