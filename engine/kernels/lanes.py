@@ -54,11 +54,12 @@ from .protocol import (
     start_protocol,
     terminal_at,
 )
-from .rk import ERR_FLOOR, controller, initial_step, step_allowed, step_decide, step_error
+from .rk import ERR_FLOOR, initial_step, step_allowed, step_decide, step_error
 from .rk_codegen import (
     _GEN_OPTS,
     _literal,
     _rk_method,
+    controller,
     rk_dense_stages,
     unrolled_step_lines,
 )
@@ -76,8 +77,8 @@ _ORBIT, _N_ACC, _N_REJ, _N_APS, _N_EV, _REJECTED = 0, 1, 2, 3, 4, 5
 
 def layout(method: int, n: int) -> tuple[int, ...]:
     """Slots of the work array: (n, S, ns, Y, K, YN, ATOL, H, ERR, P, n_slots); K holds the
-    main stages and f(y_new), row i of component j at slot K + i n + j; ERR the three values
-    of :func:`.rk.step_error`."""
+    main stages and f(y_new), row i of component j at slot K + i n + j; ERR the two values of
+    :func:`.rk.step_error`."""
     tb = RK_TABLEAUX[method]
     ns = tb.n_stages
     oK = n
@@ -85,12 +86,12 @@ def layout(method: int, n: int) -> tuple[int, ...]:
     oAT = oYN + n
     oH = oAT + n
     oERR = oH + 1
-    oP = oERR + 3
+    oP = oERR + 2
     return (n, tb.A.shape[0], ns, 0, oK, oYN, oAT, oH, oERR, oP, oP + N_PARAMS)
 
 
 def attempt_source(method: int, n: int) -> str:
-    """Source of ``impl(method, effects, W, rtol, ctl)``: one step of every lane (the lane's
+    """Source of ``impl(method, effects, W, rtol)``: one step of every lane (the lane's
     h, y, f(y), tolerances and parameters from ``W``; its stages, y_new and
     :func:`.rk.step_error` into ``W``)."""
     _, _, ns, oY, oK, oYN, oAT, oH, oERR, oP, _ = layout(method, n)
@@ -105,15 +106,16 @@ def attempt_source(method: int, n: int) -> str:
         return f"W[{s * L} + l] = {value}"
 
     pt = ", ".join(f"W[{(oP + k) * L} + l]" for k in range(N_PARAMS))
-    lines = ["def impl(method, effects, W, rtol, ctl):", f"    for l in range({L}):"]
+    lines = ["def impl(method, effects, W, rtol):", f"    for l in range({L}):"]
     lines += [f"        pt = ({pt})", f"        h = W[{oH * L} + l]"]
     lines += unrolled_step_lines(method, n, load, store, "        ")
     lines.append(f"        W[{oERR * L} + l] = err")
     # The controller's roots in a loop of their own (a pow, where the tableau needs one, is a
     # library call: it would keep the step's loop from being vectorised).
     lines += [f"    for l in range({L}):"]
-    lines += [f"        e = step_error(W[{oERR * L} + l], W[{oYN * L} + l], ctl)"]
-    lines += [f"        W[{(oERR + c) * L} + l] = e[{c}]" for c in range(3)]
+    ctl = repr(RK_TABLEAUX[method].controller())  # constants: the roots fold to sqrt or pow
+    lines += [f"        e = step_error(W[{oERR * L} + l], W[{oYN * L} + l], {ctl})"]
+    lines += [f"        W[{(oERR + c) * L} + l] = e[{c}]" for c in range(2)]
     return "\n".join(lines) + "\n"
 
 
@@ -129,9 +131,8 @@ def _n_of(effects) -> int:
     return N_ATTITUDE if _literal(effects, "effects") & ATTITUDE else N_BASE
 
 
-def lanes_attempt(method, effects, W, rtol, ctl):
-    """One step of every lane and its controller's values (:func:`attempt_source`; ``ctl``:
-    :func:`.rk.controller`). Jit-only."""
+def lanes_attempt(method, effects, W, rtol):
+    """One step of every lane and its controller's values (:func:`attempt_source`). Jit-only."""
     raise NotImplementedError("lanes_attempt runs inside numba kernels only")
 
 
@@ -141,7 +142,7 @@ def lanes_layout(method, effects):
 
 
 @overload(lanes_attempt, jit_options=_GEN_OPTS)
-def _ol_lanes_attempt(method, effects, W, rtol, ctl):
+def _ol_lanes_attempt(method, effects, W, rtol):
     return _attempt_impl(_rk_method(method), _n_of(effects))
 
 
@@ -351,7 +352,7 @@ def _lane_control(method, effects, l, ctl, max_steps, W, F, I):
     n, S, ns, oY, oK, oYN, oAT, oH, oERR, oP, n_slots = lanes_layout(method, effects)
     L = LANES
     h = W[oH * L + l]
-    e = (W[oERR * L + l], W[(oERR + 1) * L + l], W[(oERR + 2) * L + l])
+    e = (W[oERR * L + l], W[(oERR + 1) * L + l])
     accepted, h, h_next, err_old, rejected = step_decide(
         e, h, F[l, _ERR_OLD], I[l, _REJECTED] != 0, ctl
     )
@@ -436,7 +437,7 @@ def lanes_worker(method, effects, alpha, energy, hh, Lz, params, rtol, max_steps
             running += I[l, _ORBIT] >= 0
         if running == 0:
             break
-        lanes_attempt(method, effects, W, rtol, ctl)
+        lanes_attempt(method, effects, W, rtol)
         for l in range(L):
             if I[l, _ORBIT] < 0:
                 continue

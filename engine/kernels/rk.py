@@ -46,7 +46,7 @@ from .protocol import (
     start_protocol,
     terminal_at,
 )
-from .rk_codegen import rk_attempt, rk_dense_stages, tableau
+from .rk_codegen import controller, rk_attempt, rk_dense_stages, tableau
 from .rk_events import apsis_crossed, rk_dense, rk_dense_rate, step_events
 
 # Step-size control.
@@ -66,54 +66,48 @@ def _root(x, k):
 
 
 @kernel
-def _shrink(err, root_rej):
-    """Step factor after a rejected step with error err (> 1, or not finite); root_rej =
+def _shrink(err, root):
+    """Step factor after a rejected step with error err (> 1, or not finite); root =
     err ** -k_rej."""
     if math.isnan(err) or math.isinf(err):
         return MIN_FACTOR
-    return max(MIN_FACTOR, SAFETY * root_rej)
+    return max(MIN_FACTOR, SAFETY * root)
 
 
 @kernel
-def _grow(err, root_acc, err_old, beta, rejected, fmax):
-    """PI controller: factor of the next step after an accepted one with error err, root_acc =
+def _grow(err, root, err_old, beta, rejected, fmax):
+    """PI controller: factor of the next step after an accepted one with error err, root =
     err ** -k1 (at most fmax; never growing right after a rejection)."""
     if err == 0.0:
         fac = fmax
     else:
-        fac = min(fmax, max(MIN_FACTOR, SAFETY * root_acc * err_old**beta))
+        fac = min(fmax, max(MIN_FACTOR, SAFETY * root * err_old**beta))
     if rejected:
         fac = min(fac, 1.0)
     return fac
 
 
 @kernel
-def controller(method):
-    """The step-size controller of the pair ``method``: (k1, k_rej, beta, largest growth)."""
-    A, C, E, E3, P, ns, S, q, beta, bw, fmax = tableau(method)
-    return 1.0 / (q + 1) - bw * beta, 1.0 / (q + 1), beta, fmax
-
-
-@kernel
 def step_error(err, r_new, ctl):
-    """(error the controller sees, err ** -k_rej, err ** -k1) after an attempt with scaled
-    error err and new radius r_new: a step that leaves r > 0 has an infinite error. Pure
-    arithmetic, so the lanes compute it for all lanes at once (:mod:`.lanes`)."""
+    """(error the controller sees, its root: e ** -k1 if the step is accepted (e <= 1), else
+    e ** -k_rej) after an attempt with scaled error err and new radius r_new; a step that
+    leaves r > 0 has an infinite error. Pure arithmetic, so the lanes compute it for all lanes
+    at once (:mod:`.lanes`)."""
     k1, k_rej, beta, fmax = ctl
     e = err if r_new > 0.0 else math.inf
-    return e, _root(e, k_rej), _root(e, k1)
+    return e, _root(e, k1 if e <= 1.0 else k_rej)
 
 
 @kernel
 def step_decide(e, h, err_old, rejected, ctl):
     """The step-size decision after an attempt of size h [s] (``e``: :func:`step_error`,
-    ``ctl``: :func:`controller`): (accepted, h [s] to retry with or taken, h_next [s],
+    ``ctl``: :func:`.rk_codegen.controller`): (accepted, h [s] to retry with or taken, h_next [s],
     err_old, rejected)."""
     k1, k_rej, beta, fmax = ctl
-    err, root_rej, root_acc = e
+    err, root = e
     if not err <= 1.0:
-        return False, h * _shrink(err, root_rej), h, err_old, True
-    h_next = h * _grow(err, root_acc, err_old, beta, rejected, fmax)
+        return False, h * _shrink(err, root), h, err_old, True
+    h_next = h * _grow(err, root, err_old, beta, rejected, fmax)
     return True, h, h_next, max(err, ERR_FLOOR), False
 
 

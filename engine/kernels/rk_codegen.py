@@ -173,18 +173,25 @@ def _tableau_source(method: int) -> str:
     return "def impl(method):\n    return T_A, T_C, T_E, T_E3, T_P, " + ", ".join(map(repr, consts))
 
 
+def _controller_source(method: int) -> str:
+    """Source of ``impl(method)``: the controller's constants (:meth:`.Tableau.controller`)."""
+    consts = ", ".join(map(repr, RK_TABLEAUX[method].controller()))
+    return f"def impl(method):\n    return ({consts})\n"
+
+
 _SOURCES = {
     "attempt": lambda method, n: _attempt_source(method, n),
     "stages": lambda method, n: _stages_source(method),
     "dense_stages": lambda method, n: _dense_stages_source(method),
     "dense_component": lambda method, n: _dense_component_source(method),
     "tableau": lambda method, n: _tableau_source(method),
+    "controller": lambda method, n: _controller_source(method),
 }
 
 
 def generated_source(kind: str, method: int, n: int = N_BASE) -> str:
     """The generated source of a kernel: "attempt" (step + error), "stages" (step only),
-    "dense_stages", "dense_component" or "tableau"."""
+    "dense_stages", "dense_component", "tableau" or "controller"."""
     return _SOURCES[kind](method, n)
 
 
@@ -227,6 +234,12 @@ def tableau(method):
     raise NotImplementedError("tableau runs inside numba kernels only")
 
 
+def controller(method):
+    """(k1, k_rej, beta, max_factor) of the pair ``method`` (literal), as constants
+    (:meth:`.tableaux.Tableau.controller`). Jit-only."""
+    raise NotImplementedError("controller runs inside numba kernels only")
+
+
 def rk_attempt(method, effects, y, h, pt, K, ynew, rtol, atol):
     """Attempt one step of size h [s] from y with K[0] = f(y) given; returns the scaled error
     estimate (accept when <= 1). ``pt`` is the parameter tuple (:func:`.model.param_tuple`:
@@ -264,6 +277,11 @@ def _inline_unrolled(expr, caller_info, callee_info) -> bool:
 @overload(tableau, jit_options=_GEN_OPTS)
 def _ol_tableau(method):
     return _generated("tableau", _rk_method(method), 0)
+
+
+@overload(controller, jit_options=_GEN_OPTS)
+def _ol_controller(method):
+    return _generated("controller", _rk_method(method), 0)
 
 
 @overload(rk_attempt, jit_options=_GEN_OPTS, inline=_inline_unrolled)

@@ -78,6 +78,14 @@ class Tableau(NamedTuple):
     unroll: bool
     max_factor: float = 10.0
 
+    def controller(self) -> tuple[float, float, float, float]:
+        """The step-size controller's constants (k1, k_rej, beta, max_factor): the exponents of
+        the error after an accepted step (PI: k1 = 1/(q+1) - beta_weight beta) and after a
+        rejected one (1/(q+1)), q the error order."""
+        q = self.error_order
+        k1 = 1.0 / (q + 1) - self.beta_weight * self.beta
+        return (k1, 1.0 / (q + 1), float(self.beta), float(self.max_factor))
+
 
 # --------------------------------------------------------------------------- Dormand-Prince 5(4)
 DP5_N_STAGES = 6

@@ -22,7 +22,6 @@ from engine.kernels.orbit import (
     tolerance_scales,
 )
 from engine.kernels.protocol import APOCENTRE, MAX_STEPS, NOT_BOUNDED, OK, RECORD_NONE
-from engine.kernels.rk import controller
 from engine.kernels.roots import circular_radius
 from engine.methods import METHODS
 from engine.scene import Scene
@@ -186,7 +185,7 @@ def test_empty_batch():
 
 @numba.njit
 def _one_attempt(method, W, rtol):
-    return lanes_attempt(numba.literally(method), 0, W, rtol, controller(method))
+    return lanes_attempt(numba.literally(method), 0, W, rtol)
 
 
 @pytest.mark.parametrize("method", ["rk45", "dop853"])
