@@ -44,7 +44,8 @@ from numba import prange
 import engine
 from engine._jit import call_specialized
 from engine.integrated import evaluate_integrated
-from engine.kernels.lanes import LANES, integrate_points_lanes, lanes_attempt, layout
+from engine.kernels.lanes import integrate_points_lanes
+from engine.kernels.lanes_step import LANES, lanes_attempt, layout
 from engine.methods import METHODS
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -259,8 +260,9 @@ def step_cost(method: str, rtol: float) -> float:
     """CPU time [s] of one step of one lane: the generated step over all lanes in a loop (on a
     fixed, harmless state), divided by the lanes."""
     m = METHODS[method].kernel_id
-    W = np.ones(layout(m, 5)[-1] * LANES)
-    W[layout(m, 5)[7] * LANES :][:LANES] = 1e-3  # h
+    ly = layout(m, 5)
+    W = np.ones(ly.n_slots * LANES)
+    W[ly.H * LANES : (ly.H + 1) * LANES] = 1e-3
     call_specialized(_steps, (m, W, rtol, 10), (0,))
     best = math.inf
     for _ in range(5):

@@ -292,9 +292,9 @@ def rk_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_step
         th_stop = 2.0
         stop_status = OK
         if aps_cross or term_cross:  # a call only when needed: its array arguments cost refcounts
-            ok, th_stop, stop_status, g_aps, n_aps, n_ev = step_events(
+            ok, th_stop, stop_status, g_aps, n_aps, n_ev, _, _ = step_events(
                 method, effects, y, ynew, K, h, t, p, buf, st, K2, g_aps, n_aps, n_apsides,
-                ev_t, ev_kind, ev_y, n_ev, term_cross)  # fmt: skip
+                ev_t, ev_kind, ev_y, n_ev, term_cross, True)  # fmt: skip
             if not ok:
                 n_ev = ev_t.shape[0]
                 status = BUFFER_FULL

@@ -12,7 +12,8 @@ shows the code.
   Hairer's stretched norm);
 - :func:`rk_stages` the stages of one step without the error estimate (compact loops);
 - :func:`rk_dense_stages` the extra stages only the dense output needs;
-- :func:`rk_dense_component` one component of the dense output (for events on one component).
+- :func:`rk_dense_poly` the polynomial of one component's dense output (events on one
+  component evaluate it by Horner's rule).
 """
 
 from __future__ import annotations
@@ -148,21 +149,12 @@ def _dense_stages_source(method: int) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _dense_component_source(method: int) -> str:
-    """Source of ``impl(method, y, K, h, theta, j)``: one component of the dense output."""
+def _dense_poly_source(method: int) -> str:
+    """Source of ``impl(method, K, j)``: the coefficients c_m = sum_i P[i, m] K[i, j] of
+    component j's dense output y_j + h sum_m c_m theta^(m+1), as a tuple."""
     P = RK_TABLEAUX[method].P
-    lines = ["def impl(method, y, K, h, theta, j):", "    acc = 0.0"]
-    for i in range(P.shape[0]):
-        if not P[i].any():
-            continue
-        horner = "0.0"
-        for c in P[i][::-1]:
-            horner = (
-                f"({horner} + {float(c)!r}) * theta" if horner != "0.0" else f"{float(c)!r} * theta"
-            )
-        lines.append(f"    acc += ({horner}) * K[{i}, j]")
-    lines.append("    return y[j] + h * acc")
-    return "\n".join(lines) + "\n"
+    terms = [_lincomb(P[:, m], "K[{m}, j]") for m in range(P.shape[1])]
+    return "def impl(method, K, j):\n    return (" + ", ".join(terms) + ",)\n"
 
 
 def _tableau_source(method: int) -> str:
@@ -183,7 +175,7 @@ _SOURCES = {
     "attempt": lambda method, n: _attempt_source(method, n),
     "stages": lambda method, n: _stages_source(method),
     "dense_stages": lambda method, n: _dense_stages_source(method),
-    "dense_component": lambda method, n: _dense_component_source(method),
+    "dense_poly": lambda method, n: _dense_poly_source(method),
     "tableau": lambda method, n: _tableau_source(method),
     "controller": lambda method, n: _controller_source(method),
 }
@@ -191,7 +183,7 @@ _SOURCES = {
 
 def generated_source(kind: str, method: int, n: int = N_BASE) -> str:
     """The generated source of a kernel: "attempt" (step + error), "stages" (step only),
-    "dense_stages", "dense_component", "tableau" or "controller"."""
+    "dense_stages", "dense_poly", "tableau" or "controller"."""
     return _SOURCES[kind](method, n)
 
 
@@ -260,10 +252,10 @@ def rk_dense_stages(method, effects, y, h, p, K, ytmp):
     raise NotImplementedError("rk_dense_stages runs inside numba kernels only")
 
 
-def rk_dense_component(method, y, K, h, theta, j):
-    """Component j of the dense output at theta (events that need one component only).
-    Jit-only."""
-    raise NotImplementedError("rk_dense_component runs inside numba kernels only")
+def rk_dense_poly(method, K, j):
+    """(c_1, ..., c_deg): component j of the dense output is y_j + h sum_m c_m theta^m
+    (events that need one component only). Jit-only."""
+    raise NotImplementedError("rk_dense_poly runs inside numba kernels only")
 
 
 def _inline_unrolled(expr, caller_info, callee_info) -> bool:
@@ -301,6 +293,6 @@ def _ol_rk_dense_stages(method, effects, y, h, p, K, ytmp):
     return _generated("dense_stages", _rk_method(method), 0)
 
 
-@overload(rk_dense_component, jit_options=_GEN_OPTS)
-def _ol_rk_dense_component(method, y, K, h, theta, j):
-    return _generated("dense_component", _rk_method(method), 0)
+@overload(rk_dense_poly, jit_options=_GEN_OPTS)
+def _ol_rk_dense_poly(method, K, j):
+    return _generated("dense_poly", _rk_method(method), 0)

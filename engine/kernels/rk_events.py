@@ -3,8 +3,9 @@
 - :func:`rk_dense` / :func:`rk_dense_rate` the dense output of a step and its derivative (the
   polynomial weights ``P`` of the tableau);
 - :func:`rk_locate` event location on the dense output by Brent's method (xtol 4 eps);
-- :func:`polish_apsis` an apsis to the accuracy of a step: the interpolant's error dominates on
-  long steps (DOP853 at rtol 1e-10: up to 3.6e-10 in the apsidal angle, 1e-11 once polished);
+- :func:`polish_apsis` an apsis to the accuracy of a step (:func:`apsis_newton`): the
+  interpolant's error dominates on long steps (DOP853 at rtol 1e-10: up to 3.6e-10 in the
+  apsidal angle, 5e-11 once polished);
 - :func:`step_events` the events inside an accepted step, in order.
 
 ``method`` and ``effects`` reach these kernels as numba literals.
@@ -31,7 +32,7 @@ from .protocol import (
     status_of,
     terminal_fired,
 )
-from .rk_codegen import rk_dense_component, rk_stages, tableau
+from .rk_codegen import rk_dense_poly, rk_stages, tableau
 
 
 @kernel
@@ -77,9 +78,22 @@ def rk_dense_rate(method, K, theta, out):
 
 
 @kernel
+def dense_poly_value(yj, h, c, theta):
+    """yj + h sum_m c[m] theta^(m+1) (Horner's rule): one component of a step's dense output
+    from its polynomial (:func:`.rk_codegen.rk_dense_poly`)."""
+    acc = 0.0
+    for m in range(len(c) - 1, -1, -1):
+        acc = (acc + c[m]) * theta
+    return yj + h * acc
+
+
+@kernel
 def rk_locate(method, kind, y, K, h, p, g0, g1, buf, st):
     """theta in [0, 1] where the event function crosses 0 on the step's dense output (Brent,
-    xtol 4 eps)."""
+    xtol 4 eps). The rim (r) and the apsides (u) need one component: its polynomial is summed
+    over the stages once, then each evaluation is one Horner pass."""
+    j = 0 if kind == SPILL else 2
+    c = rk_dense_poly(method, K, j)
     brent_start(st, 0.0, 1.0, g0, g1)
     theta = 1.0
     for _ in range(100):
@@ -89,48 +103,61 @@ def rk_locate(method, kind, y, K, h, p, g0, g1, buf, st):
         if kind == SLIP:
             rk_dense(method, y, K, h, theta, buf)
             g = slip_margin(buf, p)
-        elif kind == SPILL:
-            g = rk_dense_component(method, y, K, h, theta, 0) - p[P_RIM]
         else:
-            g = rk_dense_component(method, y, K, h, theta, 2)
+            g = dense_poly_value(y[j], h, c, theta)
+            if kind == SPILL:
+                g -= p[P_RIM]
         brent_update(st, g)
     return min(max(theta, 0.0), 1.0)
+
+
+@kernel
+def apsis_newton(out, f, h, t_hs):
+    """One Newton correction of the time of an apsis whose state ``out`` at time t_hs [s] has
+    the rates f: dt = -u/udot, out += dt f. Returns (applied, time [s]); not applied where
+    |dt| > |h| (h [s] the step it lies in) or dt is not finite."""
+    dt = -out[2] / f[2]
+    if not abs(dt) <= abs(h):
+        return False, t_hs
+    for j in range(out.shape[0]):
+        out[j] += dt * f[j]
+    return True, t_hs + dt
 
 
 @kernel
 def polish_apsis(method, effects, y, K, h, th, t, p, K2, out):
     """State (into ``out``) and time [s] of the apsis found at theta = th on the dense output of
     the step (t, t + h], to the accuracy of a step rather than of the interpolant (whose error
-    dominates on long steps): one step of size th h from y (stages in K2), then one Newton
-    correction of the time, dt = -u/udot, and y += dt f(y). Where the correction is not small
-    (|dt| > |h|, or not finite) the dense output stands."""
+    dominates on long steps): one step of size th h from y (stages in K2), then
+    :func:`apsis_newton`. Where the correction is not small the dense output stands."""
     A, C, E, E3, P, ns, S, q, beta, bw, fmax = tableau(method)
     n = y.shape[0]
     hs = th * h
     for j in range(n):
         K2[0, j] = K[0, j]
     rk_stages(method, effects, y, hs, p, K2, out)
-    dt = -out[2] / K2[ns, 2]
-    if not abs(dt) <= abs(h):
+    applied, t_aps = apsis_newton(out, K2[ns], h, t + hs)
+    if not applied:
         rk_dense(method, y, K, h, th, out)
-        return t + hs
-    for j in range(n):
-        out[j] += dt * K2[ns, j]
-    return t + hs + dt
+    return t_aps
 
 
 @kernel
 def step_events(method, effects, y, ynew, K, h, t, p, buf, st, K2, g_aps, n_aps, n_apsides,
-                ev_t, ev_kind, ev_y, n_ev, term_cross):  # fmt: skip
+                ev_t, ev_kind, ev_y, n_ev, term_cross, polish):  # fmt: skip
     """Events inside the accepted step (t, t + h]: the first terminal event, then the apsis
-    before it (recorded, polished by :func:`polish_apsis` with K2 as scratch; it may end the
-    run after ``n_apsides`` apsides), then the terminal event itself. Returns (ok, theta of the
-    stop (2 = none), stop status, g_aps, n_aps, n_ev); ok is False when the event buffers are
-    full. A run that stops at its last apsis (theta <= 1, status OK) ends on the recorded
-    event."""
+    before it (recorded; it may end the run after ``n_apsides`` apsides), then the terminal
+    event itself. With ``polish`` the apsis is polished here (:func:`polish_apsis`, K2 as
+    scratch); without, it is recorded from the dense output for the caller to polish (the
+    lanes do it on a vector step). Returns (ok, theta of the stop (2 = none), stop status,
+    g_aps, n_aps, n_ev, index of the apsis recorded (-1: none), its theta); ok is False when
+    the event buffers are full. A run that stops at its last apsis (theta <= 1, status OK)
+    ends on the recorded event."""
     th_stop = 2.0
     stop_status = OK
     stop_kind = 0
+    i_aps = -1
+    th_aps = 2.0
     if term_cross:
         for kind in range(SPILL, SLIP + 1):
             if kind == SPILL and not effects & RIM:
@@ -149,11 +176,17 @@ def step_events(method, effects, y, ynew, K, h, t, p, buf, st, K2, g_aps, n_aps,
     if apsis_crossed(g_aps, g_new):
         th = rk_locate(method, np.int64(PERICENTRE), y, K, h, p, y[2], g_new, buf, st)
         if th <= th_stop:
-            t_aps = polish_apsis(method, effects, y, K, h, th, t, p, K2, buf)
+            if polish:
+                t_aps = polish_apsis(method, effects, y, K, h, th, t, p, K2, buf)
+            else:
+                rk_dense(method, y, K, h, th, buf)
+                t_aps = t + th * h
+            i_aps = n_ev
+            th_aps = th
             n_ev, g_aps, n_aps, reached = record_apsis(ev_t, ev_kind, ev_y, n_ev, t_aps, buf,
                                                        g_aps, n_aps, n_apsides)  # fmt: skip
             if n_ev < 0:
-                return False, th_stop, stop_status, g_aps, n_aps, n_ev
+                return False, th_stop, stop_status, g_aps, n_aps, n_ev, i_aps, th_aps
             if reached:
                 th_stop = th
                 stop_status = OK
@@ -161,5 +194,5 @@ def step_events(method, effects, y, ynew, K, h, t, p, buf, st, K2, g_aps, n_aps,
         rk_dense(method, y, K, h, th_stop, buf)
         n_ev = push_event(ev_t, ev_kind, ev_y, n_ev, t + th_stop * h, stop_kind, buf)
         if n_ev < 0:
-            return False, th_stop, stop_status, g_aps, n_aps, n_ev
-    return True, th_stop, stop_status, g_aps, n_aps, n_ev
+            return False, th_stop, stop_status, g_aps, n_aps, n_ev, i_aps, th_aps
+    return True, th_stop, stop_status, g_aps, n_aps, n_ev, i_aps, th_aps

@@ -12,7 +12,8 @@ from cases import BOUNDED_REF, HARD, vmin
 
 import engine
 from engine._jit import call_specialized
-from engine.kernels.lanes import LANES, integrate_points_lanes, lanes_attempt, layout
+from engine.kernels.lanes import integrate_points_lanes
+from engine.kernels.lanes_step import LANES, lanes_attempt, layout
 from engine.kernels.model import RIM, SLIP_CHECK, coefficients
 from engine.kernels.orbit import (
     _reduce,
@@ -193,7 +194,7 @@ def test_the_step_is_vectorised_over_the_lanes(method):
     """The step's divisions compile to vector instructions across the lanes (the point of the
     module): a call or a branch in the generated loop would silently make it scalar."""
     m = METHODS[method].kernel_id
-    n_slots = layout(m, 5)[-1]
+    n_slots = layout(m, 5).n_slots
     _one_attempt(m, np.ones(n_slots * LANES), RTOL)
     sig = [s for s in _one_attempt.signatures if s[0].literal_value == m][0]
     ir = _one_attempt.inspect_llvm(sig)
