@@ -38,7 +38,7 @@ from .lanes_step import (
     lanes_layout,
 )
 from .model import N_PARAMS, RIM, SLIP_CHECK, rhs, set_alpha
-from .orbit import _reduce, initial_state, orbit_start, tolerance_scales
+from .orbit import _reduce, initial_state, orbit_start, store_period, tolerance_scales
 from .protocol import (
     APOCENTRE,
     BUFFER_FULL,
@@ -163,13 +163,7 @@ def _lane_finish(method, effects, l, status, n_apsides, W, I, LY0, p, ev_t, ev_k
             T = 2.0 * ev_t[0]
             psi = abs(ev_y[0, 1])
             prec = (2.0 * psi - 2.0 * math.pi) / T
-    out_status[i] = st
-    out_f[0, i] = T
-    out_f[1, i] = psi
-    out_f[2, i] = prec
-    out_f[3, i] = drift
-    out_f[4, i] = loss
-    out_n[i] = nst
+    store_period(out_f, out_n, out_status, i, (st, T, psi, prec, nst, drift, loss))
     I[l, _ORBIT] = -1
     W[ly[_ACT] * L + l] = 0.0
     W[ly[_H] * L + l] = 0.0
