@@ -21,18 +21,10 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-__all__ = ["ConeAccessor", "CLASS_COLORS"]
+from .mapspec import LookError
+from .plot import CLASS_COLORS, draw_map, legend_handles, matplotlib_parts, style_for
 
-#: Colour of each class in maps, by name (tab10 shades; forbidden is light grey).
-CLASS_COLORS: dict[str, str] = {
-    "forbidden": "#d9d9d9",
-    "bounded": "#1f77b4",
-    "circular": "#d62728",
-    "hyperbolic": "#ff7f0e",
-    "radial": "#9467bd",
-    "spills": "#2ca02c",
-}
-_FALLBACK_COLORS = ("#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf")
+__all__ = ["ConeAccessor", "CLASS_COLORS"]
 
 #: Classes whose apsidal angle is a half radial period (so 2 psi - 2 pi is a precession).
 _PRECESSING = ("bounded", "circular", "spills")
@@ -184,13 +176,11 @@ class ConeAccessor:
 
         ``sel`` picks one value of every other dimension (nearest label), e.g.
         ``alpha=0.5, h=0.0``. The legend lists the classes present, named from flag_meanings.
-        matplotlib is imported here, not at module import.
+        Drawn by :func:`engine.plot.draw_map` (as ``conesurvey plot`` draws); matplotlib is
+        imported when this is called, not at module import.
         """
-        import matplotlib.pyplot as plt
-        from matplotlib.colors import BoundaryNorm, ListedColormap
-        from matplotlib.patches import Patch
-
         cls = self._class_var()
+        _ = self.class_names  # raises for a Dataset without flag_meanings
         index_sel = {k: v for k, v in sel.items() if k in cls.dims and k in cls.indexes}
         pos_sel = {k: v for k, v in sel.items() if k in cls.dims and k not in cls.indexes}
         unknown = set(sel) - set(index_sel) - set(pos_sel)
@@ -209,38 +199,21 @@ class ConeAccessor:
         for name in (x, y):
             if name not in cls.coords:
                 raise ValueError(f"{name!r} is not a coordinate of orbit_class")
-        xc, yc = cls[x], cls[y]
-        if xc.ndim == 1 and yc.ndim == 1 and xc.dims != yc.dims:
-            z = cls.transpose(yc.dims[0], xc.dims[0]).values
-            X, Y = xc.values, yc.values
-        else:
-            xc, yc = xr.broadcast(xc, yc)
-            X, Y = xc.transpose(*cls.dims).values, yc.transpose(*cls.dims).values
-            z = cls.values
-        z = np.asarray(z, float)
-        names = self.class_names
-        codes = self.class_codes
-        colors = [_class_color(n, i) for i, n in enumerate(names)]
-        ordered = sorted(range(len(names)), key=lambda i: codes[names[i]])
-        vals = [codes[names[i]] for i in ordered]
-        cmap = ListedColormap([colors[i] for i in ordered])
-        bounds = [v - 0.5 for v in vals] + [vals[-1] + 0.5]
-        norm = BoundaryNorm(bounds, cmap.N)
+        try:
+            matplotlib_parts()
+        except LookError as exc:
+            raise ImportError(str(exc)) from None
         if ax is None:
+            import matplotlib.pyplot as plt  # pyplot: the figure shows in notebooks
+
             _, ax = plt.subplots(figsize=(6, 4.5))
-        ax.pcolormesh(X, Y, np.ma.masked_invalid(z), cmap=cmap, norm=norm, shading="nearest")
-        ax.set_xlabel(_axis_label(self._ds, x))
-        ax.set_ylabel(_axis_label(self._ds, y))
+        style = style_for(cls.values, cls.attrs, "orbit_class")
+        _, seen = draw_map(ax, cls, x, y, style)
         fixed = ", ".join(f"{k} = {_fmt(cls.coords[k].values)}" for k in sel if k in cls.coords)
         if fixed:
             ax.set_title(f"orbit class ({fixed})", fontsize="medium")
         if legend:
-            present = set(np.unique(z[np.isfinite(z)]).astype(int).tolist())
-            handles = [
-                Patch(facecolor=colors[i], edgecolor="k", linewidth=0.5, label=names[i])
-                for i in ordered
-                if codes[names[i]] in present
-            ]
+            handles = legend_handles(style, np.asarray(cls.values, float), seen)
             ax.legend(handles=handles, title="orbit class", loc="best", fontsize="small")
         return ax
 
@@ -284,19 +257,6 @@ def _reduce_dims(da: xr.DataArray, dim: str | Sequence[Hashable] | None) -> list
     if missing:
         raise ValueError(f"{missing} are not dimensions of orbit_class {da.dims}")
     return dims
-
-
-def _class_color(name: str, i: int) -> str:
-    return CLASS_COLORS.get(name, _FALLBACK_COLORS[i % len(_FALLBACK_COLORS)])
-
-
-def _axis_label(ds: xr.Dataset, name: str) -> str:
-    if name not in ds.coords:
-        return name
-    units = ds.coords[name].attrs.get("units")
-    if name == "energy" and units == "1":
-        return "energy offset (calE - V_min)/|V_min|"
-    return f"{name} [{units}]" if units else name
 
 
 def _fmt(v: Any) -> str:

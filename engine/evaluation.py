@@ -8,22 +8,34 @@ the in-memory survey, local streamed runs and dask workers compute the very same
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
 
+from .fates import Horizon, fates, require_horizon
 from .integrated import evaluate_integrated
 from .kernels.geometry import (
+    BATCH_ROWS,
     BOUNDED,
     CIRCULAR_TOL,
-    SPILLS,
     empty_outputs,
     minimum_energy_batch,
     orbit_batch,
 )
-from .methods import DEFAULT_RTOL, get_method
+from .kernels.protocol import NOT_BOUNDED
+from .launch import invariants
+from .methods import DEFAULT_RTOL
 from .scene import Scene
-from .schema import CLOSED_FORM, DIMS, REPLACED_BY_INTEGRATION, result_variables
+from .schema import (
+    DIMS,
+    INTEGRATED,
+    LAUNCH_DIMS,
+    REPLACED_BY_INTEGRATION,
+    RESULTS,
+    map_kind,
+    result_variables,
+)
 
 __all__ = ["evaluate_flat", "evaluate_block", "minimum_energy_flat"]
 
@@ -38,43 +50,55 @@ def evaluate_flat(
     *,
     circular_tol: float = CIRCULAR_TOL,
     rtol: float = DEFAULT_RTOL,
+    horizon: Horizon | None = None,
+    r_start: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """Kernel call on equal-length 1-D float64 arrays (validated by the caller).
 
-    Returns a dict of 1-D arrays, the variables of :func:`engine.schema.result_variables` but
-    ``energy_absolute``: ``orbit_class`` (int8) and the closed form's floats; an integrator
-    method adds its own and takes period, apsidal angle and precession rate from the
-    integration (bounded points only).
+    Returns a dict of 1-D arrays: the variables of :func:`engine.schema.result_variables` but
+    ``energy_absolute``. Every map holds the closed form; what else depends on the kind of map
+    (:func:`engine.schema.map_kind`): where rolling ends on a cone with a rim or a friction
+    limit (closed form), one integrated radial period, or each orbit's fate (integrated up to
+    ``horizon`` from ``r_start``, by default r_min; then the closed form describes the launch
+    orbit on the ideal cone).
     """
     a = np.ascontiguousarray(alpha, np.float64)
     e = np.ascontiguousarray(energy, np.float64)
     hh = np.ascontiguousarray(h, np.float64)
     lz = np.ascontiguousarray(Lz, np.float64)
+    kind = map_kind(method, scene)
+    wanted = result_variables(method, scene)
     cls, f = empty_outputs(a.shape[0])
-    orbit_batch(a, e, hh, lz, scene.M, scene.g, scene.k, scene.rim_or_inf, circular_tol, cls, f)
+    rim, mu = scene.rim_or_inf, scene.mu_or_inf
+    if kind == "fate":  # the launch orbit on the ideal cone; the integration follows the scene
+        rim, mu = math.inf, math.inf
+    orbit_batch(a, e, hh, lz, scene.M, scene.g, scene.k, scene.a, rim, mu, circular_tol, cls, f)
     out: dict[str, np.ndarray] = {"orbit_class": cls}
-    for i, name in enumerate(CLOSED_FORM[1:]):
-        out[name] = f[i]
-    if get_method(method).integrates:
+    for i, name in enumerate(BATCH_ROWS):
+        if name in wanted:
+            out[name] = f[i]
+    if kind == "one period":
         out.update(_integrate_bounded(a, e, hh, lz, scene, method, rtol, cls))
+    elif kind == "fate":
+        start = f[0] if r_start is None else np.ascontiguousarray(r_start, np.float64)
+        out.update(fates(a, e, hh, lz, start, scene, method, rtol, require_horizon(horizon),
+                         classes=cls))  # fmt: skip
     return out
 
 
 def _integrate_bounded(a, e, hh, lz, scene, method, rtol, cls) -> dict[str, np.ndarray]:
-    """The integrator's variables for every point: bounded (and spilling) points integrated,
-    the others NaN, no steps, status 0."""
+    """The one-period variables for every point: bounded points integrated; the others NaN,
+    no steps and the status "not_bounded" (nothing to integrate over a period)."""
     n = a.shape[0]
-    sel = np.flatnonzero((cls == BOUNDED) | (cls == SPILLS))
+    sel = np.flatnonzero(cls == BOUNDED)
     res = evaluate_integrated(a[sel], e[sel], hh[sel], lz[sel], scene, method, rtol)
     upd: dict[str, np.ndarray] = {}
-    for name, dtype in result_variables(method, scene).items():
-        if name not in res:
-            continue
-        fill = np.nan if dtype.kind == "f" else 0
+    for name in (*REPLACED_BY_INTEGRATION, *INTEGRATED):
+        dtype = np.dtype(RESULTS[name].dtype)
+        fill = NOT_BOUNDED if name == "status" else (np.nan if dtype.kind == "f" else 0)
         col = np.full(n, fill, dtype)
         col[sel] = res[name]
         upd[name] = col
-    assert set(REPLACED_BY_INTEGRATION) <= set(upd)
     return upd
 
 
@@ -88,29 +112,43 @@ def minimum_energy_flat(alpha: np.ndarray, h: np.ndarray, Lz: np.ndarray, scene:
 def evaluate_block(spec: dict[str, Any], slices: tuple[slice, ...]) -> dict[str, np.ndarray]:
     """Results on one hyperslab of the grid, each array shaped like the slab.
 
-    ``spec``: axes ``alpha``, ``energy``, ``h``, ``Lz`` (1-D float64), ``scene`` (Scene),
-    ``method``, ``energy_relative``, ``circular_tol``, ``rtol``. With a relative energy axis the
-    absolute energy (``energy_absolute``) is V_min + offset |V_min| from the slab's own V_min;
-    where V has no minimum it is NaN and the point is classed forbidden.
+    ``spec``: ``dims`` (:data:`engine.schema.DIMS`, the default, or
+    :data:`engine.schema.LAUNCH_DIMS`) and each axis (1-D float64), ``scene`` (Scene),
+    ``method``, ``energy_relative``, ``circular_tol``, ``rtol``, ``horizon`` (fate maps).
+    With a relative energy axis the absolute energy (``energy_absolute``) is V_min + offset
+    |V_min| from the slab's own V_min; where V has no minimum it is NaN and the point is classed
+    forbidden. On a grid of launch states the invariants of each launch are computed
+    (:func:`engine.launch.invariants`) and returned too, and fates start at the launch.
     """
-    sub = [np.asarray(spec[d])[s] for d, s in zip(DIMS, slices, strict=False)]
+    dims = spec.get("dims", DIMS)
+    sub = [np.asarray(spec[d])[s] for d, s in zip(dims, slices, strict=True)]
     shape = tuple(x.size for x in sub)
-    A, E, H, L = (x.reshape(-1) for x in np.meshgrid(*sub, indexing="ij"))
+    A, X1, X2, X3 = (x.reshape(-1) for x in np.meshgrid(*sub, indexing="ij"))
     scene = spec["scene"]
     e_abs = None
-    if spec["energy_relative"]:
-        vmin = minimum_energy_flat(A, H, L, scene)
-        e_abs = vmin + E * np.abs(vmin)
-        E = e_abs
-    res = evaluate_flat(
-        A, E, H, L, scene, spec["method"], circular_tol=spec["circular_tol"], rtol=spec["rtol"]
-    )
+    r_start = None
+    if dims == LAUNCH_DIMS:
+        inv = invariants(A, X1, 0.0, X2, X3, scene)
+        E, H, L, r_start = inv["energy"], inv["h"], inv["Lz"], X1
+    else:
+        E, H, L = X1, X2, X3
+        if spec["energy_relative"]:
+            vmin = minimum_energy_flat(A, H, L, scene)
+            e_abs = vmin + E * np.abs(vmin)
+            E = e_abs
+    res = evaluate_flat(A, E, H, L, scene, spec["method"], circular_tol=spec["circular_tol"],
+                        rtol=spec["rtol"], horizon=spec.get("horizon"),
+                        r_start=r_start)  # fmt: skip
     if e_abs is not None:
         undefined = np.isnan(e_abs)
         if undefined.any():
             res["orbit_class"][undefined] = 0
-            for name in CLOSED_FORM[1:]:
-                if name != "r_circ":
-                    res[name][undefined] = np.nan
+            for name, col in res.items():
+                if name != "r_circ" and col.dtype.kind == "f":
+                    col[undefined] = np.nan
+            if "fate" in res:
+                res["fate"][undefined] = 0  # no orbit
         res["energy_absolute"] = e_abs
+    if r_start is not None:
+        res.update(energy=E, h=H, Lz=L)
     return {name: col.reshape(shape) for name, col in res.items()}

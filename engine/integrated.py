@@ -21,7 +21,7 @@ from .kernels.orbit import integrate_points as _integrate_points_kernel
 from .kernels.protocol import STATUS_MESSAGES, UNSUPPORTED
 from .methods import DEFAULT_RTOL, METHODS, check_method, check_rtol
 from .scene import Scene
-from .schema import result_variables
+from .schema import period_variables
 
 __all__ = ["evaluate_integrated", "integrate_points", "STATUS_MESSAGES", "DEFAULT_MAX_STEPS"]
 
@@ -128,7 +128,7 @@ def evaluate_integrated(
     if n:
         integrate_points(*arrays, scene.params(), m.kernel_id, scene.effects_mask, r,
                          int(max_steps), out_f, out_n, out_status)  # fmt: skip
-    produced = result_variables(method, scene)
+    produced = period_variables(scene)
     res = {name: out_f[i] for i, name in enumerate(PERIOD_ROWS) if name in produced}
     res["n_steps"] = out_n
     res["status"] = out_status

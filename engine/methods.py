@@ -82,7 +82,19 @@ _SYMPLECTIC_REASONS = {
 
 #: Every method by name, in the order users see them.
 METHODS: dict[str, Method] = {
-    "exact": Method("exact", None, "closed form", "closed form (elliptic integrals)"),
+    "exact": Method(
+        "exact",
+        None,
+        "closed form",
+        "closed form (elliptic integrals)",
+        (
+            (
+                "rolling_resistance",
+                "the closed form describes lossless orbits; a fate map integrates the resistance",
+            ),
+            ("attitude", "the closed form does not follow the sphere's orientation"),
+        ),
+    ),
     **{tb.name: _rk_row(i) for i, tb in enumerate(RK_TABLEAUX)},
     "symplectic": Method(
         "symplectic",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -13,10 +14,14 @@ __all__ = ["Scene"]
 
 
 def _check_positive(name: str, value: float, *, allow_zero: bool = False) -> float:
+    """``value`` as a float; ValueError naming the field unless it is a finite real number in
+    range. Booleans, strings and arrays are not numbers (``Scene(M=True)`` is refused)."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
+        raise ValueError(f"Scene.{name} must be a real number, got {value!r}")
     try:
         v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"Scene.{name} must be a real number, got {value!r}") from None
+    except OverflowError:  # an int beyond the doubles
+        raise ValueError(f"Scene.{name} must be finite, got {value!r}") from None
     if math.isnan(v) or math.isinf(v):
         raise ValueError(f"Scene.{name} must be finite, got {value!r}")
     if v < 0 or (v == 0 and not allow_zero):
@@ -35,7 +40,8 @@ class Scene:
     g : gravity [m s-2], >= 0 (0: a freely falling cone).
     a : sphere radius [m], > 0 (enters only the attitude and the real cone's vertex).
     k : inertia factor I/(M a^2), >= 0 (0.4 solid sphere, 2/3 thin shell, 0 point particle).
-    rim : slant length [m] of the centre's cone where the real cone ends; None = infinite.
+    rim : slant length [m] of the real cone from its vertex to its edge, as a user measures it
+        (the centre is then at rim - a cot(alpha) on its own cone); None = an infinite cone.
     mu : friction coefficient for the slip check, > 0; None = no slip check.
     c_rr : rolling-resistance coefficient, >= 0 (0 = none).
     attitude : integrate the sphere's orientation (a unit quaternion) in simulations.
@@ -89,8 +95,14 @@ class Scene:
     def params(self, alpha: float = math.pi / 4) -> np.ndarray:
         """The float64 parameter array of the kernels (layout ``engine.kernels.model.P_*``) on a
         cone of half-aperture ``alpha`` [rad] (batch kernels replace alpha per point)."""
-        mu = math.inf if self.mu is None else float(self.mu)
-        return make_params(alpha, self.M, self.g, self.k, self.a, self.rim_or_inf, mu, self.c_rr)
+        return make_params(
+            alpha, self.M, self.g, self.k, self.a, self.rim_or_inf, self.mu_or_inf, self.c_rr
+        )
+
+    @property
+    def mu_or_inf(self) -> float:
+        """The friction coefficient as a float, +inf without a slip check."""
+        return math.inf if self.mu is None else float(self.mu)
 
     @property
     def rim_or_inf(self) -> float:

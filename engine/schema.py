@@ -16,15 +16,18 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ._version import __version__
+from .kernels.fate import FATE_NAMES
 from .kernels.geometry import CLASS_NAMES
 from .kernels.protocol import EVENT_NAMES, STATUS_FLAGS
-from .methods import get_method
+from .methods import METHODS, get_method
 
 if TYPE_CHECKING:
+    from .fates import Horizon
     from .scene import Scene
 
 __all__ = [
     "DIMS",
+    "LAUNCH_DIMS",
     "FINGERPRINT_ATTR",
     "Variable",
     "AXES",
@@ -35,10 +38,16 @@ __all__ = [
     "result_variables",
     "result_attrs",
     "survey_attrs",
+    "map_kind",
+    "map_summary",
 ]
 
 #: The four survey axes, in the order of a survey's dims.
 DIMS = ("alpha", "energy", "h", "Lz")
+#: The axes of a survey over launch states (the sphere released with u = 0).
+LAUNCH_DIMS = ("alpha", "r0", "v0", "w0")
+#: The invariants a survey over launch states stores as variables.
+INVARIANTS = ("energy", "h", "Lz")
 #: Global attribute of a finished survey file holding the survey's fingerprint.
 FINGERPRINT_ATTR = "survey_fingerprint"
 
@@ -74,6 +83,9 @@ AXES: dict[str, Variable] = {
     "energy": _f("J", "radial energy calE = E/(1+k) - k M h^2/(2(1+k))"),
     "h": _f("m s-1", "spin invariant h = w - L_z cos(alpha)/(M r sin^2 alpha)"),
     "Lz": _f("kg m2 s-1", "axial angular momentum of the centre of mass"),
+    "r0": _f("m", "launch radius: distance of the centre from the vertex of its cone"),
+    "v0": _f("m s-1", "launch azimuthal speed r sin(alpha) dtheta/dt (radial speed 0)"),
+    "w0": _f("m s-1", "launch spin about the normal times the radius, a omega_nu"),
 }
 _ENERGY_RELATIVE = _f("1", "energy offset from the potential minimum, (calE - V_min)/|V_min|")
 
@@ -89,23 +101,64 @@ RESULTS: dict[str, Variable] = {
     ),
     "precession_rate": _f("radian s-1", "apsidal precession rate (2 psi - 2 pi) / T_r"),
     "mu_required": _f("1", "smallest friction coefficient that keeps the sphere rolling"),
-    # integrator methods
-    "n_steps": Variable("int64", "1", "accepted integrator steps over one radial period"),
+    # the closed form on a cone with a rim or a friction limit
+    "end_r": _f("m", "where rolling on this cone ends (slip onset or the rim), from r_min out"),
+    "end_time": _f("s", "time from r_min to where rolling on this cone ends"),
+    "end_theta": _f("radian", "azimuth swept from r_min to where rolling on this cone ends"),
+    # one-period maps of an integrator
+    "n_steps": Variable("int64", "1", "accepted integrator steps"),
     "energy_drift": _f(
         "1", "|E(T) - E(0)| / max(|E(0)|, kinetic energy at start) over one radial period"
     ),
     "status": Variable("int8", None, "integrator status", STATUS_FLAGS),
-    # integrator methods with rolling resistance
-    "energy_loss": _f("J", "total energy lost over the first radial period"),
+    # fate maps
+    "fate": Variable(
+        "int8", None, "what happened to the sphere (integration of the scene)", FATE_NAMES
+    ),  # fmt: skip
+    "fate_time": _f("s", "time from the start to the fate (the horizon if still rolling)"),
+    "fate_r": _f("m", "r where the fate happened"),
+    "fate_theta": _f("radian", "azimuth swept from the start to the fate"),
+    "revolutions": _f("1", "revolutions about the axis completed before the fate"),
+    "energy_lost": _f("J", "total energy lost from the start to the fate, E(0) - E(t)"),
+    "invariant_drift": _f(
+        "1",
+        "integration error of the energy balance, |E(t) + W(t) - E(0)| / max(|E(0)|, kinetic "
+        "energy at start), W the work done against rolling resistance",
+    ),
     # surveys with an energy axis relative to V_min
     "energy_absolute": _f("J", "radial energy calE (absolute)"),
+    # surveys over launch states: the invariants of each launch
+    **{name: AXES[name] for name in INVARIANTS},
+    # engine.integrated.evaluate_integrated with rolling resistance (one period, not a map)
+    "energy_loss": _f("J", "total energy lost over the first radial period"),
 }
-#: The closed form's variables (every method produces them).
+#: The closed form's variables (every map holds them).
 CLOSED_FORM = tuple(RESULTS)[:8]
-#: What an integrator adds; it also replaces period, apsidal angle and precession rate.
+#: Where rolling ends on a cone with a rim or a friction limit (closed-form maps).
+ENDING = ("end_r", "end_time", "end_theta")
+#: What a one-period integrator map adds; it also replaces period, apsidal angle and precession.
 INTEGRATED = ("n_steps", "energy_drift", "status")
-#: Closed-form variables an integrator method replaces by its own values.
+#: Closed-form variables a one-period map replaces by the integrator's own values.
 REPLACED_BY_INTEGRATION = ("period", "apsidal_angle", "precession_rate")
+#: What a fate map adds.
+FATE = ("fate", "fate_time", "fate_r", "fate_theta", "revolutions", "energy_lost",
+        "invariant_drift", "n_steps")  # fmt: skip
+
+#: The kinds of map, and what each says about its variables (the ``map_kind`` attribute).
+MAP_KINDS = {
+    "closed form": "every variable is exact (closed form) for the scene's cone",
+    "one period": "period, apsidal angle and precession rate integrated over one radial period; "
+    "the other variables exact (closed form)",
+    "fate": "orbit_class and the orbit's geometry describe the launch orbit on the ideal "
+    "lossless cone (closed form); fate and the variables after it describe the scene "
+    "(integrated from the start to the first terminal event or the horizon)",
+}
+#: Variable ``comment`` in fate maps: which variables come from where.
+_FATE_COMMENTS = {
+    **{n: "the launch orbit on the ideal lossless cone (closed form)" for n in CLOSED_FORM},
+    **{n: "the scene, integrated" for n in FATE},
+}
+
 
 #: Variables of :func:`engine.simulate` along its ``time`` and ``event`` dims.
 TRAJECTORY: dict[str, Variable] = {
@@ -146,43 +199,103 @@ def axis_attrs(name: str, energy_relative: bool = False) -> dict[str, Any]:
     return AXES[name].attrs()
 
 
-def variable_attrs(name: str) -> dict[str, Any]:
-    """CF attributes of a result or trajectory variable."""
+def variable_attrs(name: str, kind: str | None = None) -> dict[str, Any]:
+    """CF attributes of a result or trajectory variable (in a map of ``kind``, with a comment
+    saying where its values come from)."""
     var = RESULTS.get(name) or TRAJECTORY[name]
-    return var.attrs()
+    attrs = var.attrs()
+    if kind == "fate" and name in _FATE_COMMENTS:
+        attrs["comment"] = _FATE_COMMENTS[name]
+    return attrs
+
+
+def period_variables(scene: Scene) -> tuple[str, ...]:
+    """What one integrated radial period reports (``engine.integrated.evaluate_integrated``)."""
+    names = (*REPLACED_BY_INTEGRATION, "energy_drift")
+    return (*names, "energy_loss") if "rolling_resistance" in scene.effects else names
+
+
+def map_kind(method: str, scene: Scene) -> str:
+    """What a map of ``scene`` by ``method`` is (:data:`MAP_KINDS`): integrators follow a scene
+    with terminal or dissipative effects to each orbit's fate; otherwise over one period."""
+    if not get_method(method).integrates:
+        return "closed form"
+    if any(e in scene.effects for e in ("rolling_resistance", "rim", "slip_check")):
+        return "fate"
+    return "one period"
 
 
 def result_variables(
-    method: str, scene: Scene, energy_relative: bool = False
+    method: str, scene: Scene, energy_relative: bool = False, launch: bool = False
 ) -> dict[str, np.dtype]:
-    """Names and dtypes of the variables a map of ``scene`` by ``method`` holds, in file order."""
+    """Names and dtypes of the variables a map of ``scene`` by ``method`` holds, in file order
+    (``launch``: a survey over launch states, which stores the invariants too)."""
+    kind = map_kind(method, scene)
     names = list(CLOSED_FORM)
-    if get_method(method).integrates:
+    if kind == "closed form" and ("rim" in scene.effects or "slip_check" in scene.effects):
+        names += ENDING
+    elif kind == "one period":
         names += INTEGRATED
-        if "rolling_resistance" in scene.effects:
-            names.append("energy_loss")
+    elif kind == "fate":
+        names += FATE
     if energy_relative:
         names.append("energy_absolute")
+    if launch:
+        names += INVARIANTS
     return {n: np.dtype(RESULTS[n].dtype) for n in names}
 
 
-def result_attrs(scene: Scene, method: str, circular_tol: float, rtol: float) -> dict[str, Any]:
-    """Global attributes of a map: source, method, tolerances, the scene's parameters."""
+def map_summary(
+    method: str, scene: Scene, energy_relative: bool = False, launch: bool = False
+) -> list[str]:
+    """What a map of ``scene`` by ``method`` will hold, in lines for people (``conesurvey
+    validate``): which methods honour each effect the scene names, the kind of map, its
+    variables."""
+    lines = []
+    for effect in scene.effects:
+        able = [m.name for m in METHODS.values() if effect not in dict(m.refuses)]
+        lines.append(f"effect {effect}: honoured by {', '.join(able)}")
+    kind = map_kind(method, scene)
+    lines.append(f"map    {kind}: {MAP_KINDS[kind]}")
+    names = result_variables(method, scene, energy_relative, launch)
+    lines.append("holds  " + ", ".join(names))
+    return lines
+
+
+def result_attrs(
+    scene: Scene, method: str, circular_tol: float, rtol: float, horizon: Horizon | None = None
+) -> dict[str, Any]:
+    """Global attributes of a map: source, method, what kind of map it is, tolerances, the
+    horizon of a fate map, the scene's parameters."""
+    kind = map_kind(method, scene)
     attrs: dict[str, Any] = {
         "source": f"conesurvey {__version__}",
         "method": method,
+        "map_kind": kind,
+        "map_description": MAP_KINDS[kind],
         "circular_tol": circular_tol,
     }
     if get_method(method).integrates:
         attrs["rtol"] = rtol
+    if horizon is not None:
+        attrs.update(horizon.as_attrs())
     attrs.update(scene.as_attrs())
     return attrs
 
 
 def survey_attrs(
-    scene: Scene, method: str, circular_tol: float, rtol: float, energy_relative: bool
+    scene: Scene,
+    method: str,
+    circular_tol: float,
+    rtol: float,
+    energy_relative: bool,
+    horizon: Horizon | None = None,
+    launch: bool = False,
 ) -> dict[str, Any]:
-    """Global attributes of a survey (:func:`result_attrs` plus the energy axis' meaning)."""
-    attrs = result_attrs(scene, method, circular_tol, rtol)
+    """Global attributes of a survey (:func:`result_attrs` plus what its axes are)."""
+    attrs = result_attrs(scene, method, circular_tol, rtol, horizon)
+    if launch:
+        attrs["grid"] = "launch states: released at r0 with radial speed 0, speed v0, spin w0"
+        return attrs
     attrs["energy_axis"] = "relative to V_min" if energy_relative else "absolute"
     return attrs

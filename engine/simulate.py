@@ -10,24 +10,28 @@ import xarray as xr
 
 from ._jit import call_specialized
 from ._version import __version__
-from .kernels.geometry import BOUNDED, CIRCULAR, CIRCULAR_TOL, CLASS_NAMES, HYPERBOLIC, orbit_point
+from .kernels.fate import REST_SPEED
+from .kernels.geometry import BOUNDED, CIRCULAR, CIRCULAR_TOL, CLASS_NAMES, HYPERBOLIC, ideal_orbit
 from .kernels.model import (
     ATTITUDE,
+    P_V_REST,
     SLIP_CHECK,
     coefficients,
     contact_forces_of,
     contact_velocity,
+    holds_at_rest,
     invariants,
     invariants_of,
 )
 from .kernels.orbit import initial_state, orbit_start, solve, tolerance_scales
 from .kernels.protocol import (
+    APOCENTRE,
     BUFFER_FULL,
-    OK,
+    FAILURE,
+    NORMAL_ENDS,
     RECORD_EVERY_DT,
     RECORD_STEPS,
-    SLIPPED,
-    SPILLED,
+    RESTED,
     STATUS_MESSAGES,
 )
 from .kernels.roots import free_fall_r_min
@@ -53,8 +57,7 @@ def _real(name: str, value: Any) -> float:
 
 def _capacities(alpha, energy, h, Lz, scene, t_end, periods, dt_out) -> tuple[int, int]:
     """First guess of the event and trajectory buffer sizes (grown on demand)."""
-    T = float(orbit_point(alpha, energy, h, Lz, scene.M, scene.g, scene.k, math.inf,
-                          CIRCULAR_TOL)[4])  # fmt: skip
+    T = float(ideal_orbit(alpha, energy, h, Lz, scene.M, scene.g, scene.k, CIRCULAR_TOL)[4])
     if periods is not None:
         cap_ev = 2 * int(periods) + 2
         span = 1.05 * periods * T
@@ -70,8 +73,7 @@ def _capacities(alpha, energy, h, Lz, scene, t_end, periods, dt_out) -> tuple[in
 
 def _start_radius(alpha, energy, h, Lz, scene, p, periods):
     """(r0, r1, r2, rc, class name) of the orbit's start at r_min; ValueError if impossible."""
-    cls = int(orbit_point(alpha, energy, h, Lz, scene.M, scene.g, scene.k, math.inf,
-                          CIRCULAR_TOL)[0])  # fmt: skip
+    cls = int(ideal_orbit(alpha, energy, h, Lz, scene.M, scene.g, scene.k, CIRCULAR_TOL)[0])
     ok, r1, r2, rc = orbit_start(p, energy, h, Lz)
     if cls == HYPERBOLIC:
         if periods is not None:
@@ -132,14 +134,19 @@ def simulate(
     xarray.Dataset with dimension ``time`` (r, theta, u, v, w, Cartesian x, y, z of the centre,
     drifts E - E0, L_z - L_z0, h - h0; the quaternion and the contact-point speed with the
     attitude; |F|/N with the slip check) and dimension ``event`` (event_time, event_kind,
-    event_r, event_theta; kinds pericentre, apocentre, spill, slip). Attributes hold the
-    inputs, the scene, the initial invariants and the exit status. Spilling over the rim and
-    slipping end the run (they are events, not errors).
+    event_r, event_theta; kinds pericentre, apocentre, spill, slip, rest, vertex, horizon,
+    failed). Attributes hold the inputs, the scene, the initial invariants and the exit status.
+
+    A trajectory ends, it does not crash: spilling over the rim, slipping, coming to rest and
+    reaching the vertex region end the run as events with their status; a failed integration
+    (step budget, step size underflow, non-finite state) returns the trajectory up to the
+    failure, an event "failed" there, and the status saying why. With rolling resistance a
+    sphere that stops stays at rest if the resistance can hold it on the slope, and otherwise
+    starts again from rest (docs/physics.md "Effects beyond the ideal cone").
 
     Raises
     ------
-    ValueError for invalid arguments or an orbit that cannot start at r_min; RuntimeError when
-    the integration fails (step budget exhausted, step size underflow, non-finite state).
+    ValueError for invalid arguments or an orbit that cannot start at r_min.
     """
     scene = Scene() if scene is None else scene
     if not isinstance(scene, Scene):
@@ -178,40 +185,82 @@ def simulate(
     r0, r1, r2, rc, cls_name = _start_radius(alpha, energy, h, Lz, scene, p, periods)
     y0 = initial_state(p, effects, r0, energy, h, Lz)
     y0[2] = 0.0  # r0 is a turning point
-    record = RECORD_STEPS if dt_out is None else RECORD_EVERY_DT
+    sc = tolerance_scales(p, effects, y0, energy, h, Lz, r1, r2, rc)
+    p[P_V_REST] = REST_SPEED * rtol * max(sc[2], abs(y0[3]))
+    run = _Run(m.kernel_id, effects, p, (energy, h, Lz), rtol, rtol * sc, int(max_steps))
+    run.capacities(*_capacities(alpha, energy, h, Lz, scene, t_end, periods, dt_out))
     t_stop = math.inf if t_end is None else t_end
-    n = y0.shape[0]
-    cap_ev, cap_tr = _capacities(alpha, energy, h, Lz, scene, t_end, periods, dt_out)
-    atol = rtol * tolerance_scales(p, effects, y0, energy, h, Lz, r1, r2, rc)
-    while True:  # integration is deterministic: a run that ran out of room is redone larger
-        ev_t, ev_kind, ev_y = np.empty(cap_ev), np.empty(cap_ev, np.int8), np.empty((cap_ev, n))
-        tr_t, tr_y = np.empty(cap_tr), np.empty((cap_tr, n))
-        tr_rate = np.empty((cap_tr if effects & ATTITUDE else 0, n))
-        args = (m.kernel_id, effects, y0, p, (energy, h, Lz), rtol, atol, t_stop, n_apsides,
-                int(max_steps), record, dt_out or 0.0, ev_t, ev_kind, ev_y, tr_t, tr_y,
-                tr_rate)  # fmt: skip
-        res = call_specialized(solve, args, (0, 1))
-        status, n_acc, n_rej, t_final = int(res[0]), int(res[1]), int(res[2]), float(res[3])
-        n_ev, n_tr = int(res[5]), int(res[6])
-        if status != BUFFER_FULL:
-            break
-        if n_ev == cap_ev:
-            cap_ev *= 4
-        if n_tr == cap_tr:
-            cap_tr *= 4
-    if status not in (OK, SPILLED, SLIPPED):
-        raise RuntimeError(
-            f"simulate({method!r}) failed at t={t_final:.17g} s after {n_acc} steps: "
-            f"{STATUS_MESSAGES[status]}"
-        )
-    return _dataset(
-        scene, effects, p, method, rtol, alpha, energy, h, Lz, cls_name, y0, status, n_acc, n_rej,
-        tr_t[:n_tr], tr_y[:n_tr], tr_rate[:n_tr], ev_t[:n_ev], ev_kind[:n_ev], ev_y[:n_ev],
-    )  # fmt: skip
+    record = RECORD_STEPS if dt_out is None else RECORD_EVERY_DT
+    status = run.follow(y0, t_stop, n_apsides, record, dt_out or 0.0, bool(holds_at_rest(p)))
+    return _dataset(scene, effects, p, method, rtol, alpha, energy, h, Lz, cls_name, y0, status,
+                    run)  # fmt: skip
+
+
+class _Run:
+    """One trajectory, integrated in segments: a sphere that rolling resistance stops and that
+    cannot stay at rest starts again from rest (velocity zeroed), with time running on."""
+
+    def __init__(self, kernel_id, effects, p, orbit, rtol, atol, max_steps):
+        self.args = (kernel_id, effects, None, p, orbit, rtol, atol)
+        self.max_steps = max_steps
+        self.n_acc = self.n_rej = 0
+        self.t_final = 0.0
+        self.tr: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self.ev: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+
+    def capacities(self, cap_ev: int, cap_tr: int) -> None:
+        self.cap_ev, self.cap_tr = cap_ev, cap_tr
+
+    def _segment(self, y0, t_end, n_apsides, record, dt_out):
+        kid, effects, _, p, orbit, rtol, atol = self.args
+        n = y0.shape[0]
+        while True:  # integration is deterministic: a run that ran out of room is redone larger
+            ev = (np.empty(self.cap_ev), np.empty(self.cap_ev, np.int8),
+                  np.empty((self.cap_ev, n)))  # fmt: skip
+            tr = (np.empty(self.cap_tr), np.empty((self.cap_tr, n)),
+                  np.empty((self.cap_tr if effects & ATTITUDE else 0, n)))  # fmt: skip
+            args = (kid, effects, y0, p, orbit, rtol, atol, t_end, n_apsides,
+                    self.max_steps - self.n_acc - self.n_rej, record, dt_out, *ev, *tr)  # fmt: skip
+            res = call_specialized(solve, args, (0, 1))
+            if int(res[0]) != BUFFER_FULL:
+                return res, ev, tr
+            self.cap_ev *= 4 if int(res[5]) == self.cap_ev else 1
+            self.cap_tr *= 4 if int(res[6]) == self.cap_tr else 1
+
+    def follow(self, y0, t_stop, n_apsides, record, dt_out, holds) -> int:
+        """Integrate to the end; returns the final status."""
+        t0 = 0.0
+        y = y0
+        while True:
+            res, ev, tr = self._segment(y, t_stop - t0, n_apsides, record, dt_out)
+            status, n_ev, n_tr = int(res[0]), int(res[5]), int(res[6])
+            self.n_acc += int(res[1])
+            self.n_rej += int(res[2])
+            first = 1 if self.tr else 0  # a restart repeats the state it starts from
+            self.tr.append((tr[0][first:n_tr] + t0, tr[1][first:n_tr], tr[2][first:n_tr]))
+            self.ev.append((ev[0][:n_ev] + t0, ev[1][:n_ev], ev[2][:n_ev]))
+            self.t_final = t0 + float(res[3])
+            if n_apsides > 0:
+                n_apsides -= int(np.count_nonzero(ev[1][:n_ev] <= APOCENTRE))
+            if status != RESTED or holds:
+                return status
+            y = np.array(res[4], copy=True)
+            y[2] = y[3] = 0.0
+            t0 = self.t_final
+
+    def arrays(self) -> tuple[np.ndarray, ...]:
+        t, Y, rate = (np.concatenate(x) for x in zip(*self.tr, strict=True))
+        ev_t, ev_kind, ev_y = (np.concatenate(x) for x in zip(*self.ev, strict=True))
+        return t, Y, rate, ev_t, ev_kind, ev_y
 
 
 def _dataset(scene, effects, p, method, rtol, alpha, energy, h, Lz, cls_name, y0, status,
-             n_acc, n_rej, t, Y, rate, ev_t, ev_kind, ev_y) -> xr.Dataset:  # fmt: skip
+             run) -> xr.Dataset:  # fmt: skip
+    t, Y, rate, ev_t, ev_kind, ev_y = run.arrays()
+    if status not in NORMAL_ENDS:  # the run failed: say where, as an event
+        ev_t = np.append(ev_t, run.t_final)
+        ev_kind = np.append(ev_kind, np.int8(FAILURE))
+        ev_y = np.vstack([ev_y, Y[-1:]]) if Y.shape[0] else np.vstack([ev_y, y0[None]])
     M, g, k = scene.M, scene.g, scene.k
     s, c = math.sin(alpha), math.cos(alpha)
     r, th, u, v, w = (Y[:, i] for i in range(5))
@@ -265,8 +314,8 @@ def _dataset(scene, effects, p, method, rtol, alpha, energy, h, Lz, cls_name, y0
             "h0": h0,
             "status": int(status),
             "status_message": STATUS_MESSAGES[status],
-            "n_steps": int(n_acc),
-            "n_rejected": int(n_rej),
+            "n_steps": run.n_acc,
+            "n_rejected": run.n_rej,
         }
     )
     ds.attrs.update(scene.as_attrs())

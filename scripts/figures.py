@@ -37,6 +37,7 @@ import xarray as xr  # noqa: E402
 
 import engine  # noqa: E402
 import engine.accessor  # noqa: E402,F401  (registers ds.cone)
+import engine.plot  # noqa: E402
 from engine.kernels.model import coefficients, potential  # noqa: E402
 from engine.kernels.roots import circular_radius, turning_points  # noqa: E402
 
@@ -120,7 +121,7 @@ def figure_class_map(out: Path, dpi: int = DPI) -> Path:
     ax.axhline(0.0, color="k", lw=0.5, ls=":")
     from matplotlib.patches import Patch
 
-    colors = engine.accessor.CLASS_COLORS
+    colors = engine.plot.CLASS_COLORS
     names = ds.cone.class_names
     present = set(np.unique(ds.orbit_class.values).tolist()) | {ds.cone.class_codes["circular"]}
     handles = [

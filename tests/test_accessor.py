@@ -39,9 +39,9 @@ def test_class_names_come_from_flag_meanings(grid):
     assert grid.cone.class_names == CLASS_NAMES
     ds = grid.copy()
     ds["orbit_class"] = ds.orbit_class.copy()
-    ds.orbit_class.attrs["flag_meanings"] = "a b c d e f"
-    assert ds.cone.class_names == tuple("abcdef")
-    assert ds.cone.class_fractions().class_name.values.tolist() == list("abcdef")
+    ds.orbit_class.attrs["flag_meanings"] = "a b c d e f g h i"
+    assert ds.cone.class_names == tuple("abcdefghi")
+    assert ds.cone.class_fractions().class_name.values.tolist() == list("abcdefghi")
 
 
 def test_class_fractions_sum_to_one_and_match_bincount(grid):

@@ -7,7 +7,7 @@ import pytest
 import xarray as xr
 
 import engine
-from engine.kernels.geometry import orbit_point
+from engine.kernels.geometry import ideal_orbit
 
 VARS = ("r_min", "r_max", "r_circ", "period", "apsidal_angle", "precession_rate", "mu_required")
 
@@ -18,7 +18,7 @@ def test_evaluate_broadcasts_like_numpy():
     assert ds.alpha.shape == (2, 5)
     for v in VARS:
         assert ds[v].dtype == np.float64 and "units" in ds[v].attrs and "long_name" in ds[v].attrs
-    want = orbit_point(0.5, ds.energy.values[1, 3], 1.0, 1.0, 1.0, 9.81, 0.4, math.inf, 1e-12)
+    want = ideal_orbit(0.5, ds.energy.values[1, 3], 1.0, 1.0, 1.0, 9.81, 0.4, 1e-12)
     assert ds.period.values[1, 3] == want[4]
 
 
@@ -37,8 +37,10 @@ def test_class_flags_follow_cf():
     ds = engine.evaluate(0.5, 10.0, 1.0, 1.0)
     a = ds.orbit_class.attrs
     assert a["flag_values"].dtype == np.int8
-    assert list(a["flag_values"]) == [0, 1, 2, 3, 4, 5]
-    assert a["flag_meanings"] == "forbidden bounded circular hyperbolic radial spills"
+    assert list(a["flag_values"]) == list(range(9))
+    assert a["flag_meanings"] == (
+        "forbidden bounded circular hyperbolic radial spills slips off_cone out_of_range"
+    )
 
 
 @pytest.mark.parametrize(
@@ -122,5 +124,6 @@ def test_integrator_method_outputs_and_status_flags():
     assert ds.status.attrs["flag_values"].dtype == np.int8
     assert ds.status.attrs["flag_meanings"].split()[0] == "ok"
     assert ds.status.values[1] == 0 and ds.n_steps.values[1] > 0
-    assert np.isnan(ds.period.values[0])  # forbidden: not integrated
+    assert np.isnan(ds.period.values[0])  # forbidden: not integrated, and the status says so
+    assert ds.status.attrs["flag_meanings"].split()[ds.status.values[0]] == "not_bounded"
     assert ds.apsidal_angle.values[1] == pytest.approx(exact.apsidal_angle.values[1], rel=1e-8)

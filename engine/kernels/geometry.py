@@ -26,17 +26,33 @@ from numba import prange
 
 from .._jit import kernel, parallel_kernel
 from .carlson import cel
-from .model import coefficients
+from .ending import _ratio, first_slip, time_and_azimuth
+from .model import coefficients, rim_on_centre_cone
 from .roots import circular_radius, free_fall_r_min, turning_points
 
-#: Orbit classes, stored as int8 ``orbit_class`` (CF flag_values 0..5, names CLASS_NAMES).
+#: Orbit classes, stored as int8 ``orbit_class`` (CF flag_values, names CLASS_NAMES).
 FORBIDDEN = 0
 BOUNDED = 1
 CIRCULAR = 2
 HYPERBOLIC = 3
 RADIAL = 4
 SPILLS = 5
-CLASS_NAMES = ("forbidden", "bounded", "circular", "hyperbolic", "radial", "spills")
+SLIPS = 6
+OFF_CONE = 7
+OUT_OF_RANGE = 8
+CLASS_NAMES = (
+    "forbidden",
+    "bounded",
+    "circular",
+    "hyperbolic",
+    "radial",
+    "spills",
+    "slips",
+    "off_cone",
+    "out_of_range",
+)
+#: Smallest A [J m^2] kept: below it (A underflows towards subnormals) the class is OUT_OF_RANGE.
+A_MIN = 2.2250738585072014e-308 / 2.220446049250313e-16
 
 #: Default |energy - V_min| <= CIRCULAR_TOL |V_min| tolerance of the circular class.
 CIRCULAR_TOL = 1e-12
@@ -91,15 +107,13 @@ def mu_required(r1, r2, alpha, h, Lz, M, g, k):
             xhi = 1.0 / r1
             if not (xlo < x < xhi):
                 continue
-        x3 = x * x * x
-        val = abs(p0 + p2 * x * x + p3 * x3) / (q0 + q3 * x3)
-        best = max(best, val)
+        best = max(best, abs(_ratio(x, p0, p2, p3, q0, q3)))
     return kk * best
 
 
 @kernel
-def orbit_point(alpha, energy, h, Lz, M, g, k, rim, circ_tol):
-    """Class and geometry of one orbit.
+def ideal_orbit(alpha, energy, h, Lz, M, g, k, circ_tol):
+    """Class and geometry of one orbit on the ideal (infinite, lossless) cone.
 
     Returns (orbit_class, r_min [m], r_max [m], r_circ [m], period [s], apsidal_angle [rad],
     precession_rate [rad/s], mu_required [1]); NaN where a quantity is undefined.
@@ -122,64 +136,138 @@ def orbit_point(alpha, energy, h, Lz, M, g, k, rim, circ_tol):
             r2 = energy / C
             T = 2.0 * math.sqrt(2.0 * M * r2 / C)
             mu = mu_required(0.0, r2, alpha, h, Lz, M, g, k)
+        return cls, r1, r2, rc, T, psi, prec, mu
+    if not (A >= A_MIN and A < math.inf and abs(B) < math.inf and C < math.inf):
+        return OUT_OF_RANGE, r1, r2, rc, T, psi, prec, mu
+    rc = circular_radius(A, B, C)
+    has_min = not math.isnan(rc)
+    if has_min:
+        Vmin = A / (rc * rc) + B / rc + C * rc
+        if abs(energy - Vmin) <= circ_tol * abs(Vmin):
+            omega_r = math.sqrt(2.0 * (A + C * rc * rc * rc) / (M * rc * rc * rc * rc))
+            T = 2.0 * math.pi / omega_r
+            psi = math.pi * Kang / (rc * rc * omega_r)
+            mu = mu_required(rc, rc, alpha, h, Lz, M, g, k)
+            return CIRCULAR, rc, rc, rc, T, psi, (2.0 * psi - 2.0 * math.pi) / T, mu
+        if energy < Vmin:
+            return FORBIDDEN, r1, r2, rc, T, psi, prec, mu
+    Om = math.sqrt((s * s + k) / (1.0 + k))  # Omega^2 = 1 - cos^2(a)/(1+k)
+    if g == 0.0:
+        if energy >= 0.0 and (B < 0.0 or energy > 0.0):
+            cls = HYPERBOLIC
+            r1 = free_fall_r_min(energy, A, B)
+            r2 = math.inf
+            psi = math.atan2(2.0 * math.sqrt(A) * math.sqrt(energy), B) / Om
+        elif has_min:
+            cls = BOUNDED
+            r1, r2 = turning_points(energy, A, B, C, rc)
+            T = math.pi * (r1 + r2) * math.sqrt(M / (-2.0 * energy))
+            psi = math.pi / Om
     else:
-        rc = circular_radius(A, B, C)
-        has_min = not math.isnan(rc)
-        decided = False
-        if has_min:
-            Vmin = A / (rc * rc) + B / rc + C * rc
-            if abs(energy - Vmin) <= circ_tol * abs(Vmin):
-                cls = CIRCULAR
-                r1 = rc
-                r2 = rc
-                omega_r = math.sqrt(2.0 * (A + C * rc * rc * rc) / (M * rc * rc * rc * rc))
-                T = 2.0 * math.pi / omega_r
-                psi = math.pi * Kang / (rc * rc * omega_r)
-                decided = True
-            elif energy < Vmin:
-                decided = True  # forbidden
-        if not decided:
-            Om = math.sqrt((s * s + k) / (1.0 + k))  # Omega^2 = 1 - cos^2(a)/(1+k)
-            if g == 0.0:
-                if energy >= 0.0 and (B < 0.0 or energy > 0.0):
-                    cls = HYPERBOLIC
-                    r1 = free_fall_r_min(energy, A, B)
-                    r2 = math.inf
-                    psi = math.atan2(2.0 * math.sqrt(A * energy), B) / Om
-                elif has_min:
-                    cls = BOUNDED
-                    r1, r2 = turning_points(energy, A, B, C, rc)
-                    T = math.pi * (r1 + r2) * math.sqrt(M / (-2.0 * energy))
-                    psi = math.pi / Om
-            else:
-                cls = BOUNDED
-                r1, r2 = turning_points(energy, A, B, C, rc)
-                r3 = -A / (C * r1 * r2)
-                d13 = r1 - r3
-                kc = math.sqrt((r2 - r3) / d13)
-                sc = math.sqrt(M / (2.0 * C)) / math.sqrt(d13)
-                T = 4.0 * sc * cel(kc, 1.0, r1, r2)
-                psi = 2.0 * Kang * sc * cel(kc, r2 / r1, 1.0, 1.0) / r1
-        if cls != FORBIDDEN:
-            mu = mu_required(r1, r2, alpha, h, Lz, M, g, k)
-    if cls == BOUNDED or cls == CIRCULAR:
+        cls = BOUNDED
+        r1, r2 = turning_points(energy, A, B, C, rc)
+        r3 = -A / (C * r1 * r2)
+        d13 = r1 - r3
+        kc = math.sqrt((r2 - r3) / d13)
+        sc = math.sqrt(M / (2.0 * C)) / math.sqrt(d13)
+        T = 4.0 * sc * cel(kc, 1.0, r1, r2)
+        psi = 2.0 * Kang * sc * cel(kc, r2 / r1, 1.0, 1.0) / r1
+    if cls != FORBIDDEN:
+        mu = mu_required(r1, r2, alpha, h, Lz, M, g, k)
+    if cls == BOUNDED:
         prec = (2.0 * psi - 2.0 * math.pi) / T
-    if (cls == BOUNDED or cls == CIRCULAR or cls == RADIAL) and r2 > rim:
-        cls = SPILLS
     return cls, r1, r2, rc, T, psi, prec, mu
 
 
-@parallel_kernel
-def orbit_batch(alpha, energy, h, Lz, M, g, k, rim, circ_tol, out_cls, out_f):
-    """:func:`orbit_point` over 1-D arrays in parallel.
+@kernel
+def _representable(cls, r1, r2, T, psi, prec):
+    """Whether the numbers the class promises (README class table) came out finite: otherwise
+    an intermediate under- or overflowed and the point is OUT_OF_RANGE, never a class with NaN."""
+    if cls == BOUNDED or cls == CIRCULAR:
+        return (r1 > 0.0 and r2 < math.inf and math.isfinite(T) and math.isfinite(psi)
+                and math.isfinite(prec))  # fmt: skip
+    if cls == HYPERBOLIC:
+        return r1 > 0.0 and r1 < math.inf and math.isfinite(psi)
+    if cls == RADIAL:
+        return r2 < math.inf and math.isfinite(T)
+    return True
 
-    ``out_cls`` int8[n]; ``out_f`` float64[7, n] rows: r_min, r_max, r_circ, period,
-    apsidal_angle, precession_rate, mu_required.
+
+@kernel
+def scene_end(cls, r1, r2, alpha, energy, h, Lz, M, g, k, a, rim, mu):
+    """The scene's rules on an ideal orbit started at r_min: its class on this cone and where
+    rolling on it ends (r [m], t [s] and theta [rad] from r_min; NaN if it never ends).
+
+    ``rim`` is the real cone's slant length (docs/physics.md "Effects beyond the ideal cone");
+    an orbit that starts beyond it is OFF_CONE, one that reaches it SPILLS (every escape does);
+    one where |F|/N first exceeds ``mu`` before that SLIPS.
     """
+    nan = math.nan
+    if not (cls == BOUNDED or cls == CIRCULAR or cls == HYPERBOLIC or cls == RADIAL):
+        return cls, nan, nan, nan
+    s = math.sin(alpha)
+    r_rim = rim_on_centre_cone(rim, a, math.cos(alpha) / s)
+    if r1 > r_rim:
+        return OFF_CONE, nan, nan, nan
+    r_slip = first_slip(r1, r2, alpha, h, Lz, M, g, k, mu)
+    if r_slip <= r_rim:
+        cls = SLIPS
+        r_end = r_slip
+    elif r2 > r_rim:
+        cls = SPILLS
+        r_end = r_rim
+    else:
+        return cls, nan, nan, nan
+    A, B, C = coefficients(alpha, h, Lz, M, g, k)
+    t, th = time_and_azimuth(r_end, r1, r2, energy, A, C, M, abs(Lz) / (M * s * s))
+    return cls, r_end, t, th
+
+
+@kernel
+def orbit_point(alpha, energy, h, Lz, M, g, k, a, rim, mu, circ_tol):
+    """Class and geometry of one orbit on the scene's cone.
+
+    Returns (orbit_class, r_min [m], r_max [m], r_circ [m], period [s], apsidal_angle [rad],
+    precession_rate [rad/s], mu_required [1], end_r [m], end_time [s], end_theta [rad]): the
+    geometry is the orbit's on the ideal cone; the class and the end apply the scene's rim and
+    friction limit (:func:`scene_end`). NaN where a quantity is undefined.
+    """
+    cls, r1, r2, rc, T, psi, prec, mur = ideal_orbit(alpha, energy, h, Lz, M, g, k, circ_tol)
+    if not _representable(cls, r1, r2, T, psi, prec):
+        nan = math.nan
+        return OUT_OF_RANGE, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan
+    end_r = math.nan
+    end_t = math.nan
+    end_th = math.nan
+    if rim < math.inf or mu < math.inf:
+        cls, end_r, end_t, end_th = scene_end(cls, r1, r2, alpha, energy, h, Lz, M, g, k, a, rim,
+                                              mu)  # fmt: skip
+    return cls, r1, r2, rc, T, psi, prec, mur, end_r, end_t, end_th
+
+
+#: Rows of the float output of :func:`orbit_batch`.
+BATCH_ROWS = (
+    "r_min",
+    "r_max",
+    "r_circ",
+    "period",
+    "apsidal_angle",
+    "precession_rate",
+    "mu_required",
+    "end_r",
+    "end_time",
+    "end_theta",
+)
+
+
+@parallel_kernel
+def orbit_batch(alpha, energy, h, Lz, M, g, k, a, rim, mu, circ_tol, out_cls, out_f):
+    """:func:`orbit_point` over 1-D arrays in parallel: ``out_cls`` int8[n], ``out_f``
+    float64[10, n] (rows :data:`BATCH_ROWS`)."""
     n = alpha.shape[0]
     for i in prange(n):
-        c, r1, r2, rc, T, psi, prec, mu = orbit_point(
-            alpha[i], energy[i], h[i], Lz[i], M, g, k, rim, circ_tol
+        c, r1, r2, rc, T, psi, prec, mur, er, et, eth = orbit_point(
+            alpha[i], energy[i], h[i], Lz[i], M, g, k, a, rim, mu, circ_tol
         )
         out_cls[i] = c
         out_f[0, i] = r1
@@ -188,7 +276,10 @@ def orbit_batch(alpha, energy, h, Lz, M, g, k, rim, circ_tol, out_cls, out_f):
         out_f[3, i] = T
         out_f[4, i] = psi
         out_f[5, i] = prec
-        out_f[6, i] = mu
+        out_f[6, i] = mur
+        out_f[7, i] = er
+        out_f[8, i] = et
+        out_f[9, i] = eth
 
 
 @parallel_kernel
@@ -206,4 +297,4 @@ def minimum_energy_batch(alpha, h, Lz, M, g, k, out):
 
 def empty_outputs(n: int) -> tuple[np.ndarray, np.ndarray]:
     """Output buffers for :func:`orbit_batch`."""
-    return np.empty(n, np.int8), np.empty((7, n), np.float64)
+    return np.empty(n, np.int8), np.empty((len(BATCH_ROWS), n), np.float64)

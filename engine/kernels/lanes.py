@@ -37,7 +37,7 @@ from .lanes_step import (
     lanes_control,
     lanes_layout,
 )
-from .model import N_PARAMS, RIM, SLIP_CHECK, rhs, set_alpha
+from .model import N_PARAMS, rhs, set_alpha
 from .orbit import _reduce, initial_state, orbit_start, store_period, tolerance_scales
 from .protocol import (
     APOCENTRE,
@@ -45,8 +45,9 @@ from .protocol import (
     NOT_BOUNDED,
     OK,
     RECORD_NONE,
+    TERMINAL_EFFECTS,
     start_protocol,
-    terminal_at,
+    terminal_between,
 )
 from .rk import ERR_FLOOR, initial_step, step_allowed
 from .rk_codegen import rk_dense_stages
@@ -276,11 +277,12 @@ def _lane_flagged(method, effects, l, n_apsides, max_steps, W, I, LEV, LEVK, p, 
         n_steps = W[ly[_NACC] * L + l] + W[ly[_NREJ] * L + l]
         return True, step_allowed(n_steps, max_steps, W[ly[_H] * L + l], W[ly[_T] * L + l])
     term = False
-    if effects & (RIM | SLIP_CHECK):
+    if effects & TERMINAL_EFFECTS:
         _lane_params(method, effects, l, W, p)
         for j in range(ly[_n]):
+            ys[j] = W[(ly[_Y] + j) * L + l]
             yn[j] = W[(ly[_YN] + j) * L + l]
-        term = terminal_at(effects, yn, p) >= 0
+        term = terminal_between(effects, ys, yn, p)
     if W[ly[_FLAG] * L + l] == 3.0:
         return _lane_polished(method, effects, l, max_steps, W, LEV, ys, yn)
     if term or apsis_crossed(W[ly[_GAPS] * L + l], W[(ly[_YN] + 2) * L + l]):

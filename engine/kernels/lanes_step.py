@@ -28,8 +28,8 @@ from typing import NamedTuple
 from numba.core import cgutils, types
 from numba.extending import intrinsic, overload
 
-from .model import ATTITUDE, N_ATTITUDE, N_BASE, N_PARAMS, RIM, SLIP_CHECK, rates5, rates9
-from .protocol import OK, terminal_at
+from .model import N_PARAMS, rates5, rates6, rates9, rates10, state_size_of
+from .protocol import OK, TERMINAL_EFFECTS, terminal_between
 from .rk import step_allowed, step_decide, step_error
 from .rk_codegen import _GEN_OPTS, _literal, _rk_method, unrolled_step_lines
 from .rk_events import apsis_crossed
@@ -125,17 +125,18 @@ def attempt_source(method: int, n: int) -> str:
 def control_source(method: int, n: int, terminal: bool) -> str:
     """Source of ``impl(method, effects, W, max_steps)``: the step-size decision of every
     active lane, as :func:`.rk.rk_run` takes it, written with selects. A lane whose accepted
-    step crossed an apsis or (with ``terminal`` events compiled in) ends where a terminal
-    event is on (:func:`.protocol.terminal_at` on the lane's y_new) keeps its state and gets
-    FLAG 1; an accepted step without one moves the lane to y_new; a lane
-    that may not take another attempt (:func:`.rk.step_allowed`) gets FLAG 2; a lane that took
-    a polishing step keeps everything and gets FLAG 3."""
+    step crossed an apsis or (with ``terminal`` events compiled in) has a terminal event
+    (:func:`.protocol.terminal_between` y and y_new) keeps its state and gets FLAG 1; an
+    accepted step without one moves the lane to y_new; a lane that may not take another
+    attempt (:func:`.rk.step_allowed`) gets FLAG 2; a lane that took a polishing step keeps
+    everything and gets FLAG 3."""
     ly = layout(method, n)
     ctl = repr(RK_TABLEAUX[method].controller())
     w = _w
+    y = ", ".join(_w(ly.Y, j) for j in range(n))
     yn = ", ".join(_w(ly.YN, j) for j in range(n))
     pt = ", ".join(_w(ly.P, k) for k in range(N_PARAMS))
-    term = f"terminal_at(effects, ({yn}), ({pt})) >= 0" if terminal else "False"
+    term = f"terminal_between(effects, ({y}), ({yn}), ({pt}))" if terminal else "False"
     lines = ["def impl(method, effects, W, max_steps):", f"    for l in range({LANES}):"]
     lines += [
         f"        pol = {w(ly.POLISH)} != 0.0",
@@ -174,12 +175,14 @@ def control_source(method: int, n: int, terminal: bool) -> str:
 _NAMESPACE = {
     "math": math,
     "rates5": rates5,
+    "rates6": rates6,
     "rates9": rates9,
+    "rates10": rates10,
     "step_error": step_error,
     "step_decide": step_decide,
     "step_allowed": step_allowed,
     "apsis_crossed": apsis_crossed,
-    "terminal_at": terminal_at,
+    "terminal_between": terminal_between,
     "OK": OK,
 }
 
@@ -197,7 +200,7 @@ def _compiled(kind: str, method: int, n: int, terminal: bool):
 
 def _effects(effects) -> tuple[int, bool]:
     e = _literal(effects, "effects")
-    return (N_ATTITUDE if e & ATTITUDE else N_BASE), bool(e & (RIM | SLIP_CHECK))
+    return state_size_of(e), bool(e & TERMINAL_EFFECTS)
 
 
 def lanes_attempt(method, effects, W, rtol):

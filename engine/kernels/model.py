@@ -36,6 +36,8 @@ RIM = 2
 SLIP_CHECK = 4
 ATTITUDE = 8
 ALL_EFFECTS = ROLLING_RESISTANCE | RIM | SLIP_CHECK | ATTITUDE
+#: Run option (not a scene effect): stop after ``P_THETA_MAX`` radians of azimuth (fate maps).
+REVOLUTIONS = 16
 #: Effect name (as in :attr:`engine.Scene.effects`) -> bit.
 EFFECT_BITS = {
     "rolling_resistance": ROLLING_RESISTANCE,
@@ -55,11 +57,19 @@ P_K = 6  # inertia factor I/(M a^2)
 P_KK = 7  # k / (1 + k)
 P_GC = 8  # g cos(alpha) / (1 + k) [m s-2]
 P_RADIUS = 9  # sphere radius a [m]
-P_RIM = 10  # rim slant length [m] (inf: none)
+P_RIM = 10  # the rim on the centre's cone: slant length of the centre there [m] (inf: none)
 P_MU = 11  # friction coefficient (inf: no slip check)
 P_CRR = 12  # rolling-resistance coefficient
 P_INV_M1K = 13  # 1 / (M (1 + k)) [kg-1]
-N_PARAMS = 14
+P_RIM_SLANT = 14  # the rim as a user measures it: slant length of the real cone [m] (inf: none)
+P_R_VERTEX = 15  # the vertex region: r below this [m] ends a run (VERTEX_FRACTION a)
+P_V_REST = 16  # speed [m/s] below which rolling resistance has stopped the sphere (per orbit)
+P_THETA_MAX = 17  # azimuth [rad] after which a fate run stops (inf: none; REVOLUTIONS runs)
+N_PARAMS = 18
+
+#: The vertex region, in units of the sphere's radius a: the centre within this of its lowest
+#: point (r = 0, where the sphere touches the cone all around and the single-contact model ends).
+VERTEX_FRACTION = 1e-2
 
 N_BASE = 5
 N_ATTITUDE = 9
@@ -69,8 +79,12 @@ N_ATTITUDE = 9
 @kernel
 def coefficients(alpha, h, Lz, M, g, k):
     """A [J m^2], B [J m], C [J/m] of V(r) = A/r^2 + B/r + C r."""
-    s = math.sin(alpha)
-    c = math.cos(alpha)
+    return coefficients_sc(math.sin(alpha), math.cos(alpha), h, Lz, M, g, k)
+
+
+@kernel
+def coefficients_sc(s, c, h, Lz, M, g, k):
+    """:func:`coefficients` from s = sin(alpha), c = cos(alpha) (arithmetic only)."""
     s2 = s * s
     kk = k / (1.0 + k)
     cot = c / s
@@ -135,10 +149,13 @@ def make_params(alpha, M, g, k, a, rim, mu, c_rr):
     p[P_K] = k
     p[P_KK] = k / (1.0 + k)
     p[P_RADIUS] = a
-    p[P_RIM] = rim
+    p[P_RIM_SLANT] = rim
     p[P_MU] = mu
     p[P_CRR] = c_rr
     p[P_INV_M1K] = 1.0 / (M * (1.0 + k))
+    p[P_R_VERTEX] = VERTEX_FRACTION * a
+    p[P_V_REST] = 0.0
+    p[P_THETA_MAX] = math.inf
     set_alpha(p, alpha)
     return p
 
@@ -153,6 +170,16 @@ def set_alpha(p, alpha):
     p[P_COS] = c
     p[P_COT] = c / s
     p[P_GC] = p[P_G] * c / (1.0 + p[P_K])
+    p[P_RIM] = rim_on_centre_cone(p[P_RIM_SLANT], p[P_RADIUS], c / s)
+
+
+@kernel
+def rim_on_centre_cone(rim, a, cot):
+    """The rim's slant length on the centre's cone [m]: where the centre is when the contact
+    point reaches the real cone's edge at slant length ``rim`` from the real vertex. The contact
+    point sits a cot(alpha) farther from the real vertex than the centre is from its own
+    (docs/physics.md "Geometry and state"). inf stays inf."""
+    return rim - a * cot
 
 
 @kernel
@@ -160,15 +187,25 @@ def param_tuple(p):
     """The parameter array as a tuple: the hot loops index it with constants and keep the values
     in registers (an array is re-read after every store that might alias it)."""
     return (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p[12],
-            p[13])  # fmt: skip
+            p[13], p[14], p[15], p[16], p[17])  # fmt: skip
+
+
+def state_size_of(effects: int) -> int:
+    """Length of the state vector of an effect set: r, theta, u, v, w; then the attitude
+    quaternion (4) with ATTITUDE; then the work done against rolling resistance [J] with
+    ROLLING_RESISTANCE (always the last component)."""
+    return N_BASE + (4 if effects & ATTITUDE else 0) + (1 if effects & ROLLING_RESISTANCE else 0)
 
 
 @kernel
 def state_size(effects):
-    """Length of the state vector of an effect set: 5, or 9 with the attitude quaternion."""
+    """:func:`state_size_of` inside kernels."""
+    n = N_BASE
     if effects & ATTITUDE:
-        return N_ATTITUDE
-    return N_BASE
+        n += 4
+    if effects & ROLLING_RESISTANCE:
+        n += 1
+    return n
 
 
 # ------------------------------------------------------------------------ right-hand side
@@ -223,9 +260,23 @@ def quaternion_rate(theta, u, v, w, q0, q1, q2, q3, p):
 
 
 @kernel
+def resistance_power(r, u, v, p):
+    """Power [W] dissipated by rolling resistance, c_rr N |V| (the rate of the work state)."""
+    N = p[P_M] * (p[P_G] * p[P_SIN] + v * v * p[P_COT] / r)
+    return p[P_CRR] * N * math.sqrt(u * u + v * v)
+
+
+@kernel
 def rates5(y0, y1, y2, y3, y4, p, effects):
     """dy/dt of a 5-component state given as scalars (a tuple)."""
     return motion_rates(y0, y2, y3, y4, p, effects)
+
+
+@kernel
+def rates6(y0, y1, y2, y3, y4, y5, p, effects):
+    """dy/dt of the state with the work done against rolling resistance (y5)."""
+    a, b, c, d, e = motion_rates(y0, y2, y3, y4, p, effects)
+    return a, b, c, d, e, resistance_power(y0, y2, y3, p)
 
 
 @kernel
@@ -234,6 +285,14 @@ def rates9(y0, y1, y2, y3, y4, y5, y6, y7, y8, p, effects):
     a, b, c, d, e = motion_rates(y0, y2, y3, y4, p, effects)
     q0, q1, q2, q3 = quaternion_rate(y1, y2, y3, y4, y5, y6, y7, y8, p)
     return a, b, c, d, e, q0, q1, q2, q3
+
+
+@kernel
+def rates10(y0, y1, y2, y3, y4, y5, y6, y7, y8, y9, p, effects):
+    """dy/dt of the state with the attitude quaternion and the work against resistance."""
+    a, b, c, d, e = motion_rates(y0, y2, y3, y4, p, effects)
+    q0, q1, q2, q3 = quaternion_rate(y1, y2, y3, y4, y5, y6, y7, y8, p)
+    return a, b, c, d, e, q0, q1, q2, q3, resistance_power(y0, y2, y3, p)
 
 
 @kernel
@@ -251,6 +310,8 @@ def rhs(y, p, effects, out, row):
         out[row, 6] = q1
         out[row, 7] = q2
         out[row, 8] = q3
+    if effects & ROLLING_RESISTANCE:
+        out[row, state_size(effects) - 1] = resistance_power(y[0], y[2], y[3], p)
 
 
 # ----------------------------------------------------------- quantities of a state vector
@@ -263,9 +324,22 @@ def forces(y, p):
 
 
 @kernel
-def slip_margin(y, p):
-    """Event function of the slip check: |F| - mu N [N] (> 0: the sphere slips)."""
+def slip_margin(y, p, effects):
+    """Event function of the slip check: |F| - mu N [N] (> 0: the sphere slips).
+
+    F is the whole friction force at the contact. With rolling resistance (a couple c_rr N a
+    opposing the rolling) it adds -c_rr N/(1+k) along the velocity (u, v) to the conservative
+    part F e1 (docs/physics.md "Effects beyond the ideal cone")."""
     F, N = forces(y, p)
+    if effects & ROLLING_RESISTANCE:
+        u = y[2]
+        v = y[3]
+        speed = math.sqrt(u * u + v * v)
+        if speed > 0.0:
+            f = p[P_CRR] * N / ((1.0 + p[P_K]) * speed)
+            F1 = F - f * u
+            F2 = f * v
+            return math.sqrt(F1 * F1 + F2 * F2) - p[P_MU] * N
     return abs(F) - p[P_MU] * N
 
 
@@ -279,6 +353,13 @@ def rim_margin(y, p):
 def invariants(y, p):
     """(E [J], L_z [kg m^2/s], h [m/s]) of the state y (:func:`invariants_of`)."""
     return invariants_of(y[0], y[2], y[3], y[4], p[P_SIN], p[P_COS], p[P_M], p[P_G], p[P_K])
+
+
+@kernel
+def holds_at_rest(p):
+    """Whether rolling resistance can hold a sphere at rest on this cone's slope: the slope's
+    pull g cos(alpha) against the most the resistance gives, c_rr N = c_rr M g sin(alpha)."""
+    return p[P_COT] <= p[P_CRR]
 
 
 @kernel

@@ -136,7 +136,7 @@ def tolerance_scales(p, effects, y0, energy, h, Lz, r1, r2, rc):
     v: its smallest size |v(r2)| (v r is L_z/(M sin a), so v must stay relatively accurate for L_z
     to be conserved near the axis, where r2/r1 is huge); w: max |w| over [r1, r2]; quaternion: 1.
     Velocities are floored at sqrt(eps) times the speed, so an exactly circular orbit still has a
-    usable absolute tolerance.
+    usable absolute tolerance. The work against rolling resistance: the orbit's energy scale.
     """
     n = y0.shape[0]
     sc = np.ones(n)
@@ -161,6 +161,8 @@ def tolerance_scales(p, effects, y0, energy, h, Lz, r1, r2, rc):
     w1 = abs(h + Lz * c / (M * r1 * s * s))
     w2 = abs(h + Lz * c / (M * r2 * s * s)) if math.isfinite(r2) else abs(h)
     sc[4] = max(max(w1, w2), floor)
+    if effects & ROLLING_RESISTANCE:  # the work against resistance: the orbit's energy scale
+        sc[n - 1] = max(abs(energy), 0.5 * M * vel * vel)
     return sc
 
 

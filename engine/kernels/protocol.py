@@ -15,10 +15,22 @@ output or partial step).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .._jit import kernel
-from .model import RIM, SLIP_CHECK, rim_margin, slip_margin
+from .model import (
+    P_R_VERTEX,
+    P_THETA_MAX,
+    P_V_REST,
+    REVOLUTIONS,
+    RIM,
+    ROLLING_RESISTANCE,
+    SLIP_CHECK,
+    rim_margin,
+    slip_margin,
+)
 
 EPS = 2.220446049250313e-16
 SQRT_EPS = 1.4901161193847656e-08
@@ -40,6 +52,8 @@ STATUSES = (
     (6, "non_finite", "non-finite state"),
     (7, "unsupported_scene", "method does not support this scene"),
     (8, "buffer_full", "output buffer full (internal: the caller retries with more room)"),
+    (9, "rest", "came to rest: rolling resistance stopped the sphere"),
+    (10, "vertex", "reached the vertex region, where the single-contact model ends"),
 )
 OK = 0
 SPILLED = 1
@@ -50,7 +64,11 @@ NOT_BOUNDED = 5
 NONFINITE = 6
 UNSUPPORTED = 7
 BUFFER_FULL = 8
+RESTED = 9
+AT_VERTEX = 10
 STATUS_FLAGS = tuple(row[1] for row in STATUSES)
+#: Statuses of a run that ended as the physics says (the others are failures).
+NORMAL_ENDS = (OK, SPILLED, SLIPPED, RESTED, AT_VERTEX)
 STATUS_MESSAGES = tuple(row[2] for row in STATUSES)
 
 # ------------------------------------------------------------------------ event kinds (int8)
@@ -58,7 +76,16 @@ PERICENTRE = 0
 APOCENTRE = 1
 SPILL = 2
 SLIP = 3
-EVENT_NAMES = ("pericentre", "apocentre", "spill", "slip")
+REST = 4
+VERTEX = 5
+HORIZON = 6
+FAILURE = 7  # where a run failed (recorded by engine.simulate, never by a kernel)
+EVENT_NAMES = ("pericentre", "apocentre", "spill", "slip", "rest", "vertex", "horizon", "failed")
+#: The terminal event kinds, in the order they are checked (an apsis is not terminal).
+FIRST_TERMINAL = SPILL
+LAST_TERMINAL = HORIZON
+#: Effects (and run options) that bring terminal events into a run.
+TERMINAL_EFFECTS = RIM | SLIP_CHECK | ROLLING_RESISTANCE | REVOLUTIONS
 
 # ------------------------------------------------------------------ what a run records
 RECORD_NONE = 0
@@ -135,13 +162,34 @@ def record_apsis(ev_t, ev_kind, ev_y, n_ev, t, y, g_aps, n_aps, n_apsides):
 
 # -------------------------------------------------------------------------------- events
 @kernel
-def event_value(kind, y, p):
-    """Event function g(y) of an event kind; a terminal event fires where g crosses 0 upwards
-    (apsides: either way, the direction tells pericentre from apocentre)."""
+def kind_enabled(effects, kind):
+    """Whether the terminal event ``kind`` is compiled into runs of ``effects`` (folds to a
+    constant: ``effects`` is a literal)."""
+    if kind == SPILL:
+        return effects & RIM != 0
+    if kind == SLIP:
+        return effects & SLIP_CHECK != 0
+    if kind == REST or kind == VERTEX:
+        return effects & ROLLING_RESISTANCE != 0
+    if kind == HORIZON:
+        return effects & REVOLUTIONS != 0
+    return False
+
+
+@kernel
+def event_value(kind, y, p, effects):
+    """Event function g(y) of an event kind; a terminal event fires where g reaches 0 from below
+    (apsides: u, either way; the direction tells pericentre from apocentre)."""
     if kind == SPILL:
         return rim_margin(y, p)
     if kind == SLIP:
-        return slip_margin(y, p)
+        return slip_margin(y, p, effects)
+    if kind == REST:
+        return p[P_V_REST] - math.sqrt(y[2] * y[2] + y[3] * y[3])
+    if kind == VERTEX:
+        return p[P_R_VERTEX] - y[0]
+    if kind == HORIZON:
+        return abs(y[1]) - p[P_THETA_MAX]
     return y[2]
 
 
@@ -149,25 +197,54 @@ def event_value(kind, y, p):
 def terminal_fired(kind, g):
     """True where the terminal event function value g means the event has happened (the rim
     is reached at g = 0, slipping needs g > 0)."""
-    return g > 0.0 or (kind == SPILL and g == 0.0)
+    return g > 0.0 or (kind != SLIP and g == 0.0)
+
+
+@kernel
+def terminal_crossed(kind, g0, g1):
+    """True where a terminal event happens between two states with event values g0, g1. Rest
+    is an event only when the speed falls through its threshold (a sphere that starts at rest
+    may move off); the others fire wherever they hold at the end of the step."""
+    if kind == REST:
+        return g0 < 0.0 and terminal_fired(kind, g1)
+    return terminal_fired(kind, g1)
 
 
 @kernel
 def terminal_at(effects, y, p):
-    """Terminal event kind already on at state y (SPILL, SLIP) or -1; rim first."""
-    if effects & RIM:
-        if terminal_fired(SPILL, rim_margin(y, p)):
-            return SPILL
-    if effects & SLIP_CHECK:
-        if terminal_fired(SLIP, slip_margin(y, p)):
-            return SLIP
+    """Terminal event kind already on at state y or -1; checked in kind order (rest is not an
+    event at a start: see :func:`terminal_crossed`)."""
+    for kind in range(FIRST_TERMINAL, LAST_TERMINAL + 1):
+        if kind != REST and kind_enabled(effects, kind):
+            if terminal_fired(kind, event_value(kind, y, p, effects)):
+                return kind
     return -1
+
+
+@kernel
+def terminal_between(effects, y, ynew, p):
+    """Whether any terminal event happens in the step from y to ynew."""
+    for kind in range(FIRST_TERMINAL, LAST_TERMINAL + 1):
+        if kind_enabled(effects, kind):
+            g1 = event_value(kind, ynew, p, effects)
+            g0 = event_value(kind, y, p, effects) if kind == REST else -1.0
+            if terminal_crossed(kind, g0, g1):
+                return True
+    return False
 
 
 @kernel
 def status_of(kind):
     """Exit status of a run that stopped at terminal event ``kind``."""
-    return SPILLED if kind == SPILL else SLIPPED
+    if kind == SPILL:
+        return SPILLED
+    if kind == SLIP:
+        return SLIPPED
+    if kind == REST:
+        return RESTED
+    if kind == VERTEX:
+        return AT_VERTEX
+    return OK
 
 
 @kernel

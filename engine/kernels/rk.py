@@ -31,7 +31,7 @@ import numpy as np
 from numba import literally
 
 from .._jit import kernel
-from .model import ATTITUDE, RIM, SLIP_CHECK, param_tuple, rhs, state_size
+from .model import ATTITUDE, param_tuple, rhs, state_size
 from .protocol import (
     BUFFER_FULL,
     EPS,
@@ -40,11 +40,12 @@ from .protocol import (
     RECORD_EVERY_DT,
     RECORD_STEPS,
     STEP_TOO_SMALL,
+    TERMINAL_EFFECTS,
     copy_into,
     copy_row,
     push_state,
     start_protocol,
-    terminal_at,
+    terminal_between,
 )
 from .rk_codegen import controller, rk_attempt, rk_dense_stages, tableau
 from .rk_events import apsis_crossed, rk_dense, rk_dense_rate, step_events
@@ -225,8 +226,9 @@ def _stop_state(method, effects, y, K, h, t, th_stop, stop_status, p, ev_t, ev_y
 @kernel
 def rk_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_steps, record,
            dt_out, ev_t, ev_kind, ev_y, tr_t, tr_y, tr_rate):  # fmt: skip
-    """Integrate from t = 0 until t_end [s], the ``n_apsides``-th apsis (if > 0), a terminal
-    event (spill, slip) or a failure (the run protocol, :mod:`.protocol`).
+    """Integrate from t = 0 until t_end [s], the ``n_apsides``-th apsis (if > 0; apsides are
+    not even looked for if < 0), a terminal event or a failure (the run protocol,
+    :mod:`.protocol`).
 
     Events go to the preallocated ``ev_t`` [s], ``ev_kind`` (int8), ``ev_y`` (state). ``record``:
     RECORD_NONE, RECORD_STEPS (every accepted step) or RECORD_EVERY_DT (every ``dt_out``
@@ -282,10 +284,10 @@ def rk_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_step
             n_rej += 1
             continue
         n_acc += 1
-        aps_cross = apsis_crossed(g_aps, ynew[2])
+        aps_cross = n_apsides >= 0 and apsis_crossed(g_aps, ynew[2])
         term_cross = False
-        if effects & (RIM | SLIP_CHECK):
-            term_cross = terminal_at(effects, ynew, p) >= 0
+        if effects & TERMINAL_EFFECTS:
+            term_cross = terminal_between(effects, y, ynew, p)
         sample = record == RECORD_EVERY_DT and next_out <= t + h and next_out < t_end
         if S > ns + 1 and (aps_cross or term_cross or sample):
             rk_dense_stages(method, effects, y, h, p, K, buf)

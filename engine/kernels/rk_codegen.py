@@ -24,7 +24,7 @@ import math
 from numba.core import errors, types
 from numba.extending import overload
 
-from .model import ATTITUDE, N_ATTITUDE, N_BASE, rates5, rates9, rhs, state_size
+from .model import N_BASE, rates5, rates6, rates9, rates10, rhs, state_size, state_size_of
 from .tableaux import RK_TABLEAUX
 
 _GEN_OPTS = {"error_model": "numpy", "fastmath": False, "nogil": True}
@@ -77,7 +77,7 @@ def unrolled_step_lines(method: int, n: int, load, store, ind: str) -> list[str]
     A, E, E3, ns = tb.A, tb.E, tb.E3, tb.n_stages
     stretched = bool(E3.any())
     comps = range(n)
-    rates = "rates9" if n == N_ATTITUDE else "rates5"
+    rates = f"rates{n}"
     lines = [f"{ind}y_{j} = {load('y', j)}" for j in comps]
     lines += [f"{ind}k0_{j} = {load('k0', j)}" for j in comps]
     for i in range(1, ns + 1):
@@ -195,7 +195,9 @@ def _generated(kind: str, method: int, n: int):
         "math": math,
         "rhs": rhs,
         "rates5": rates5,
+        "rates6": rates6,
         "rates9": rates9,
+        "rates10": rates10,
         "state_size": state_size,
         "T_A": tb.A,
         "T_C": tb.C,
@@ -279,7 +281,7 @@ def _ol_controller(method):
 @overload(rk_attempt, jit_options=_GEN_OPTS, inline=_inline_unrolled)
 def _ol_rk_attempt(method, effects, y, h, pt, K, ynew, rtol, atol):
     m = _rk_method(method)
-    n = N_ATTITUDE if _literal(effects, "effects") & ATTITUDE else N_BASE
+    n = state_size_of(_literal(effects, "effects"))
     return _generated("attempt", m, n)
 
 

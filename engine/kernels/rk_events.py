@@ -16,21 +16,23 @@ from __future__ import annotations
 import numpy as np
 
 from .._jit import kernel
-from .model import P_RIM, RIM, SLIP_CHECK, slip_margin
+from .model import P_RIM
 from .protocol import (
     EPS,
+    FIRST_TERMINAL,
+    LAST_TERMINAL,
     OK,
     PERICENTRE,
-    SLIP,
     SPILL,
     brent_next,
     brent_start,
     brent_update,
     event_value,
+    kind_enabled,
     push_event,
     record_apsis,
     status_of,
-    terminal_fired,
+    terminal_crossed,
 )
 from .rk_codegen import rk_dense_poly, rk_stages, tableau
 
@@ -88,10 +90,11 @@ def dense_poly_value(yj, h, c, theta):
 
 
 @kernel
-def rk_locate(method, kind, y, K, h, p, g0, g1, buf, st):
+def rk_locate(method, effects, kind, y, K, h, p, g0, g1, buf, st):
     """theta in [0, 1] where the event function crosses 0 on the step's dense output (Brent,
     xtol 4 eps). The rim (r) and the apsides (u) need one component: its polynomial is summed
     over the stages once, then each evaluation is one Horner pass."""
+    one = kind == SPILL or kind == PERICENTRE
     j = 0 if kind == SPILL else 2
     c = rk_dense_poly(method, K, j)
     brent_start(st, 0.0, 1.0, g0, g1)
@@ -100,13 +103,13 @@ def rk_locate(method, kind, y, K, h, p, g0, g1, buf, st):
         done, theta = brent_next(st, 4.0 * EPS)
         if done:
             break
-        if kind == SLIP:
-            rk_dense(method, y, K, h, theta, buf)
-            g = slip_margin(buf, p)
-        else:
+        if one:
             g = dense_poly_value(y[j], h, c, theta)
             if kind == SPILL:
                 g -= p[P_RIM]
+        else:
+            rk_dense(method, y, K, h, theta, buf)
+            g = event_value(kind, buf, p, effects)
         brent_update(st, g)
     return min(max(theta, 0.0), 1.0)
 
@@ -159,22 +162,21 @@ def step_events(method, effects, y, ynew, K, h, t, p, buf, st, K2, g_aps, n_aps,
     i_aps = -1
     th_aps = 2.0
     if term_cross:
-        for kind in range(SPILL, SLIP + 1):
-            if kind == SPILL and not effects & RIM:
+        for kind in range(FIRST_TERMINAL, LAST_TERMINAL + 1):
+            if not kind_enabled(effects, kind):
                 continue
-            if kind == SLIP and not effects & SLIP_CHECK:
-                continue
-            g1 = event_value(kind, ynew, p)
-            if terminal_fired(kind, g1):
-                g0 = event_value(kind, y, p)
-                th = rk_locate(method, kind, y, K, h, p, g0, g1, buf, st)
+            g1 = event_value(kind, ynew, p, effects)
+            g0 = event_value(kind, y, p, effects)
+            if terminal_crossed(kind, g0, g1):
+                th = rk_locate(method, effects, kind, y, K, h, p, g0, g1, buf, st)
                 if th < th_stop:
                     th_stop = th
                     stop_kind = kind
                     stop_status = status_of(kind)
     g_new = ynew[2]
-    if apsis_crossed(g_aps, g_new):
-        th = rk_locate(method, np.int64(PERICENTRE), y, K, h, p, y[2], g_new, buf, st)
+    if n_apsides >= 0 and apsis_crossed(g_aps, g_new):
+        th = rk_locate(method, effects, np.int64(PERICENTRE), y, K, h, p, y[2], g_new, buf,
+                       st)  # fmt: skip
         if th <= th_stop:
             if polish:
                 t_aps = polish_apsis(method, effects, y, K, h, th, t, p, K2, buf)

@@ -60,7 +60,8 @@ def _newton_step(target, rc, irc2, A, C, lo, hi, r):
     (new r, lo, hi, converged).
     """
     ir = 1.0 / r
-    G = C * ir + A * ir * ir * irc2
+    GA = A * ir * ir * irc2
+    G = C * ir + GA
     sG = math.sqrt(G)
     x = r - rc
     F = x * sG - target
@@ -70,9 +71,10 @@ def _newton_step(target, rc, irc2, A, C, lo, hi, r):
         hi = r
     else:
         lo = r
-    dG = -C * ir * ir - 2.0 * A * ir * ir * ir * irc2
-    Fp = sG + x * dG / (2.0 * sG)
-    rn = r - F / Fp if Fp > 0.0 else math.nan
+    # F' = sG + x G'/(2 sG) with G' = -(G + GA)/r, grouped so that nothing overflows when r is
+    # many decades below rc (L_z -> 0); a non-finite F' falls back to bisection.
+    Fp = sG - (x * ir) * ((G + GA) / (2.0 * sG))
+    rn = r - F / Fp if 0.0 < Fp < math.inf else math.nan
     if abs(rn - r) <= 2.0 * _EPS * r:
         return rn, lo, hi, True
     if not (lo < rn < hi):
@@ -134,9 +136,15 @@ def turning_points(energy, A, B, C, rc):
         # Far from the minimum the inner root sits where A/r^2 ~ energy - B/r.
         r1g = min(0.5 * rc, math.sqrt(A / max(energy, 2.0 * A / (rc * rc))))
     r2g = max(rc + x0, energy / C)
+    if B < 0.0:  # a deep well: beyond r_c, V ~ B/r + C r, whose level set bounds r2 from above
+        r2g = max(r2g, (energy + math.sqrt(energy * energy - 4.0 * C * B)) / (2.0 * C))
     # Both roots in one loop: two independent dependency chains overlap in the CPU.
     irc2 = 1.0 / (rc * rc)
-    r1, lo1, hi1, done1 = r1g, 0.0, rc, False
+    # A positive lower bound of r1 (A/r1^2 = energy - B/r1 - C r1 <= |energy| + |B|/r1) lets the
+    # safeguard bisect geometrically: r1 may lie many decades below r_c (L_z -> 0).
+    lo1 = 2.0 * A / (abs(B) + math.hypot(B, 2.0 * math.sqrt(A * abs(energy))))
+    r1g = max(r1g, lo1)
+    r1, hi1, done1 = r1g, rc, False
     r2, lo2, hi2, done2 = r2g, rc, math.inf, False
     for _ in range(_MAX_NEWTON):
         if not done1:
@@ -148,15 +156,67 @@ def turning_points(energy, A, B, C, rc):
     # The excess energy - V_min carries a rounding error of eps |V_min| (plus the terms of V at
     # r_c); where V is evaluated more accurately at the root itself (a deep narrow well:
     # |V_min| >> |V(r)|), polish on energy - V(r) directly.
+    if not (done1 and done2):  # not converged: never a silently wrong root
+        return math.nan, math.nan
     noise_c = abs(energy) + A / (rc * rc) + abs(B) / rc + C * rc
     r1 = _polish(r1, energy, A, B, C, noise_c, 0.0, rc)
     r2 = _polish(r2, energy, A, B, C, noise_c, rc, math.inf)
+    # Where the factorised excess is dominated by rounding (a very deep well: |V_min| >> |V(r)|)
+    # its Newton iteration can stop away from the root: check, and solve V(r) = energy on the
+    # monotone side of the well instead; NaN if even that fails.
+    if not _is_root(r1, energy, A, B, C):
+        r1 = _bracketed(energy, A, B, C, lo1, rc)
+    if not _is_root(r2, energy, A, B, C):
+        r2 = _bracketed(energy, A, B, C, rc, _above_outer(energy, A, B, C, rc))
     return r1, r2
+
+
+@kernel
+def _is_root(r, energy, A, B, C):
+    """Whether energy - V(r) vanishes to rounding (64 eps of the terms' sizes)."""
+    ir = 1.0 / r
+    scale = A * ir * ir + abs(B) * ir + C * r + abs(energy)
+    return abs(energy - (A * ir * ir + B * ir + C * r)) <= 64.0 * _EPS * scale
+
+
+@kernel
+def _above_outer(energy, A, B, C, rc):
+    """A radius beyond the outer turning point (V > energy there)."""
+    r = max(2.0 * rc, energy / C if energy > 0.0 else 0.0)
+    for _ in range(2100):
+        if A / (r * r) + B / r + C * r > energy:
+            break
+        r *= 2.0
+    return r
+
+
+@kernel
+def _bracketed(energy, A, B, C, lo, hi):
+    """The root of V(r) = energy in (lo, hi), where V is monotone: safeguarded Newton with
+    (geometric) bisection; NaN unless it converges to a root."""
+    glo = energy - (A / (lo * lo) + B / lo + C * lo)
+    r = math.sqrt(lo * hi) if lo > 0.0 and hi > 4.0 * lo else 0.5 * (lo + hi)
+    for _ in range(4 * _MAX_NEWTON):
+        ir = 1.0 / r
+        g = energy - (A * ir * ir + B * ir + C * r)
+        if (g > 0.0) == (glo > 0.0):
+            lo = r
+        else:
+            hi = r
+        gp = 2.0 * A * ir * ir * ir + B * ir * ir - C
+        rn = r - g / gp if gp != 0.0 else math.nan
+        if not (lo < rn < hi):
+            rn = math.sqrt(lo * hi) if lo > 0.0 and hi > 4.0 * lo else 0.5 * (lo + hi)
+        if abs(rn - r) <= 2.0 * _EPS * r:
+            return rn if _is_root(rn, energy, A, B, C) else math.nan
+        r = rn
+    return math.nan
 
 
 @kernel
 def free_fall_r_min(energy, A, B):
     """Pericentre [m] of an escaping free-fall orbit (energy >= 0): root of energy r^2 - B r - A."""
+    root = math.hypot(B, 2.0 * math.sqrt(A) * math.sqrt(energy))  # sqrt(B^2 + 4 A E), no underflow
     if B > 0.0:
-        return (B + math.sqrt(B * B + 4.0 * A * energy)) / (2.0 * energy)
-    return 2.0 * A / (math.sqrt(B * B + 4.0 * A * energy) - B)
+        return (B + root) / (2.0 * energy)
+    return 2.0 * A / (root - B)

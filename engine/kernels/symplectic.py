@@ -40,35 +40,33 @@ from .model import (
     P_K,
     P_M,
     P_SIN,
-    RIM,
     ROLLING_RESISTANCE,
-    SLIP_CHECK,
     coefficients,
-    rim_margin,
-    slip_margin,
 )
 from .protocol import (
     BUFFER_FULL,
     EPS,
+    FIRST_TERMINAL,
+    LAST_TERMINAL,
     MAX_STEPS,
     NONFINITE,
     OK,
     PERICENTRE,
     RECORD_EVERY_DT,
     RECORD_STEPS,
-    SLIP,
-    SPILL,
     UNSUPPORTED,
     brent_next,
     brent_start,
     brent_update,
     copy_into,
+    event_value,
+    kind_enabled,
     push_event,
     push_state,
     record_apsis,
     start_protocol,
     status_of,
-    terminal_fired,
+    terminal_crossed,
 )
 from .tableaux import LEAPFROG, YOSHIDA4, YOSHIDA6
 
@@ -92,8 +90,8 @@ Z_TH = 2
 Z_T = 3
 Z_W = 4
 
-# Target of the partial-step root finder.
-_TARGET_TIME = 4
+# Target of the partial-step root finder besides the event kinds of .protocol.
+_TARGET_TIME = 100
 
 
 @kernel
@@ -205,21 +203,18 @@ def full_state(z, p, h, Lz, out):
 
 
 @kernel
-def _target(kind, z, p, h, Lz, t_target, buf):
-    """Root-finder target: time (t - t_target), rim, slip or apsis (p) function of z."""
+def _target(kind, effects, z, p, h, Lz, t_target, buf):
+    """Root-finder target: time (t - t_target), apsis (p) or a terminal event function of z."""
     if kind == _TARGET_TIME:
         return z[Z_T] - t_target
-    if kind == SPILL:
-        full_state(z, p, h, Lz, buf)
-        return rim_margin(buf, p)
-    if kind == SLIP:
-        full_state(z, p, h, Lz, buf)
-        return slip_margin(buf, p)
-    return z[Z_P]
+    if kind == PERICENTRE:
+        return z[Z_P]
+    full_state(z, p, h, Lz, buf)
+    return event_value(kind, buf, p, effects)
 
 
 @kernel
-def locate(kind, z0, hstep, wts, cf, p, h, Lz, t_target, g0, g1, zt, buf, st):
+def locate(kind, effects, z0, hstep, wts, cf, p, h, Lz, t_target, g0, g1, zt, buf, st):
     """Partial s-step sigma in [0, hstep] where the target function crosses 0 (Brent, xtol
     4 eps hstep); the state there is left in ``zt``."""
     brent_start(st, 0.0, hstep, g0, g1)
@@ -230,7 +225,7 @@ def locate(kind, z0, hstep, wts, cf, p, h, Lz, t_target, g0, g1, zt, buf, st):
             break
         copy_into(z0, zt)
         ttl_step(zt, sig, wts, cf)
-        brent_update(st, _target(kind, zt, p, h, Lz, t_target, buf))
+        brent_update(st, _target(kind, effects, zt, p, h, Lz, t_target, buf))
     sig = min(max(sig, 0.0), hstep)
     copy_into(z0, zt)
     ttl_step(zt, sig, wts, cf)
@@ -273,26 +268,24 @@ def _step_events(effects, z, zn, hstep, wts, cf, p, h, Lz, t_end, g_aps, n_aps, 
     stop_kind = 0
     stop_is_event = False
     if zn[Z_T] >= t_end:
-        sig_stop = locate(np.int64(_TARGET_TIME), z, hstep, wts, cf, p, h, Lz, t_end,
+        sig_stop = locate(np.int64(_TARGET_TIME), effects, z, hstep, wts, cf, p, h, Lz, t_end,
                           z[Z_T] - t_end, zn[Z_T] - t_end, zt, buf, st)  # fmt: skip
-    for kind in range(SPILL, SLIP + 1):
-        if kind == SPILL and not effects & RIM:
+    for kind in range(FIRST_TERMINAL, LAST_TERMINAL + 1):
+        if not kind_enabled(effects, kind):
             continue
-        if kind == SLIP and not effects & SLIP_CHECK:
-            continue
-        g1 = _target(kind, zn, p, h, Lz, 0.0, buf)
-        if terminal_fired(kind, g1):
-            g0 = _target(kind, z, p, h, Lz, 0.0, buf)
-            sig = locate(kind, z, hstep, wts, cf, p, h, Lz, 0.0, g0, g1, zt, buf, st)
+        g1 = _target(kind, effects, zn, p, h, Lz, 0.0, buf)
+        g0 = _target(kind, effects, z, p, h, Lz, 0.0, buf)
+        if terminal_crossed(kind, g0, g1):
+            sig = locate(kind, effects, z, hstep, wts, cf, p, h, Lz, 0.0, g0, g1, zt, buf, st)
             if sig <= sig_stop:
                 sig_stop = sig
                 stop_status = status_of(kind)
                 stop_kind = kind
                 stop_is_event = True
     g1 = zn[Z_P]
-    if (g_aps > 0.0 and g1 <= 0.0) or (g_aps < 0.0 and g1 >= 0.0):
-        sig = locate(np.int64(PERICENTRE), z, hstep, wts, cf, p, h, Lz, 0.0, z[Z_P], g1, zt,
-                     buf, st)  # fmt: skip
+    if n_apsides >= 0 and ((g_aps > 0.0 and g1 <= 0.0) or (g_aps < 0.0 and g1 >= 0.0)):
+        sig = locate(np.int64(PERICENTRE), effects, z, hstep, wts, cf, p, h, Lz, 0.0, z[Z_P], g1,
+                     zt, buf, st)  # fmt: skip
         if sig <= sig_stop:
             full_state(zt, p, h, Lz, buf)
             n_ev, g_aps, n_aps, reached = record_apsis(ev_t, ev_kind, ev_y, n_ev, zt[Z_T], buf,
@@ -307,14 +300,14 @@ def _step_events(effects, z, zn, hstep, wts, cf, p, h, Lz, t_end, g_aps, n_aps, 
 
 
 @kernel
-def _samples(z, zn, t_lim, t_end, dt_out, next_out, hstep, wts, cf, p, h, Lz, tr_t, tr_y, n_tr,
-             zs, buf, st):  # fmt: skip
+def _samples(effects, z, zn, t_lim, t_end, dt_out, next_out, hstep, wts, cf, p, h, Lz, tr_t,
+             tr_y, n_tr, zs, buf, st):  # fmt: skip
     """Record the state every ``dt_out`` seconds up to t_lim (partial steps located by Brent);
     returns (n_tr, next_out); n_tr < 0 when the trajectory buffers are full."""
     cap_tr = tr_t.shape[0]
     while next_out <= t_lim and next_out < t_end and n_tr < cap_tr:
-        locate(np.int64(_TARGET_TIME), z, hstep, wts, cf, p, h, Lz, next_out, z[Z_T] - next_out,
-               zn[Z_T] - next_out, zs, buf, st)  # fmt: skip
+        locate(np.int64(_TARGET_TIME), effects, z, hstep, wts, cf, p, h, Lz, next_out,
+               z[Z_T] - next_out, zn[Z_T] - next_out, zs, buf, st)  # fmt: skip
         full_state(zs, p, h, Lz, buf)
         n_tr = push_state(tr_t, tr_y, n_tr, next_out, buf)
         next_out = n_tr * dt_out
@@ -381,8 +374,8 @@ def sym_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_ste
                     status = BUFFER_FULL
                     break
         if record == RECORD_EVERY_DT:
-            n_tr, next_out = _samples(z, zn, t_lim, t_end, dt_out, next_out, hstep, wts, cf, p,
-                                      h, Lz, tr_t, tr_y, n_tr, zs, buf, st)  # fmt: skip
+            n_tr, next_out = _samples(effects, z, zn, t_lim, t_end, dt_out, next_out, hstep, wts,
+                                      cf, p, h, Lz, tr_t, tr_y, n_tr, zs, buf, st)  # fmt: skip
             if n_tr < 0:
                 n_tr = tr_t.shape[0]
                 status = BUFFER_FULL

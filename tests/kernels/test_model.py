@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from model_oracle import invariants, rhs, state_from_invariants
 
 from engine.kernels import model
-from engine.kernels.geometry import orbit_point
+from engine.kernels.geometry import ideal_orbit
 from engine.kernels.model import coefficients, potential, radial_energy
 from engine.kernels.roots import circular_radius
 from engine.scene import Scene
@@ -140,7 +140,7 @@ def test_erratum_universal_relation_factor_two(orbit):
     rc = circular_radius(A, B, C)
     vmin = potential(rc, A, B, C)
     energy = vmin + offset * abs(vmin)
-    cls, r1, r2, *_ = orbit_point(alpha, energy, h, Lz, M, g, k, math.inf, 1e-12)
+    cls, r1, r2, *_ = ideal_orbit(alpha, energy, h, Lz, M, g, k, 1e-12)
     assert cls == 1
     hm = r1 * r2 / (r1 + r2)
     fixed = 2 * r1 * r2 * hm + B / C * (rc - 2 * hm)
@@ -154,7 +154,7 @@ def test_erratum_universal_relation_factor_two(orbit):
 def test_erratum_point_particle_free_fall_line():
     """k = 0, g = 0: the path is a straight line on the developed cone: sweep pi / sin(a)."""
     alpha = 0.4
-    cls, r1, r2, rc, T, psi, *_ = orbit_point(alpha, 2.0, 0.0, 0.5, 1.0, 0.0, 0.0, math.inf, 1e-12)
+    cls, r1, r2, rc, T, psi, *_ = ideal_orbit(alpha, 2.0, 0.0, 0.5, 1.0, 0.0, 0.0, 1e-12)
     assert cls == 3
     assert 2 * psi == pytest.approx(math.pi / math.sin(alpha), rel=1e-15)
     assert np.isinf(r2) and math.isnan(T)
@@ -285,7 +285,7 @@ def test_forces_match_physics_kernel():
         F2, N2 = oracle.contact_forces(y[0], y[3], y[4], alpha, sc.M, sc.g, sc.k)
         assert F == pytest.approx(F2, rel=1e-13, abs=1e-13)
         assert N == pytest.approx(N2, rel=1e-13)
-        assert model.slip_margin(y, p) == pytest.approx(abs(F) - 0.3 * N, rel=1e-12, abs=1e-12)
+        assert model.slip_margin(y, p, 0) == pytest.approx(abs(F) - 0.3 * N, rel=1e-12, abs=1e-12)
 
 
 def test_effects_mask_and_state_size():
@@ -304,7 +304,8 @@ def test_parameter_array_layout():
     assert p[model.P_ALPHA] == 0.3
     assert p[model.P_SIN] == math.sin(0.3) and p[model.P_COS] == math.cos(0.3)
     assert p[model.P_M] == 2.0 and p[model.P_G] == 3.0 and p[model.P_K] == 0.5
-    assert p[model.P_RADIUS] == 0.05 and p[model.P_RIM] == 7.0 and p[model.P_MU] == 0.2
+    assert p[model.P_RADIUS] == 0.05 and p[model.P_RIM_SLANT] == 7.0 and p[model.P_MU] == 0.2
+    assert p[model.P_RIM] == pytest.approx(7.0 - 0.05 / math.tan(0.3), rel=1e-15)
     assert p[model.P_CRR] == 0.01
     assert p[model.P_GC] == pytest.approx(3.0 * math.cos(0.3) / 1.5, rel=1e-15)
     q = p.copy()

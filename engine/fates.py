@@ -1,0 +1,136 @@
+"""Fate maps: what the scene does to each orbit, integrated from its start to its first terminal
+event (spill, slip, rest, the vertex region) or a horizon (the Python side of
+:mod:`engine.kernels.fate`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._jit import call_specialized
+from .kernels.fate import FATE_ROWS, fate_points
+from .kernels.geometry import BOUNDED, CIRCULAR, HYPERBOLIC, RADIAL
+from .kernels.model import P_THETA_MAX, REVOLUTIONS
+from .methods import check_method
+from .scene import Scene
+from .schema import map_kind
+
+__all__ = ["Horizon", "fates", "check_horizon", "require_horizon", "DEFAULT_MAX_STEPS"]
+
+#: Step budget of one orbit's fate run (accepted + rejected steps).
+DEFAULT_MAX_STEPS = 10_000_000
+
+
+def _horizon_value(name: str, value: float | None) -> float:
+    if value is None:
+        return math.inf
+    if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
+        raise ValueError(f"{name} must be a number; got {value!r}")
+    v = float(value)
+    if not v > 0.0:
+        raise ValueError(f"{name} must be > 0; got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class Horizon:
+    """How long a fate map follows each orbit: ``time`` [s] and/or ``revolutions`` about the axis
+    (whichever comes first; None = no limit of that kind)."""
+
+    time: float | None = None
+    revolutions: float | None = None
+
+    def __post_init__(self) -> None:
+        _horizon_value("horizon_time", self.time)
+        _horizon_value("horizon_revolutions", self.revolutions)
+
+    @property
+    def t_max(self) -> float:
+        return _horizon_value("horizon_time", self.time)
+
+    @property
+    def theta_max(self) -> float:
+        return 2.0 * math.pi * _horizon_value("horizon_revolutions", self.revolutions)
+
+    @property
+    def given(self) -> bool:
+        return self.time is not None or self.revolutions is not None
+
+    def as_attrs(self) -> dict[str, float | str]:
+        """netCDF-safe attributes (no None)."""
+        out: dict[str, float | str] = {}
+        for name, v in (("horizon_time", self.time), ("horizon_revolutions", self.revolutions)):
+            out[name] = "none" if v is None else float(v)
+        return out
+
+
+def check_horizon(
+    method: str, scene: Scene, time: float | None, revolutions: float | None
+) -> Horizon | None:
+    """The horizon of a fate map (required there), None for other maps (and refused if given,
+    since nothing would use it): the one check of the API and the survey file."""
+    horizon = Horizon(time, revolutions)
+    kind = map_kind(method, scene)
+    if kind == "fate":
+        return require_horizon(horizon)
+    if horizon.given:
+        raise ValueError(
+            "a horizon applies to fate maps only (an integrator on a scene with rolling "
+            f"resistance, a rim or a friction limit); this is a {kind} map"
+        )
+    return None
+
+
+def require_horizon(horizon: Horizon | None) -> Horizon:
+    """The horizon of a fate map; ValueError when none is given."""
+    if horizon is None or not horizon.given:
+        raise ValueError(
+            "a fate map follows each orbit to its first terminal event (spill, slip, rest, "
+            "vertex) or a horizon: give horizon_time [s] and/or horizon_revolutions"
+        )
+    return horizon
+
+
+def fates(
+    alpha: np.ndarray,
+    energy: np.ndarray,
+    h: np.ndarray,
+    Lz: np.ndarray,
+    r_start: np.ndarray,
+    scene: Scene,
+    method: str,
+    rtol: float,
+    horizon: Horizon,
+    *,
+    classes: np.ndarray | None = None,
+    max_steps: int = DEFAULT_MAX_STEPS,
+) -> dict[str, np.ndarray]:
+    """The fate of each orbit, started at rest radially at ``r_start`` (its r_min on an
+    invariant grid, the launch radius on a launch grid; NaN: no orbit).
+
+    Returns ``fate`` (int8, :data:`engine.kernels.fate.FATE_NAMES`), the float rows of
+    :data:`engine.kernels.fate.FATE_ROWS` and ``n_steps``.
+    """
+    m = check_method(method, scene, integrator=True)
+    require_horizon(horizon)
+    n = alpha.shape[0]
+    params = scene.params()
+    params[P_THETA_MAX] = horizon.theta_max
+    effects = scene.effects_mask | (REVOLUTIONS if math.isfinite(horizon.theta_max) else 0)
+    start = np.ascontiguousarray(r_start, np.float64)
+    if classes is not None:  # points without an orbit have no start
+        has_orbit = np.isin(classes, (BOUNDED, CIRCULAR, HYPERBOLIC, RADIAL))
+        start = np.where(has_orbit, start, np.nan)
+    out_fate = np.zeros(n, np.int8)
+    out_f = np.empty((len(FATE_ROWS), n))
+    out_n = np.zeros(n, np.int64)
+    if n:
+        args = (alpha, energy, h, Lz, start, params, m.kernel_id, effects, float(rtol),
+                horizon.t_max, int(max_steps), out_fate, out_f, out_n)  # fmt: skip
+        call_specialized(fate_points, args, (6, 7))
+    res = {"fate": out_fate}
+    res.update({name: out_f[i] for i, name in enumerate(FATE_ROWS)})
+    res["n_steps"] = out_n
+    return res

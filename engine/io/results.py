@@ -1,0 +1,258 @@
+"""Open a survey result for reading, whatever state or format it is in: :func:`open_result`.
+
+One function opens every kind of result the commands ``plot`` and ``report`` look at:
+
+- a finished netCDF file ``OUT.nc`` (read lazily with xarray: a map reads only its slice);
+- a run that is still going or was killed: ``OUT.nc`` is not there yet but ``OUT.nc.parts/``
+  holds some blocks (:mod:`engine.io.blocks`). The blocks are read lazily too, one ``.npz``
+  member at a time, never modified (a reader must not touch a running run's files); points of
+  blocks not computed yet are NaN and :meth:`Result.computed` tells them from undefined values.
+  Integer variables (``orbit_class``, ``status``) become float64 so that they can hold NaN.
+
+Another format (a Zarr store, say) is one more case in :func:`open_result` returning the same
+:class:`Result`. Variable and axis attributes come from the file itself, or for an unfinished
+run from :mod:`engine.schema`, as the finished file will carry them.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import xarray as xr
+from xarray.backends import BackendArray
+from xarray.core import indexing
+
+from ..grid import Tiling, block_shape, storage_chunks
+from ..schema import DIMS, FINGERPRINT_ATTR, LAUNCH_DIMS, axis_attrs, map_kind, variable_attrs
+from ..surveyfile import SurveyError, parse_survey
+from . import OutputError
+from .blocks import BlockStore
+from .manifest import parts_dir, read_manifest
+
+__all__ = ["READ_POINTS", "Result", "open_result"]
+
+#: Points per tile when a finished file is read tile by tile (~16 MB of float64).
+READ_POINTS = 1 << 21
+
+
+@dataclass
+class Result:
+    """A survey result opened for reading.
+
+    ``ds``: the variables with their CF attributes and the global attributes (lazy);
+    ``complete``: a finished result; ``tiling``: the tiles it is best read in (the blocks of an
+    unfinished run, storage-chunk-aligned tiles of a file); ``done``: indices of the blocks
+    computed so far (None when complete); ``fingerprint``: the survey's fingerprint.
+    """
+
+    path: Path
+    ds: xr.Dataset
+    complete: bool
+    tiling: Tiling
+    done: frozenset[int] | None = None
+    fingerprint: str | None = None
+    kind: str = "netcdf"
+
+    @property
+    def dims(self) -> tuple[str, ...]:
+        """The survey's axes, in order: (alpha, energy, h, Lz) or (alpha, r0, v0, w0)."""
+        return LAUNCH_DIMS if "r0" in self.ds.dims else DIMS
+
+    @property
+    def blocks_total(self) -> int:
+        return self.tiling.nblocks
+
+    @property
+    def blocks_done(self) -> int:
+        return self.blocks_total if self.done is None else len(self.done)
+
+    @property
+    def points_done(self) -> int:
+        if self.done is None:
+            return self.tiling.size
+        return sum(self.tiling.points(i) for i in self.done)
+
+    @property
+    def note(self) -> str:
+        """``unfinished run: 3 of 8 blocks computed (37.5 % of points)``; "" when complete."""
+        if self.complete:
+            return ""
+        pct = 100.0 * self.points_done / max(self.tiling.size, 1)
+        return (
+            f"unfinished run: {self.blocks_done} of {self.blocks_total} blocks computed "
+            f"({pct:.1f} % of points)"
+        )
+
+    def computed(self) -> xr.DataArray | None:
+        """Lazy boolean map over the survey axes: True where a point has been computed (None
+        for a finished result, where every point is)."""
+        if self.done is None:
+            return None
+        arr = _BlockArray(self.tiling, self.done, None, np.dtype(bool))
+        var = xr.Variable(self.dims, indexing.LazilyIndexedArray(arr))
+        coords = {d: self.ds.coords[d] for d in self.dims}
+        return xr.DataArray(var, coords=coords, name="computed")
+
+    def tiles(self) -> Iterator[dict[str, slice]]:
+        """Selections (dim -> slice) covering every computed point once, tile by tile."""
+        indices = range(self.tiling.nblocks) if self.done is None else sorted(self.done)
+        for i in indices:
+            yield dict(zip(self.dims, self.tiling.slices(i), strict=True))
+
+    def close(self) -> None:
+        self.ds.close()
+
+    def __enter__(self) -> Result:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def open_result(path: str | os.PathLike[str]) -> Result:
+    """Open the survey result ``path`` for reading: a finished netCDF file, or the unfinished
+    run behind it (``path`` + ``.parts``; the ``.parts`` directory itself is accepted too).
+
+    Raises OutputError naming the path when there is neither or it cannot be read.
+    """
+    path = Path(path)
+    if path.name.endswith(".parts") and path.is_dir():
+        path = path.with_name(path.name[: -len(".parts")])
+    if path.is_file():
+        return _open_netcdf(path)
+    if parts_dir(path).is_dir():
+        return _open_parts(path)
+    if path.is_dir():
+        raise OutputError(f"{path} is a directory, not a conesurvey result file")
+    raise OutputError(f"no such file: {path} (nor an unfinished run {parts_dir(path).name}/)")
+
+
+def _open_netcdf(path: Path) -> Result:
+    try:
+        ds = xr.open_dataset(path, engine="netcdf4")
+    except (OSError, ValueError) as exc:
+        raise OutputError(f"{path} is not a readable netCDF file ({exc})") from None
+    dims = LAUNCH_DIMS if "r0" in ds.dims else DIMS
+    missing = [d for d in dims if d not in ds.dims]
+    if missing or "orbit_class" not in ds:
+        ds.close()
+        what = f"the axes {missing}" if missing else "the variable orbit_class"
+        raise OutputError(f"{path} is not a conesurvey survey: it has no {what}")
+    shape = tuple(ds.sizes[d] for d in dims)
+    chunk = ds["orbit_class"].encoding.get("chunksizes") or storage_chunks(shape)
+    tiling = Tiling(shape, tuple(chunk), block_shape(shape, tuple(chunk), READ_POINTS))
+    fp = ds.attrs.get(FINGERPRINT_ATTR)
+    # An in-memory survey written by write_survey carries no fingerprint but is complete.
+    return Result(path, ds, True, tiling, None, fp, "netcdf")
+
+
+def _open_parts(path: Path) -> Result:
+    root = parts_dir(path)
+    manifest = read_manifest(root)
+    try:
+        survey = parse_survey(manifest.survey_definition, origin=f"{root.name}/manifest.json")
+    except SurveyError as exc:
+        raise OutputError(f"cannot read the unfinished run's survey definition: {exc}") from None
+    tiling = manifest.tiling
+    axes = {d: np.asarray(getattr(survey, d), np.float64) for d in survey.dims}
+    if tuple(a.size for a in axes.values()) != tiling.shape:
+        raise OutputError(f"{root}: the manifest's grid does not match its survey definition")
+    store = BlockStore.open(root)
+    kind = map_kind(survey.method, survey.scene)
+    # Blocks journaled (committed) whose files are there; a reader hashes nothing and changes
+    # nothing (the run that owns the store verifies its blocks).
+    done = frozenset(i for i in store.journal if store.path(i).is_file())
+    coords = {d: xr.Variable(d, v, axis_attrs(d, survey.energy_relative)) for d, v in axes.items()}
+    data = {}
+    for name, dtype in store.names.items():
+        arr = _BlockArray(
+            tiling, done, store, np.dtype(np.float64) if dtype.kind in "iub" else dtype
+        )
+        arr.name = name
+        data[name] = xr.Variable(survey.dims, indexing.LazilyIndexedArray(arr),
+                                 variable_attrs(name, kind))  # fmt: skip
+    attrs: dict[str, Any] = {
+        "title": survey.title,
+        **survey.attrs(),
+        "source": f"conesurvey {manifest.engine}",
+        "survey_definition": manifest.survey_definition,
+    }
+    ds = xr.Dataset(data, coords=coords, attrs=attrs)
+    return Result(path, ds, False, tiling, done, manifest.fingerprint, "parts")
+
+
+class _BlockArray(BackendArray):
+    """One variable of an unfinished run (or, without a store, its computed mask), read lazily
+    block by block; points of blocks not computed are NaN (False for the mask)."""
+
+    def __init__(
+        self, tiling: Tiling, done: frozenset[int], store: BlockStore | None, dtype: np.dtype
+    ) -> None:
+        self.tiling = tiling
+        self.done = done
+        self.store = store
+        self.shape = tiling.shape
+        self.dtype = dtype
+        self.name = ""
+
+    def __getitem__(self, key: indexing.ExplicitIndexer) -> np.ndarray:
+        return indexing.explicit_indexing_adapter(
+            key, self.shape, indexing.IndexingSupport.BASIC, self._raw_indexing_method
+        )
+
+    def _raw_indexing_method(self, key: tuple[Any, ...]) -> np.ndarray:
+        picks = [np.arange(n)[k] for n, k in zip(self.shape, key, strict=True)]
+        shape = tuple(p.size for p in picks if np.ndim(p))  # integer keys drop their dim
+        flat = [np.atleast_1d(p) for p in picks]
+        if any(p.size == 0 for p in flat):
+            return np.empty(shape, self.dtype)
+        lo = [int(p.min()) for p in flat]
+        box = self._box(lo, [int(p.max()) + 1 for p in flat])
+        return box[np.ix_(*(p - a for p, a in zip(flat, lo, strict=True)))].reshape(shape)
+
+    def _box(self, lo: list[int], hi: list[int]) -> np.ndarray:
+        """Values of the hyperslab [lo, hi) (NaN or False where no block is computed)."""
+        fill = False if self.dtype.kind == "b" else np.nan
+        box = np.full([b - a for a, b in zip(lo, hi, strict=True)], fill, self.dtype)
+        ranges = [
+            range(a // n, (b - 1) // n + 1)
+            for a, b, n in zip(lo, hi, self.tiling.block, strict=True)
+        ]
+        for pos in itertools.product(*ranges):
+            index = int(np.ravel_multi_index(pos, self.tiling.counts))
+            if index not in self.done:
+                continue
+            slab = self.tiling.slices(index)
+            inter = [
+                slice(max(s.start, a), min(s.stop, b)) for s, a, b in zip(slab, lo, hi, strict=True)
+            ]
+            dst = tuple(slice(i.start - a, i.stop - a) for i, a in zip(inter, lo, strict=True))
+            if self.store is None:
+                box[dst] = True
+                continue
+            block = self._load(index)
+            if block is not None:
+                src = tuple(
+                    slice(i.start - s.start, i.stop - s.start)
+                    for i, s in zip(inter, slab, strict=True)
+                )
+                box[dst] = block[src]
+        return box
+
+    def _load(self, index: int) -> np.ndarray | None:
+        """This variable of block ``index``, or None if it is unreadable (never deleted here:
+        the run that owns the block decides)."""
+        assert self.store is not None
+        shape = tuple(s.stop - s.start for s in self.tiling.slices(index))
+        try:
+            with np.load(self.store.path(index), allow_pickle=False) as z:
+                arr = z[self.name]
+        except Exception:  # vanished (the run just finished), truncated, wrong members ...
+            return None
+        return arr if arr.shape == shape else None
