@@ -157,7 +157,7 @@ def test_two_runs_started_together_one_wins(work, reference):
     runs.same_content(work / "out.nc", reference)
 
 
-def test_a_second_run_is_refused_at_every_stage_of_the_first(work, reference):
+def test_a_second_run_is_refused_at_every_stage_of_the_first(work, reference, capsys):
     """Started at the first block, half way and during the merge, the second run is refused
     with the holder's pid, host and start time, and writes nothing."""
     waiting = [ready_run(work, *ARGS) for _ in range(3)]  # imported, waiting for a line
@@ -179,6 +179,10 @@ def test_a_second_run_is_refused_at_every_stage_of_the_first(work, reference):
             time.sleep(0.002)
         go(proc)
         fired.append(a.poll() is None)
+        if len(fired) == 1:  # info names the run in progress (and does not disturb it)
+            shown = here(work, capsys, "info", "out.nc")
+            if a.poll() is None:
+                assert f"a run is writing it now (pid {a.pid} on host " in shown.stdout
     results = [finish(p) for p in waiting]
     assert a.wait(timeout=600) == 0
     assert fired == [True, True, True], "the first run ended before a stage was reached"
