@@ -7,7 +7,6 @@ wrote nothing. Disk-full and dask failures: tests/test_enospc.py and tests/test_
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 import shutil
@@ -20,7 +19,6 @@ import numpy as np
 import pytest
 import runs
 
-from engine import cli
 from engine.io import manifest as io_manifest
 
 # 4 x 50 x 33 x 100 = 660,000 points in 16 blocks of one storage chunk (42,500 points) each
@@ -100,20 +98,11 @@ def killed_after(work: Path, blocks: int) -> int:
     return runs.blocks_in(parts(work))
 
 
-def here(work: Path, capsys, *args: str) -> subprocess.CompletedProcess:
-    """The command run in this process (the checks after an attack: no interpreter start)."""
-    capsys.readouterr()
-    with contextlib.chdir(work):
-        status = cli.main(list(args))
-    out, err = capsys.readouterr()
-    return subprocess.CompletedProcess(args, status, out, err)
-
-
 def assert_refused_and_untouched(work: Path, capsys, *args: str) -> str:
     """The run exits 2 with one line and changes nothing, except that the lock file a killed
     run left (debris: its flock died with it) is gone, as every run that ends removes it."""
     before = tree(work)
-    proc = here(work, capsys, *args)
+    proc = runs.here(work, capsys, *args)
     assert proc.returncode == 2, proc.stderr
     assert proc.stderr.startswith("conesurvey: error: ") and proc.stderr.count("\n") == 1
     assert "Traceback" not in proc.stderr
@@ -130,7 +119,7 @@ def finish_and_compare(work: Path, reference: Path, capsys, *extra: str) -> str:
     assert "Traceback" not in proc.stderr
     assert runs.listing(work) == ["out.nc", "s.toml"]
     runs.same_content(work / "out.nc", reference)
-    verified = here(work, capsys, "info", "out.nc", "--verify")
+    verified = runs.here(work, capsys, "info", "out.nc", "--verify")
     assert verified.returncode == 0 and "complete, verified" in verified.stdout, verified.stdout
     return proc.stderr
 
@@ -180,7 +169,7 @@ def test_a_second_run_is_refused_at_every_stage_of_the_first(work, reference, ca
         go(proc)
         fired.append(a.poll() is None)
         if len(fired) == 1:  # info names the run in progress (and does not disturb it)
-            shown = here(work, capsys, "info", "out.nc")
+            shown = runs.here(work, capsys, "info", "out.nc")
             if a.poll() is None:
                 assert f"a run is writing it now (pid {a.pid} on host " in shown.stdout
     results = [finish(p) for p in waiting]
@@ -251,7 +240,7 @@ def test_an_edited_manifest_is_refused_without_writing(work, reference, capsys):
         path.write_text(json.dumps(doc))
         err = assert_refused_and_untouched(work, capsys, *ARGS)
         assert why in err and "--overwrite" in err and "ZeroDivision" not in err, err
-        info = here(work, capsys, "info", "out.nc")
+        info = runs.here(work, capsys, "info", "out.nc")
         assert info.returncode == 0
         assert "cannot be resumed" in info.stdout or why == "another survey", info.stdout
     finish_and_compare(work, reference, capsys, "--overwrite")
@@ -317,7 +306,7 @@ def test_leftover_blocks_of_a_finished_run_are_removed(work, reference, capsys):
             if not manifest:
                 (parts(work) / "manifest.json").unlink()
             args = ARGS if who == "run" else ("info", "out.nc")
-            proc = here(work, capsys, *args)
+            proc = runs.here(work, capsys, *args)
             assert proc.returncode == 0, proc.stderr
             text = proc.stdout + proc.stderr
             assert "removed" in text and "out.nc.parts" in text, (manifest, who, text)
@@ -330,7 +319,7 @@ def test_a_parts_directory_without_manifest_is_started_over(work, reference, cap
     cleanup, output since deleted): nothing in it can be verified, so it is removed."""
     killed_after(work, 4)
     (parts(work) / "manifest.json").unlink()
-    info = here(work, capsys, "info", "out.nc")
+    info = runs.here(work, capsys, "info", "out.nc")
     assert info.returncode == 0 and "the next run removes it and starts over" in info.stdout
     err = finish_and_compare(work, reference, capsys)
     assert "has no manifest" in err
