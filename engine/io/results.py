@@ -39,7 +39,8 @@ from . import OutputError
 from .blocks import BlockStore
 from .manifest import parts_dir, read_manifest
 from .zarr import is_zarr, zarr_module
-from .zarrstore import STORE, UNFINISHED_ATTR, RunStore
+from .zarrlayout import STORE, UNFINISHED_ATTR
+from .zarrstore import RunStore
 
 __all__ = ["READ_POINTS", "Result", "open_result"]
 

@@ -17,8 +17,6 @@ the content checksum, then zarr's consolidated metadata, fsynced) and renamed in
 
 from __future__ import annotations
 
-import base64
-import contextlib
 import functools
 import math
 import os
@@ -37,19 +35,17 @@ from .atomic import exists_error, fsync_dir, fsync_path
 from .blocks import Summary, _dims, check_parts_dir
 from .contents import BLOCK_SCHEME, CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher, verify_file
 from .manifest import Manifest, parts_dir
-from .netcdf import _class_counts, _typed_flags, cf_attrs
-from .zarrstore import (
-    RUN_ATTR,
+from .netcdf import _class_counts, cf_attrs
+from .zarrlayout import (
     UNFINISHED_ATTR,
-    UNFINISHED_TEXT,
     ChunkWriter,
-    RunStore,
-    _meta,
-    codecs,
-    fill_value,
-    parts_state,
+    ZarrView,
+    json_attr,
+    make_store,
+    read_meta,
     zarr_module,
 )
+from .zarrstore import RunStore, parts_state
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -78,75 +74,7 @@ def is_zarr(path: Path) -> bool:
     return Path(path).suffix.lower() == SUFFIX
 
 
-# --- attributes ---------------------------------------------------------------------------------
-
-
-def _json(value: Any) -> Any:
-    """An attribute value as JSON (numpy scalars and arrays become numbers and lists)."""
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
-
-
-def fill_attr(dtype: np.dtype) -> str:
-    """The CF ``_FillValue`` (NaN) of a float variable as xarray encodes it in Zarr v3
-    attributes: base64 of its little-endian bytes."""
-    return base64.b64encode(np.array(np.nan, dtype.newbyteorder("<")).tobytes()).decode()
-
-
-def _decoded(attrs: Mapping[str, Any], dtype: np.dtype) -> dict[str, Any]:
-    """Variable attributes as the netCDF file gives them: ``flag_values`` of the variable's
-    type, ``_FillValue`` as a number."""
-    out = _typed_flags(attrs, dtype)
-    fill = out.get("_FillValue")
-    if isinstance(fill, str):
-        with contextlib.suppress(ValueError, TypeError):
-            out["_FillValue"] = np.frombuffer(base64.b64decode(fill), dtype.newbyteorder("<"))[0]
-    return out
-
-
 # --- making a store -----------------------------------------------------------------------------
-
-
-def make_store(
-    path: Path,
-    run_id: str,
-    *,
-    axes: Mapping[str, tuple[np.ndarray, dict[str, Any]]],
-    variables: Mapping[str, tuple[np.dtype, dict[str, Any]]],
-    tiling: Tiling,
-    complevel: int,
-) -> None:
-    """Create the store ``path`` (a new directory): the root group marked unfinished with the
-    run's id, the axes with their values, the data variables (no chunk yet)."""
-    zarr = zarr_module()
-    os.mkdir(path)
-    store = zarr.storage.LocalStore(path)
-    attrs = {UNFINISHED_ATTR: UNFINISHED_TEXT, RUN_ATTR: run_id}
-    zarr.create_group(store, zarr_format=3, attributes=attrs)
-    dims = tuple(axes)
-    for d, (values, a) in axes.items():
-        arr = zarr.create_array(
-            store, name=d, shape=values.shape, chunks=values.shape, dtype=np.float64,
-            fill_value=np.nan, compressors=None, dimension_names=(d,),
-            attributes={k: _json(v) for k, v in a.items()},
-        )  # fmt: skip
-        arr[:] = values
-    for name, (dt, a) in variables.items():
-        attrs = {k: _json(v) for k, v in _typed_flags(a, dt).items()}
-        if dt.kind == "f":
-            attrs["_FillValue"] = fill_attr(dt)
-        zarr.create_array(
-            store, name=name, shape=tiling.shape, chunks=tiling.chunk, dtype=dt,
-            fill_value=fill_value(dt), compressors=codecs(complevel), dimension_names=dims,
-            attributes=attrs, config={"write_empty_chunks": True},
-        )  # fmt: skip
-    for dirpath, _, filenames in os.walk(path):
-        for name in filenames:
-            fsync_path(Path(dirpath) / name)
-        fsync_dir(Path(dirpath))
 
 
 def _layout(survey: Survey, names: Mapping[str, np.dtype]) -> dict[str, Any]:
@@ -191,7 +119,7 @@ def commit_store(path: Path, attrs: Mapping[str, Any], hasher: ContentHasher | N
         for name in filenames:
             if name.startswith(".") and name.endswith(".tmp"):
                 os.unlink(Path(dirpath) / name)
-    final = {k: _json(v) for k, v in attrs.items()}
+    final = {k: json_attr(v) for k, v in attrs.items()}
     if hasher is not None:
         final[CHECKSUM_ATTR] = hasher.finish(ZarrView(path, final))
     store = zarr.storage.LocalStore(path)
@@ -352,63 +280,11 @@ def write_store(
     return result
 
 
-# --- reading ------------------------------------------------------------------------------------
-
-
-class _Var:
-    """One array of a store, as engine.io.contents reads a netCDF variable."""
-
-    def __init__(self, arr: Any) -> None:
-        self.arr = arr
-        self.dtype = np.dtype(arr.dtype)
-        self.shape = tuple(arr.shape)
-        self.ndim = len(self.shape)
-        self.dimensions = tuple(arr.metadata.dimension_names or ())
-        self._attrs = _decoded(dict(arr.attrs), self.dtype)
-
-    def ncattrs(self) -> list[str]:
-        return list(self._attrs)
-
-    def getncattr(self, key: str) -> Any:
-        return self._attrs[key]
-
-    def chunking(self) -> list[int]:
-        return list(self.arr.chunks)
-
-    def set_auto_maskandscale(self, flag: bool) -> None:
-        """Nothing to switch off: a Zarr array gives its stored values."""
-
-    def __getitem__(self, key: Any) -> np.ndarray:
-        return np.asarray(self.arr[key])
-
-
-class ZarrView:
-    """A Zarr store seen through the netCDF4 calls :mod:`engine.io.contents` makes (the
-    content checksum is computed and verified the same way in both formats). ``attrs``
-    replaces the root's attributes (the ones a commit is about to write)."""
-
-    def __init__(self, path: Path, attrs: Mapping[str, Any] | None = None) -> None:
-        zarr = zarr_module()
-        store = zarr.storage.LocalStore(path, read_only=True)
-        group = zarr.open_group(store, mode="r", zarr_format=3)
-        self._attrs = dict(group.attrs) if attrs is None else dict(attrs)
-        self.variables = {name: _Var(arr) for name, arr in group.arrays()}
-
-    def ncattrs(self) -> list[str]:
-        return list(self._attrs)
-
-    def getncattr(self, key: str) -> Any:
-        return self._attrs[key]
-
-    def set_auto_maskandscale(self, flag: bool) -> None:
-        """Nothing to switch off: a Zarr array gives its stored values."""
-
-
 def read_fingerprint(path: Path) -> str | None:
     """The survey fingerprint a finished store records (None if it has none or is not a
     readable, finished Zarr store)."""
     try:
-        attrs = _meta(Path(path) / "zarr.json").get("attributes", {})
+        attrs = read_meta(Path(path) / "zarr.json").get("attributes", {})
     except OutputError:
         return None
     if not isinstance(attrs, dict) or UNFINISHED_ATTR in attrs:

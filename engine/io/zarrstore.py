@@ -24,7 +24,6 @@ midway is computed again and its chunks replaced.
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import json
 import os
@@ -40,209 +39,15 @@ import numpy as np
 from ..grid import Tiling
 from . import OutputError
 from .atomic import NEW_FILE, O_CLOEXEC, O_NOFOLLOW, NotRegularFile, fsync_dir, read_regular
-from .blocks import Scan, Summary, remove_store
-from .contents import block_digest
+from .blocks import Scan, remove_store
 from .manifest import Manifest, read_manifest, write_manifest
+from .zarrlayout import RUN_ATTR, STORE, ChunkWriter, _files_digest, chunk_keys, read_meta
 
-__all__ = [
-    "JOURNAL",
-    "RUN_ATTR",
-    "STORE",
-    "UNFINISHED_ATTR",
-    "ChunkWriter",
-    "RunStore",
-    "chunk_keys",
-    "codecs",
-    "zarr_module",
-]
+__all__ = ["JOURNAL", "RunStore", "parts_state", "read_journal"]
 
-STORE = "store.zarr"
 JOURNAL = "journal"
-#: Root attribute of a store being written: what it is, and when it is complete.
-UNFINISHED_ATTR = "conesurvey_unfinished"
-#: Root attribute of a store being written: the run's random id (checked by every writer).
-RUN_ATTR = "conesurvey_run"
-UNFINISHED_TEXT = (
-    "a conesurvey run is writing this store; it is complete when it is renamed to its output "
-    "name and its root carries survey_fingerprint and content_checksum"
-)
-_DIR_FLAGS = os.O_RDONLY | getattr(os, "O_DIRECTORY", 0) | O_NOFOLLOW | O_CLOEXEC
 _MAX_JOURNAL_BYTES = 1 << 30
-_MAX_META_BYTES = 64 << 20
 _RECEIPT = ("i", "bytes", "files", "values", "summary")
-#: Blosc (lz4, level 5, byte shuffle): 1.57x on survey blocks at ~600 MB/s on one core, where
-#: netCDF's zlib 1 + shuffle gives 1.63x at ~33 MB/s (README, "Scale out: Zarr output").
-BLOSC = {"cname": "lz4", "clevel": 5, "shuffle": "shuffle"}
-
-
-def zarr_module() -> Any:
-    """The ``zarr`` package (an optional dependency); OutputError saying how to install it."""
-    try:
-        import zarr
-    except ImportError:
-        raise OutputError(
-            "Zarr output needs the zarr package: pip install 'conesurvey[zarr]'"
-        ) from None
-    return zarr
-
-
-def codecs(complevel: int) -> list[Any]:
-    """The compressors of a data variable: Blosc (:data:`BLOSC`), none for ``complevel`` 0."""
-    if complevel == 0:
-        return []
-    from zarr.codecs import BloscCodec
-
-    return [BloscCodec(**BLOSC)]
-
-
-def fill_value(dtype: np.dtype) -> Any:
-    """Zarr's fill value of a variable (never read: every chunk is written): NaN for floats,
-    netCDF's default fill for integers (not a flag value). It is not a CF ``_FillValue``."""
-    if dtype.kind == "f":
-        return np.nan
-    return {1: -127, 2: -32767, 4: -2147483647, 8: -9223372036854775806}[dtype.itemsize]
-
-
-def chunk_keys(name: str, slab: tuple[slice, ...], chunk: tuple[int, ...]) -> list[str]:
-    """The keys of the chunk files of variable ``name`` that the hyperslab ``slab`` covers
-    (chunk key encoding "default", separator "/")."""
-    ranges = [range(s.start // c, -(-s.stop // c)) for s, c in zip(slab, chunk, strict=True)]
-    out = []
-    for pos in np.ndindex(*(len(r) for r in ranges)):
-        idx = (str(r[p]) for r, p in zip(ranges, pos, strict=True))
-        out.append(f"{name}/c/" + "/".join(idx))
-    return out
-
-
-def _files_digest(entries: list[tuple[str, int, str]]) -> str:
-    text = "".join(f"{k} {n} {h}\n" for k, n, h in sorted(entries))
-    return hashlib.sha256(text.encode()).hexdigest()
-
-
-@dataclass(frozen=True)
-class ChunkWriter:
-    """Writes the chunks of one block into the store ``root`` (picklable: a dask task carries
-    it to a worker). ``arrays``: (name, dtype, fill) of each data variable, in file order."""
-
-    root: str
-    run_id: str
-    shape: tuple[int, ...]
-    chunk: tuple[int, ...]
-    arrays: tuple[tuple[str, str], ...]
-    complevel: int
-
-    def encode(self, slab: tuple[slice, ...], values: dict[str, np.ndarray]) -> dict[str, bytes]:
-        """The chunk files (key -> bytes) of the hyperslab ``slab`` of every variable, encoded
-        by zarr exactly as the store's arrays declare."""
-        zarr = zarr_module()
-        mem: dict[str, Any] = {}
-        store = zarr.storage.MemoryStore(mem)
-        for name, dtype in self.arrays:
-            dt = np.dtype(dtype)
-            arr = zarr.create_array(
-                store,
-                name=name,
-                shape=self.shape,
-                chunks=self.chunk,
-                dtype=dt,
-                fill_value=fill_value(dt),
-                compressors=codecs(self.complevel),
-                config={"write_empty_chunks": True},
-            )
-            arr[slab] = values[name]
-        return {k: v.to_bytes() for k, v in mem.items() if "/c/" in k}
-
-    def write(self, index: int, slab: tuple[slice, ...], values: dict[str, np.ndarray]) -> dict:
-        """Write block ``index`` (its hyperslab ``slab``); returns its receipt. OSError if the
-        store cannot be written or is no longer this run's."""
-        clean = {n: np.ascontiguousarray(values[n], dtype=dt) for n, dt in self.arrays}
-        digests = {n: block_digest(a).hex() for n, a in clean.items()}
-        files = self.encode(slab, clean)
-        fd = self._open_store()
-        try:
-            entries = _put_files(fd, files)
-        finally:
-            os.close(fd)
-        stats = Summary()
-        stats.add(clean)
-        return {
-            "i": index,
-            "bytes": sum(n for _, n, _ in entries),
-            "files": _files_digest(entries),
-            "values": digests,
-            "summary": {
-                "flags": {n: c.tolist() for n, c in stats.flags.items()},
-                "ranges": {n: [lo, hi] for n, (lo, hi, _) in stats.ranges.items()},
-            },
-        }
-
-    def _open_store(self) -> int:
-        try:
-            fd = os.open(self.root, _DIR_FLAGS)
-        except OSError as exc:
-            why = f"cannot open the Zarr store ({exc.strerror})"
-            raise OSError(exc.errno, why, self.root) from None
-        try:
-            meta = json.loads(_read_at(fd, "zarr.json"))
-            found = meta.get("attributes", {}).get(RUN_ATTR)
-        except (OSError, ValueError, AttributeError):
-            found = None
-        if found != self.run_id:
-            os.close(fd)
-            raise OSError(
-                2, "the Zarr store is no longer this run's (removed or replaced)", self.root
-            )
-        return fd
-
-
-def _read_at(dir_fd: int, name: str) -> bytes:
-    fd = os.open(name, os.O_RDONLY | O_NOFOLLOW | O_CLOEXEC, dir_fd=dir_fd)
-    with os.fdopen(fd, "rb") as f:
-        return f.read(_MAX_META_BYTES)
-
-
-def _open_dirs(root_fd: int, parts: list[str], cache: dict[str, int]) -> int:
-    """A descriptor of the directory ``root/parts...`` (made where missing), every component
-    opened with O_NOFOLLOW relative to its parent."""
-    fd, path = root_fd, ""
-    for part in parts:
-        path = f"{path}/{part}"
-        if path not in cache:
-            with contextlib.suppress(FileExistsError):
-                os.mkdir(part, 0o777, dir_fd=fd)
-            cache[path] = os.open(part, _DIR_FLAGS, dir_fd=fd)
-        fd = cache[path]
-    return fd
-
-
-def _put_files(root_fd: int, files: dict[str, bytes]) -> list[tuple[str, int, str]]:
-    """Write every file atomically (temporary name, fsync, rename), then fsync the directories
-    that changed; returns (key, size, SHA-256) of each."""
-    cache: dict[str, int] = {}
-    entries = []
-    try:
-        for key, data in sorted(files.items()):
-            *dirs, leaf = key.split("/")
-            dfd = _open_dirs(root_fd, dirs, cache)
-            tmp = f".{leaf}.{secrets.token_hex(6)}.tmp"
-            fd = os.open(tmp, NEW_FILE, 0o666, dir_fd=dfd)
-            try:
-                with os.fdopen(fd, "wb") as f:
-                    f.write(data)
-                    f.flush()
-                    os.fsync(f.fileno())
-                os.rename(tmp, leaf, src_dir_fd=dfd, dst_dir_fd=dfd)
-            except BaseException:
-                with contextlib.suppress(OSError):
-                    os.unlink(tmp, dir_fd=dfd)
-                raise
-            entries.append((key, len(data), hashlib.sha256(data).hexdigest()))
-        for dfd in [root_fd, *cache.values()]:
-            os.fsync(dfd)
-    finally:
-        for dfd in cache.values():
-            os.close(dfd)
-    return entries
 
 
 # --- the journal ------------------------------------------------------------------------------
@@ -380,12 +185,13 @@ class RunStore:
     def open(cls, root: Path, warn: Callable[[str], None] = lambda msg: None) -> RunStore:
         """The existing run ``root``: manifest, journal, the store's run id and compression."""
         m = read_manifest(root)
-        meta = _root_meta(root / STORE)
+        meta = read_meta(root / STORE / "zarr.json")
         run_id = meta.get("attributes", {}).get(RUN_ATTR)
         if not isinstance(run_id, str):
             raise OutputError(f"{root / STORE} is not the store of an unfinished run")
         first = next(iter(m.names))
-        level = 0 if len(_array_meta(root / STORE, first).get("codecs", [])) < 2 else 1
+        codecs = read_meta(root / STORE / first / "zarr.json").get("codecs", [])
+        level = 0 if len(codecs) < 2 else 1
         journal = read_journal(root, list(m.names), m.tiling.nblocks)
         return cls(root, m.tiling, m.names, run_id, level, warn, journal)
 
@@ -466,26 +272,6 @@ class RunStore:
     def remove(self) -> None:
         """Delete the run's directory: the manifest first (what is left is debris)."""
         remove_store(self.root)
-
-
-def _root_meta(store: Path) -> dict:
-    return _meta(store / "zarr.json")
-
-
-def _array_meta(store: Path, name: str) -> dict:
-    return _meta(store / name / "zarr.json")
-
-
-def _meta(path: Path) -> dict:
-    try:
-        doc = json.loads(read_regular(path, _MAX_META_BYTES, follow_links=False))
-    except FileNotFoundError:
-        raise OutputError(f"{path} is missing") from None
-    except (OSError, ValueError, RecursionError) as exc:
-        raise OutputError(f"{path} is unreadable ({exc})") from None
-    if not isinstance(doc, dict):
-        raise OutputError(f"{path} is not Zarr metadata")
-    return doc
 
 
 def parts_state(root: Path) -> dict[str, Any]:
