@@ -109,19 +109,17 @@ def output_bytes(names: Mapping[str, np.dtype], shape: tuple[int, ...]) -> int:
 # --- committing a store -------------------------------------------------------------------------
 
 
-def commit_store(path: Path, attrs: Mapping[str, Any], hasher: ContentHasher | None) -> str:
+def commit_store(path: Path, attrs: Mapping[str, Any], hasher: ContentHasher) -> str:
     """The final commit of the store ``path``: debris of dead writers removed, the root's
     attributes replaced by ``attrs`` plus the content checksum (``hasher``, whose values were
-    all added; None: ``attrs`` carries one), consolidated metadata, all fsynced. Returns the
-    checksum."""
+    all added), consolidated metadata, all fsynced. Returns the checksum."""
     zarr = zarr_module()
     for dirpath, _, filenames in os.walk(path):
         for name in filenames:
             if name.startswith(".") and name.endswith(".tmp"):
                 os.unlink(Path(dirpath) / name)
-    final = {k: json_attr(v) for k, v in attrs.items()}
-    if hasher is not None:
-        final[CHECKSUM_ATTR] = hasher.finish(ZarrView(path, final))
+    final = {k: json_attr(v) for k, v in attrs.items() if k != CHECKSUM_ATTR}
+    final[CHECKSUM_ATTR] = hasher.finish(ZarrView(path, final))
     store = zarr.storage.LocalStore(path)
     group = zarr.open_group(store, mode="r+", zarr_format=3, use_consolidated=False)
     group.attrs.put(final)
@@ -247,13 +245,16 @@ def write_store(
     *,
     overwrite: bool = False,
     complevel: int = 1,
-    checksum: str | None = None,
+    hasher: ContentHasher | None = None,
+    before_commit: Callable[[], None] | None = None,
 ) -> str:
     """Write a whole store in this process: ``layout`` (axes, variables: see
     :func:`make_store`), the ``(index, arrays)`` of every block of ``tiling``, the global
-    ``attrs``; built as ``OUT.<random>.tmp`` beside ``out`` and renamed into place. The content
-    checksum is ``checksum`` if given (one already verified), else computed as the blocks are
-    written. Returns it."""
+    ``attrs``; built as ``OUT.<random>.tmp`` beside ``out``, committed and renamed into place.
+    The content checksum is ``hasher``'s if given (the caller adds every value to it; a
+    conversion keeps the source's scheme), else one of scheme ``sha256-blocks-v1`` computed
+    as the blocks are written. ``before_commit()`` may still refuse (raise): nothing is then
+    left. Returns the checksum."""
     tmp = out.with_name(f"{out.name}.{os.urandom(6).hex()}.tmp")
     run_id = os.urandom(16).hex()
     try:
@@ -261,17 +262,16 @@ def write_store(
         variables = layout["variables"]
         arrays = tuple((n, dt.str) for n, (dt, _) in variables.items())
         writer = ChunkWriter(str(tmp), run_id, tiling.shape, tiling.chunk, arrays, complevel)
-        hasher = ContentHasher(tiling.block, BLOCK_SCHEME)
+        own = ContentHasher(tiling.block, BLOCK_SCHEME)
         for d, (values, _) in layout["axes"].items():
-            hasher.add(d, values)
+            own.add(d, values)
         for i, block in blocks:
             receipt = writer.write(i, tiling.slices(i), block)
             for name in variables:
-                hasher.add_digest(name, bytes.fromhex(receipt["values"][name]))
-        final = dict(attrs)
-        if checksum is not None:
-            final[CHECKSUM_ATTR] = checksum
-        result = commit_store(tmp, final, None if checksum is not None else hasher)
+                own.add_digest(name, bytes.fromhex(receipt["values"][name]))
+        if before_commit is not None:
+            before_commit()
+        result = commit_store(tmp, attrs, hasher or own)
         aside = out.with_name(f"{out.name}.{os.urandom(6).hex()}.tmp")
         put_in_place(tmp, out, overwrite=overwrite, aside=aside)
     except BaseException:
