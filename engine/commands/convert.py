@@ -3,10 +3,10 @@
 The output's format follows its name (``.zarr``: a Zarr store, anything else: netCDF-4). The
 copy is exact and checked (:mod:`engine.io.convert`): the source's content checksum is verified
 as its values are copied and the output records the same one. Refusals come before anything is
-written (exit 2): a missing, unfinished or unreadable source, an output of the same format, an
-existing output without ``--overwrite``, another run or conversion writing the output, too
-little disk. A damaged source (exit 1) or a failed write leaves nothing under the output's
-name.
+written (exit 2): a missing, unfinished, unreadable or damaged source (its values do not match
+its recorded content checksum), an output of the same format, an existing output without
+``--overwrite``, another run or conversion writing the output, too little disk. A refusal or a
+failed write (exit 1) leaves nothing under the output's name.
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from ..io import OutputError, WriteError
 from ..io import zarr as zarr_io
 from ..io.convert import convert, output_bytes
 from ..io.lock import Locked, LockError, OutputLock, describe_holder
+from ..io.manifest import parts_dir
 from ..progress import format_bytes
 from . import PROG, Command, InputError, error
 
@@ -30,8 +31,8 @@ examples:
   conesurvey convert precession.zarr precession.nc
   conesurvey convert precession.nc precession.zarr --overwrite
 
-exit status: 0 converted, 1 the source is damaged or the output could not be written (nothing
-left under its name), 2 bad input, nothing written"""
+exit status: 0 converted, 1 the output could not be written (nothing left under its name),
+2 bad input (a missing, unfinished or damaged source too), nothing written"""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -51,14 +52,23 @@ def _format(path: Path) -> str:
     return "Zarr" if zarr_io.is_zarr(path) else "netCDF"
 
 
-def _check(source: Path, out: Path, args: argparse.Namespace) -> None:
-    """InputError for every refusal that needs no writing."""
+def _check_names(source: Path, out: Path) -> None:
+    """InputError for the refusals that the names alone decide (before any lock is taken)."""
     if not os.path.lexists(source):
+        if parts_dir(source).is_dir():
+            raise InputError(
+                f"{source} is an unfinished run ({parts_dir(source).name}/ holds its blocks); "
+                "run it again to finish it, then convert"
+            )
         raise InputError(f"no such result: {source}")
     if _format(source) == _format(out):
         raise InputError(f"{source} and {out} are both {_format(out)}; nothing to convert")
     if not out.parent.is_dir():
         raise InputError(f"output directory does not exist: {out.parent}")
+
+
+def _check(source: Path, out: Path, args: argparse.Namespace) -> None:
+    """InputError for every other refusal that needs no writing."""
     if os.path.lexists(out) and not args.overwrite:
         raise InputError(f"output exists: {out} (use --overwrite to replace it)")
     if not args.force:
@@ -73,6 +83,7 @@ def _check(source: Path, out: Path, args: argparse.Namespace) -> None:
 
 def _convert(args: argparse.Namespace, command: str) -> int:
     source, out = Path(args.source), Path(args.output)
+    _check_names(source, out)
     try:
         with OutputLock.acquire(out, command), OutputLock.acquire(source, command):
             _check(source, out, args)
@@ -93,10 +104,7 @@ def _convert(args: argparse.Namespace, command: str) -> int:
         ) from None
     except LockError as exc:
         raise InputError(str(exc)) from None
-    except OutputError as exc:
-        if "is damaged" in str(exc):
-            error(str(exc))
-            return 1
+    except OutputError as exc:  # unreadable, unfinished or damaged: nothing was written
         raise InputError(str(exc)) from None
     carried = "carried over" if done.checksum == done.source_checksum else "computed"
     print(f"{PROG}: wrote {out} ({_format(out)}, {done.blocks} blocks)")
