@@ -34,7 +34,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -114,11 +114,6 @@ class RunStats:
         return math.prod(self.shape)
 
 
-def _io(out: Path) -> Any:
-    """The output's format: :mod:`engine.io.zarr` for a name ending in ``.zarr``, else netCDF."""
-    return zarr_io if zarr_io.is_zarr(out) else netcdf
-
-
 def _is_debris(root: Path, finished: str | None) -> bool:
     """Whether the store ``root`` holds nothing to resume: it has no manifest (a killed cleanup
     or start), or it is the store of the finished output's own survey."""
@@ -135,10 +130,10 @@ def _is_debris(root: Path, finished: str | None) -> bool:
 def remove_leftovers(out: Path) -> bool:
     """Remove the block store left beside the finished output ``out`` by a killed cleanup
     (under the output's lock; nothing is done while a run holds it). Returns whether it did."""
-    root = parts_dir(out)
+    root, backend = parts_dir(out), zarr_io.backend_for(out)
     try:
         with OutputLock.acquire(out, "conesurvey info"):
-            if not check_parts_dir(root) or not _is_debris(root, _io(out).read_fingerprint(out)):
+            if not check_parts_dir(root) or not _is_debris(root, backend.read_fingerprint(out)):
                 return False
             if not os.path.lexists(out):
                 return False
@@ -170,11 +165,11 @@ def _inspect(
     except OutputError as exc:
         raise RunError(str(exc)) from None
     kind = not_regular(out, follow_links=False)
-    expected = ("a directory",) if _io(out) is zarr_io else ()  # a Zarr store is one
+    expected = ("a directory",) if zarr_io.is_zarr(out) else ()  # a Zarr store is one
     if kind not in (None, "a symbolic link", *expected):
         raise RunError(f"output path {out} is {kind}; give a file name")
     if os.path.lexists(out) and not overwrite:
-        finished = _io(out).read_fingerprint(out)
+        finished = zarr_io.backend_for(out).read_fingerprint(out)
         if finished != plan.fp:
             raise RunError(f"output file exists: {out} (use --overwrite to replace it)")
         if has_store and _is_debris(root, finished):
@@ -190,7 +185,7 @@ def _inspect(
         plan.remove_first = "removed: it has no manifest (left by a killed run)"
         return plan
     try:
-        plan.store = (RunStore if _io(out) is zarr_io else BlockStore).open(root, warn)
+        plan.store = (RunStore if zarr_io.is_zarr(out) else BlockStore).open(root, warn)
     except OutputError as exc:
         raise RunError(
             f"cannot resume: {exc}; use --overwrite to discard {root} and start again"
@@ -212,7 +207,7 @@ def _check_space(out: Path, survey: Survey, tiling: Tiling, pending: list[int]) 
     """RunError unless the blocks still to compute and the output merged beside all of them
     fit on the output's file system."""
     names = survey_variables(survey)
-    if _io(out) is zarr_io:  # no block files: the chunks are written into the store
+    if zarr_io.is_zarr(out):  # no block files: the chunks are written into the store
         blocks, merged = zarr_io.output_bytes(names, (sum(map(tiling.points, pending)),)), 0
     else:
         blocks = sum(block_file_bytes(names, tiling.points(i)) for i in pending)
@@ -275,11 +270,8 @@ def run_survey(
     warn = warn or (lambda msg: print(f"conesurvey: warning: {msg}", file=sys.stderr))
     if not out.parent.is_dir():
         raise RunError(f"output directory does not exist: {out.parent}")
-    if _io(out) is zarr_io:
-        try:
-            zarr_io.zarr_module()  # an optional dependency: refused before anything is written
-        except OutputError as exc:
-            raise RunError(str(exc)) from None
+    if zarr_io.is_zarr(out) and (why := zarr_io.unavailable()):
+        raise RunError(why)  # an optional dependency: refused before anything is written
     with _take_lock(out, command):
         plan = _inspect(out, survey, overwrite, block_points, warn)
         tiling = (
@@ -340,7 +332,7 @@ def _prepare(
         if plan.store is not None:
             plan.store.discard(plan.scan)
             return plan.store
-        if _io(out) is zarr_io:
+        if zarr_io.is_zarr(out):
             return zarr_io.create(root, survey, tiling, complevel, warn)
         return BlockStore.create(root, Manifest.new(survey, tiling), warn)
     except OSError as exc:
@@ -399,7 +391,7 @@ def _merge(
     """The blocks merged into the output file (RunError if it appeared meanwhile, RunFailed if
     it cannot be written or a block changed)."""
     try:
-        return _io(out).merge(
+        return zarr_io.backend_for(out).merge(
             store,
             survey,
             out,

@@ -21,16 +21,18 @@ import functools
 import math
 import os
 import shutil
+import sys
 import warnings
 from collections.abc import Callable, Mapping
 from pathlib import Path
+from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..grid import Tiling
 from ..schema import FINGERPRINT_ATTR, axis_attrs, map_kind, variable_attrs
-from . import OutputError
+from . import OutputError, netcdf
 from .atomic import exists_error, fsync_dir, fsync_path
 from .blocks import Summary, _dims, check_parts_dir
 from .contents import BLOCK_SCHEME, CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher, verify_file
@@ -55,6 +57,7 @@ if TYPE_CHECKING:
 __all__ = [
     "SUFFIX",
     "ZarrView",
+    "backend_for",
     "create",
     "is_zarr",
     "merge",
@@ -62,6 +65,7 @@ __all__ = [
     "put_in_place",
     "read_fingerprint",
     "read_info",
+    "unavailable",
     "write_survey",
     "zarr_module",
 ]
@@ -72,6 +76,20 @@ SUFFIX = ".zarr"
 def is_zarr(path: Path) -> bool:
     """Whether the output ``path`` is a Zarr store (its name ends in ``.zarr``)."""
     return Path(path).suffix.lower() == SUFFIX
+
+
+def backend_for(out: Path) -> ModuleType:
+    """The output backend of ``out``: this module for a Zarr store's name, else netCDF."""
+    return sys.modules[__name__] if is_zarr(out) else netcdf
+
+
+def unavailable() -> str:
+    """Why Zarr output cannot be written here ("" if it can: the zarr package imports)."""
+    try:
+        zarr_module()
+    except OutputError as exc:
+        return str(exc)
+    return ""
 
 
 # --- making a store -----------------------------------------------------------------------------
