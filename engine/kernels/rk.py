@@ -203,13 +203,13 @@ def _samples(method, effects, y, K, h, t, t_lim, t_end, dt_out, next_out, tr_t, 
 
 
 @kernel
-def _stop_state(method, effects, y, K, h, t, th_stop, stop_status, p, ev_t, ev_y, n_ev, out,
+def _stop_state(method, effects, y, K, h, t, th_stop, at_apsis, p, ev_t, ev_y, n_ev, out,
                 rate):  # fmt: skip
     """The state (into ``out``, and its rate with the attitude) and time [s] where a run stops
-    inside the step (t, t + h]: its last apsis as recorded (polished), or the dense output at
-    a terminal event."""
+    inside the step (t, t + h]: its last apsis as recorded (polished) when it stops there, else
+    the dense output at the terminal event (the horizon included)."""
     n = y.shape[0]
-    if stop_status == OK:
+    if at_apsis:
         for j in range(n):
             out[j] = ev_y[n_ev - 1, j]
         if effects & ATTITUDE:
@@ -293,14 +293,16 @@ def rk_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_step
             rk_dense_stages(method, effects, y, h, p, K, buf)
         th_stop = 2.0
         stop_status = OK
+        at_apsis = False
         if aps_cross or term_cross:  # a call only when needed: its array arguments cost refcounts
-            ok, th_stop, stop_status, g_aps, n_aps, n_ev, _, _ = step_events(
+            ok, th_stop, stop_status, g_aps, n_aps, n_ev, i_aps, th_aps = step_events(
                 method, effects, y, ynew, K, h, t, p, buf, st, K2, g_aps, n_aps, n_apsides,
                 ev_t, ev_kind, ev_y, n_ev, term_cross, True)  # fmt: skip
             if not ok:
                 n_ev = ev_t.shape[0]
                 status = BUFFER_FULL
                 break
+            at_apsis = i_aps >= 0 and th_stop == th_aps and stop_status == OK
         stopping = th_stop <= 1.0 or last
         if sample:
             t_lim = t + min(th_stop, 1.0) * h
@@ -311,7 +313,7 @@ def rk_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_step
                 status = BUFFER_FULL
                 break
         if th_stop <= 1.0:
-            t = _stop_state(method, effects, y, K, h, t, th_stop, stop_status, p, ev_t, ev_y,
+            t = _stop_state(method, effects, y, K, h, t, th_stop, at_apsis, p, ev_t, ev_y,
                             n_ev, ynew, rate)  # fmt: skip
         else:
             t = t_end if last else t + h
