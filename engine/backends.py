@@ -41,6 +41,7 @@ __all__ = [
     "check_address",
     "compute_block",
     "open_backend",
+    "write_block",
 ]
 
 Blocks = Iterator[tuple[int, dict[str, np.ndarray]]]
@@ -81,6 +82,16 @@ def compute_block(
     return index, evaluate_block(spec, tiling.slices(index))
 
 
+def write_block(
+    spec: dict[str, Any], tiling: Tiling, index: int, writer: Any
+) -> tuple[int, dict[str, Any]]:
+    """Compute block ``index`` and write it with ``writer`` where it was computed (a dask
+    worker writes its own chunks, :class:`engine.io.zarrstore.ChunkWriter`); only the
+    writer's receipt is returned."""
+    i, results = compute_block(spec, tiling, index)
+    return i, writer.write(i, tiling.slices(i), results)
+
+
 def _same(x: Any) -> Any:
     """The identity (a task whose result is the survey description)."""
     return x
@@ -108,9 +119,15 @@ def check_address(address: str) -> str:
 class LocalBackend:
     """The pending blocks computed one after the other in this process."""
 
-    def blocks(self, spec: dict[str, Any], tiling: Tiling, pending: list[int]) -> Blocks:
+    def blocks(
+        self, spec: dict[str, Any], tiling: Tiling, pending: list[int], writer: Any = None
+    ) -> Blocks:
         for i in pending:
-            yield compute_block(spec, tiling, i)
+            yield (
+                compute_block(spec, tiling, i)
+                if writer is None
+                else write_block(spec, tiling, i, writer)
+            )
 
     def close(self) -> None:
         """Nothing to release."""
@@ -187,8 +204,11 @@ class DaskBackend:
                 f"({_one_line(exc)})"
             ) from None
 
-    def blocks(self, spec: dict[str, Any], tiling: Tiling, pending: list[int]) -> Blocks:
-        """The pending blocks, as they complete (BackendError if the cluster fails)."""
+    def blocks(
+        self, spec: dict[str, Any], tiling: Tiling, pending: list[int], writer: Any = None
+    ) -> Blocks:
+        """The pending blocks, as they complete (BackendError if the cluster fails); with a
+        ``writer``, each worker writes the blocks it computes and returns the receipts."""
         try:
             n_workers = max(1, len(self.client.nthreads()))
             spec_f = self.client.submit(_same, spec, pure=False)
@@ -200,7 +220,11 @@ class DaskBackend:
         def submit_next() -> None:
             i = next(todo, None)
             if i is not None:
-                fut = self.client.submit(compute_block, spec_f, tiling, i, pure=False)
+                fut = (
+                    self.client.submit(compute_block, spec_f, tiling, i, pure=False)
+                    if writer is None
+                    else self.client.submit(write_block, spec_f, tiling, i, writer, pure=False)
+                )
                 in_flight[fut] = i
 
         for _ in range(2 * n_workers):

@@ -1,5 +1,5 @@
 """The ``conesurvey`` command line: ``conesurvey run SURVEY.toml [-o OUT.nc]``, ``validate``,
-``info``, ``plot``, ``report``.
+``info``, ``plot``, ``report``, ``convert``.
 
 Each command lives in its own module of :mod:`engine.commands` and is registered here with
 :func:`register` (a new command is one module and one ``register`` call).
@@ -21,6 +21,7 @@ from collections.abc import Sequence
 
 from ._version import __version__
 from .commands import PROG, Command, InputError, error
+from .commands import convert as _convert
 from .commands import info as _info
 from .commands import look as _look
 from .commands import run as _run
@@ -107,7 +108,14 @@ def _silence_stdout() -> None:
     os.close(devnull)
 
 
-for _command in (_run.COMMAND, _validate.COMMAND, _info.COMMAND, _look.PLOT, _look.REPORT):
+for _command in (
+    _run.COMMAND,
+    _validate.COMMAND,
+    _info.COMMAND,
+    _look.PLOT,
+    _look.REPORT,
+    _convert.COMMAND,
+):
     register(_command)
 
 

@@ -42,6 +42,7 @@ from .backends import BackendError, block_spec, check_address, open_backend
 from .evaluation import evaluate_block
 from .grid import BLOCK_POINTS, Tiling
 from .io import OutputError, netcdf
+from .io import zarr as zarr_io
 from .io.atomic import not_regular
 from .io.blocks import (
     BlockStore,
@@ -60,6 +61,7 @@ from .io.manifest import (
     read_manifest,
     survey_variables,
 )
+from .io.zarrstore import RunStore
 from .progress import format_bytes
 from .schema import DIMS
 
@@ -128,10 +130,10 @@ def _is_debris(root: Path, finished: str | None) -> bool:
 def remove_leftovers(out: Path) -> bool:
     """Remove the block store left beside the finished output ``out`` by a killed cleanup
     (under the output's lock; nothing is done while a run holds it). Returns whether it did."""
-    root = parts_dir(out)
+    root, backend = parts_dir(out), zarr_io.backend_for(out)
     try:
         with OutputLock.acquire(out, "conesurvey info"):
-            if not check_parts_dir(root) or not _is_debris(root, netcdf.read_fingerprint(out)):
+            if not check_parts_dir(root) or not _is_debris(root, backend.read_fingerprint(out)):
                 return False
             if not os.path.lexists(out):
                 return False
@@ -163,10 +165,11 @@ def _inspect(
     except OutputError as exc:
         raise RunError(str(exc)) from None
     kind = not_regular(out, follow_links=False)
-    if kind is not None and kind != "a symbolic link":
+    expected = ("a directory",) if zarr_io.is_zarr(out) else ()  # a Zarr store is one
+    if kind not in (None, "a symbolic link", *expected):
         raise RunError(f"output path {out} is {kind}; give a file name")
     if os.path.lexists(out) and not overwrite:
-        finished = netcdf.read_fingerprint(out)
+        finished = zarr_io.backend_for(out).read_fingerprint(out)
         if finished != plan.fp:
             raise RunError(f"output file exists: {out} (use --overwrite to replace it)")
         if has_store and _is_debris(root, finished):
@@ -182,7 +185,7 @@ def _inspect(
         plan.remove_first = "removed: it has no manifest (left by a killed run)"
         return plan
     try:
-        plan.store = BlockStore.open(root, warn)
+        plan.store = (RunStore if zarr_io.is_zarr(out) else BlockStore).open(root, warn)
     except OutputError as exc:
         raise RunError(
             f"cannot resume: {exc}; use --overwrite to discard {root} and start again"
@@ -204,8 +207,11 @@ def _check_space(out: Path, survey: Survey, tiling: Tiling, pending: list[int]) 
     """RunError unless the blocks still to compute and the output merged beside all of them
     fit on the output's file system."""
     names = survey_variables(survey)
-    blocks = sum(block_file_bytes(names, tiling.points(i)) for i in pending)
-    merged = netcdf.output_bytes(names, tiling.shape)
+    if zarr_io.is_zarr(out):  # no block files: the chunks are written into the store
+        blocks, merged = zarr_io.output_bytes(names, (sum(map(tiling.points, pending)),)), 0
+    else:
+        blocks = sum(block_file_bytes(names, tiling.points(i)) for i in pending)
+        merged = netcdf.output_bytes(names, tiling.shape)
     free = shutil.disk_usage(out.parent).free
     if blocks + merged > free:
         raise RunError(
@@ -264,6 +270,8 @@ def run_survey(
     warn = warn or (lambda msg: print(f"conesurvey: warning: {msg}", file=sys.stderr))
     if not out.parent.is_dir():
         raise RunError(f"output directory does not exist: {out.parent}")
+    if zarr_io.is_zarr(out) and (why := zarr_io.unavailable()):
+        raise RunError(why)  # an optional dependency: refused before anything is written
     with _take_lock(out, command):
         plan = _inspect(out, survey, overwrite, block_points, warn)
         tiling = (
@@ -287,7 +295,7 @@ def run_survey(
         except BackendError as exc:
             raise RunFailed(f"{exc}; nothing was written") from None
         try:
-            store = _prepare(out, survey, plan, tiling, warn)
+            store = _prepare(out, survey, plan, tiling, warn, complevel)
             _compute(store, backend, spec, pending, len(done), progress, on_block)
             t1 = time.perf_counter()
             summary = _merge(store, survey, out, plan.fp, command, overwrite, complevel)
@@ -312,7 +320,9 @@ def run_survey(
     )
 
 
-def _prepare(out: Path, survey: Survey, plan: _Plan, tiling: Tiling, warn: Callable) -> BlockStore:
+def _prepare(
+    out: Path, survey: Survey, plan: _Plan, tiling: Tiling, warn: Callable, complevel: int
+) -> BlockStore | RunStore:
     """Step 4's first writes: remove what goes, create or tidy the store."""
     root = parts_dir(out)
     try:
@@ -322,13 +332,15 @@ def _prepare(out: Path, survey: Survey, plan: _Plan, tiling: Tiling, warn: Calla
         if plan.store is not None:
             plan.store.discard(plan.scan)
             return plan.store
+        if zarr_io.is_zarr(out):
+            return zarr_io.create(root, survey, tiling, complevel, warn)
         return BlockStore.create(root, Manifest.new(survey, tiling), warn)
     except OSError as exc:
         raise RunFailed(_cannot_write(exc, root)) from None
 
 
 def _compute(
-    store: BlockStore,
+    store: BlockStore | RunStore,
     backend: object,
     spec: dict,
     pending: list[int],
@@ -344,7 +356,8 @@ def _compute(
         progress(points, tiling.size)
     stored = reused
     try:
-        for i, res in backend.blocks(spec, tiling, pending):  # type: ignore[attr-defined]
+        writer = getattr(store, "writer", None)  # Zarr: blocks write their own chunks
+        for i, res in backend.blocks(spec, tiling, pending, writer):  # type: ignore[attr-defined]
             try:
                 store.commit(i, res)
             except OSError as exc:
@@ -358,7 +371,7 @@ def _compute(
                 progress(points, tiling.size)
             if on_block is not None:
                 on_block(i)
-    except BackendError as exc:
+    except (BackendError, OutputError) as exc:  # OutputError: a writer's (Zarr)
         raise RunFailed(f"{exc}; {stored} of {tiling.nblocks} blocks are stored") from None
 
 
@@ -367,7 +380,7 @@ def _cannot_write(exc: OSError, where: Path) -> str:
 
 
 def _merge(
-    store: BlockStore,
+    store: BlockStore | RunStore,
     survey: Survey,
     out: Path,
     fp: str,
@@ -378,7 +391,7 @@ def _merge(
     """The blocks merged into the output file (RunError if it appeared meanwhile, RunFailed if
     it cannot be written or a block changed)."""
     try:
-        return netcdf.merge(
+        return zarr_io.backend_for(out).merge(
             store,
             survey,
             out,

@@ -1,5 +1,5 @@
-"""``conesurvey info FILE.nc [--verify]``: what a result file (or the unfinished run behind it)
-holds, and whether its contents are intact.
+"""``conesurvey info FILE [--verify]``: what a result (a netCDF file or a Zarr store ``.zarr``, or
+the unfinished run behind it) holds, and whether its contents are intact.
 
 It never shows a traceback: a file written by another tool, a damaged file, a block store
 without a manifest or with one that is not JSON are described, not crashed on. With
@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from ..io import OutputError
+from ..io import zarr as zarr_io
 from ..io.lock import Locked, LockError, OutputLock, describe_holder
 from ..io.manifest import MANIFEST, parts_dir, read_manifest
 from ..io.netcdf import read_info
@@ -32,7 +33,9 @@ _KEYS = ("title", "source", "method", "history", "survey_fingerprint", "content_
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("file", metavar="FILE.nc", help="a conesurvey netCDF result")
+    parser.add_argument(
+        "file", metavar="FILE", help="a conesurvey result: a netCDF file or a Zarr store (.zarr)"
+    )
     parser.add_argument(
         "--verify",
         action="store_true",
@@ -97,7 +100,8 @@ def _state(info: dict[str, Any], path: Path, verify: bool) -> tuple[str, int]:
 def _info(args: argparse.Namespace, command: str) -> int:
     path = Path(args.file)
     try:
-        info = read_info(path, verify=args.verify)
+        reader = zarr_io.read_info if zarr_io.is_zarr(path) else read_info
+        info = reader(path, verify=args.verify)
     except OutputError as exc:
         raise InputError(str(exc)) from None
     notes = list(info.get("notes", []))

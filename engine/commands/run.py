@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import TextIO
 
 from ..grid import BLOCK_POINTS
+from ..io import zarr as zarr_io
 from ..io.netcdf import ZLIB_LEVEL
 from ..kernels.fate import FATE_NAMES
 from ..kernels.geometry import CLASS_NAMES
@@ -56,7 +57,8 @@ def add_arguments(run: argparse.ArgumentParser) -> None:
         "-o",
         "--output",
         metavar="OUT.nc",
-        help="output netCDF file (default: SURVEY's stem + .nc in the current directory)",
+        help="output netCDF file, or a Zarr store if the name ends in .zarr (default: SURVEY's "
+        "stem + .nc in the current directory)",
     )
     run.add_argument(
         "--overwrite", action="store_true", help="replace OUT.nc if it exists (default: refuse)"
@@ -116,7 +118,7 @@ def _positive_int(text: str) -> int:
 def _output(args: argparse.Namespace, source: Path) -> Path:
     """The output path; InputError if it is a directory, has no directory, or is the survey."""
     out = Path(args.output) if args.output else Path.cwd() / (source.stem + ".nc")
-    if out.is_dir():
+    if out.is_dir() and not zarr_io.is_zarr(out):  # a Zarr store is a directory
         raise InputError(f"output path is a directory: {out}")
     if not out.parent.is_dir():
         raise InputError(f"output directory does not exist: {out.parent}")

@@ -12,6 +12,12 @@ again and recomputes it (:func:`verify_file`). Definition (scheme ``sha256-v1``)
 - the file: SHA-256 of the global attributes except ``history`` (tools append to it) and the
   checksum itself, then of each variable's name and digest.
 
+Scheme ``sha256-blocks-v1`` is the same except that a variable's values are hashed one block at
+a time and the variable's digest is taken over the 32-byte SHA-256 of each block (in C order of
+blocks; a 1-D variable is one block): the writers of a Zarr store hash the blocks they write,
+and the run that commits the store combines their digests without reading any value
+(:mod:`engine.io.zarr`). Both schemes are verified the same way, in either format.
+
 The value does not depend on the file's storage chunks, compression or layout, only on what a
 reader gets back. Reading is done one block of one variable at a time (bounded memory). A
 chunk that fails to decompress is reported as damage, like a value that differs.
@@ -28,13 +34,23 @@ import numpy as np
 from ..grid import Tiling
 from ..schema import DIMS, LAUNCH_DIMS
 
-__all__ = ["CHECKSUM_ATTR", "CHECKSUM_BLOCK_ATTR", "SCHEME", "ContentHasher", "verify_file"]
+__all__ = [
+    "BLOCK_SCHEME",
+    "CHECKSUM_ATTR",
+    "CHECKSUM_BLOCK_ATTR",
+    "SCHEME",
+    "ContentHasher",
+    "block_digest",
+    "verify_file",
+]
 
 #: Global attribute holding the checksum (with the scheme as a prefix).
 CHECKSUM_ATTR = "content_checksum"
 #: Global attribute: the block shape the 4-D variables are hashed in.
 CHECKSUM_BLOCK_ATTR = "content_checksum_block"
 SCHEME = "sha256-v1"
+#: The scheme of results written block by block by several writers (Zarr stores).
+BLOCK_SCHEME = "sha256-blocks-v1"
 _UNHASHED = ("history", CHECKSUM_ATTR)
 
 
@@ -75,17 +91,35 @@ def _values(arr: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(arr, dtype=le)
 
 
+def block_digest(values: np.ndarray) -> bytes:
+    """SHA-256 of one block of values (scheme ``sha256-blocks-v1``)."""
+    return hashlib.sha256(_values(values)).digest()
+
+
 class ContentHasher:
     """The checksum of a file being written: :meth:`add` every variable's values in the order
-    of the definition (4-D ones block by block in C order), then :meth:`finish`."""
+    of the definition (4-D ones block by block in C order), then :meth:`finish`. With
+    ``scheme = BLOCK_SCHEME`` a block's digest may be added instead (:meth:`add_digest`)."""
 
-    def __init__(self, block: tuple[int, ...]) -> None:
+    def __init__(self, block: tuple[int, ...], scheme: str = SCHEME) -> None:
+        if scheme not in (SCHEME, BLOCK_SCHEME):
+            raise ValueError(f"unknown content checksum scheme {scheme!r}")
         self.block = tuple(int(b) for b in block)
+        self.scheme = scheme
         self._data: dict[str, Any] = {}
 
     def add(self, name: str, values: np.ndarray) -> None:
         """Hash the next block (or the whole) of variable ``name``."""
-        self._data.setdefault(name, hashlib.sha256()).update(_values(values))
+        if self.scheme == BLOCK_SCHEME:
+            self.add_digest(name, block_digest(values))
+        else:
+            self._data.setdefault(name, hashlib.sha256()).update(_values(values))
+
+    def add_digest(self, name: str, digest: bytes) -> None:
+        """Add the :func:`block_digest` of the next block of ``name`` (``sha256-blocks-v1``)."""
+        if self.scheme != BLOCK_SCHEME or len(digest) != 32:
+            raise ValueError("block digests are 32-byte SHA-256 of scheme sha256-blocks-v1")
+        self._data.setdefault(name, hashlib.sha256()).update(digest)
 
     def finish(self, nc: Any) -> str:
         """The checksum of the open netCDF4 Dataset ``nc``, whose values were all added."""
@@ -94,7 +128,7 @@ class ContentHasher:
             h = hashlib.sha256(_header(name, nc.variables[name]))
             h.update(self._data.get(name, hashlib.sha256()).digest())
             total.update(name.encode() + b"\0" + h.digest())
-        return f"{SCHEME}:{total.hexdigest()}"
+        return f"{self.scheme}:{total.hexdigest()}"
 
 
 def _global_attrs(nc: Any) -> dict[str, Any]:
@@ -107,7 +141,8 @@ def verify_file(nc: Any) -> tuple[bool, str]:
     that differs) is reported, never raised."""
     attrs = _global_attrs(nc)
     recorded = attrs.get(CHECKSUM_ATTR)
-    if not isinstance(recorded, str) or not recorded.startswith(SCHEME + ":"):
+    scheme = recorded.partition(":")[0] if isinstance(recorded, str) else None
+    if scheme not in (SCHEME, BLOCK_SCHEME):
         return False, "no content checksum recorded (not written by a conesurvey run)"
     try:
         block = tuple(int(b) for b in np.asarray(attrs[CHECKSUM_BLOCK_ATTR]).ravel())
@@ -115,7 +150,7 @@ def verify_file(nc: Any) -> tuple[bool, str]:
             raise ValueError(block)
     except (KeyError, ValueError, TypeError, OverflowError):
         return False, f"the {CHECKSUM_BLOCK_ATTR} attribute is missing or damaged"
-    hasher = ContentHasher(block)
+    hasher = ContentHasher(block, scheme)
     nc.set_auto_maskandscale(False)
     for name, var in nc.variables.items():
         slabs = (

@@ -9,16 +9,20 @@ One function opens every kind of result the commands ``plot`` and ``report`` loo
   blocks not computed yet are NaN and :meth:`Result.computed` tells them from undefined values.
   Integer variables (``orbit_class``, ``status``) become float64 so that they can hold NaN.
 
-Another format (a Zarr store, say) is one more case in :func:`open_result` returning the same
-:class:`Result`. Variable and axis attributes come from the file itself, or for an unfinished
-run from :mod:`engine.schema`, as the finished file will carry them.
+- a finished Zarr store ``OUT.zarr`` (:mod:`engine.io.zarr`), or the unfinished run behind it
+  (``OUT.zarr.parts/``: the blocks its journal records are read from its store).
+
+Another format is one more case in :func:`open_result` returning the same :class:`Result`.
+Variable and axis attributes come from the file itself, or for an unfinished run from
+:mod:`engine.schema`, as the finished file will carry them.
 """
 
 from __future__ import annotations
 
 import itertools
 import os
-from collections.abc import Iterator
+import warnings
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -34,6 +38,9 @@ from ..surveyfile import SurveyError, parse_survey
 from . import OutputError
 from .blocks import BlockStore
 from .manifest import parts_dir, read_manifest
+from .zarr import is_zarr, zarr_module
+from .zarrlayout import STORE, UNFINISHED_ATTR
+from .zarrstore import RunStore
 
 __all__ = ["READ_POINTS", "Result", "open_result"]
 
@@ -124,6 +131,8 @@ def open_result(path: str | os.PathLike[str]) -> Result:
     path = Path(path)
     if path.name.endswith(".parts") and path.is_dir():
         path = path.with_name(path.name[: -len(".parts")])
+    if is_zarr(path) and path.is_dir():
+        return _open_zarr(path)
     if path.is_file():
         return _open_netcdf(path)
     if parts_dir(path).is_dir():
@@ -138,6 +147,28 @@ def _open_netcdf(path: Path) -> Result:
         ds = xr.open_dataset(path, engine="netcdf4")
     except (OSError, ValueError) as exc:
         raise OutputError(f"{path} is not a readable netCDF file ({exc})") from None
+    return _finished(path, ds, "netcdf", "chunksizes")
+
+
+def _open_zarr(path: Path) -> Result:
+    zarr_module()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # consolidated metadata is not in the v3 spec (yet)
+            ds = xr.open_zarr(path, chunks=None)
+    except Exception as exc:  # zarr raises many kinds for a damaged or foreign store
+        raise OutputError(f"{path} is not a readable Zarr store ({exc})") from None
+    if UNFINISHED_ATTR in ds.attrs:
+        ds.close()
+        raise OutputError(f"{path} is the store of an unfinished run; open its output name")
+    for var in ds.data_vars.values():  # JSON attributes: flags get the variable's type again
+        if "flag_values" in var.attrs:
+            var.attrs["flag_values"] = np.asarray(var.attrs["flag_values"], var.dtype)
+    return _finished(path, ds, "zarr", "chunks")
+
+
+def _finished(path: Path, ds: xr.Dataset, kind: str, chunk_key: str) -> Result:
+    """A finished result: checked to be a survey, read in storage-chunk-aligned tiles."""
     dims = LAUNCH_DIMS if "r0" in ds.dims else DIMS
     missing = [d for d in dims if d not in ds.dims]
     if missing or "orbit_class" not in ds:
@@ -145,11 +176,11 @@ def _open_netcdf(path: Path) -> Result:
         what = f"the axes {missing}" if missing else "the variable orbit_class"
         raise OutputError(f"{path} is not a conesurvey survey: it has no {what}")
     shape = tuple(ds.sizes[d] for d in dims)
-    chunk = ds["orbit_class"].encoding.get("chunksizes") or storage_chunks(shape)
+    chunk = ds["orbit_class"].encoding.get(chunk_key) or storage_chunks(shape)
     tiling = Tiling(shape, tuple(chunk), block_shape(shape, tuple(chunk), READ_POINTS))
     fp = ds.attrs.get(FINGERPRINT_ATTR)
     # An in-memory survey written by write_survey carries no fingerprint but is complete.
-    return Result(path, ds, True, tiling, None, fp, "netcdf")
+    return Result(path, ds, True, tiling, None, fp, kind)
 
 
 def _open_parts(path: Path) -> Result:
@@ -163,16 +194,23 @@ def _open_parts(path: Path) -> Result:
     axes = {d: np.asarray(getattr(survey, d), np.float64) for d in survey.dims}
     if tuple(a.size for a in axes.values()) != tiling.shape:
         raise OutputError(f"{root}: the manifest's grid does not match its survey definition")
-    store = BlockStore.open(root)
     kind = map_kind(survey.method, survey.scene)
     # Blocks journaled (committed) whose files are there; a reader hashes nothing and changes
     # nothing (the run that owns the store verifies its blocks).
-    done = frozenset(i for i in store.journal if store.path(i).is_file())
+    if (root / STORE).is_dir():
+        zarr_module()
+        store: BlockStore | RunStore = RunStore.open(root)
+        done = frozenset(store.journal)
+        load = _zarr_loader(root / STORE, tiling)
+    else:
+        store = BlockStore.open(root)
+        done = frozenset(i for i in store.journal if store.path(i).is_file())
+        load = _npz_loader(store)
     coords = {d: xr.Variable(d, v, axis_attrs(d, survey.energy_relative)) for d, v in axes.items()}
     data = {}
     for name, dtype in store.names.items():
         arr = _BlockArray(
-            tiling, done, store, np.dtype(np.float64) if dtype.kind in "iub" else dtype
+            tiling, done, load, np.dtype(np.float64) if dtype.kind in "iub" else dtype
         )
         arr.name = name
         data[name] = xr.Variable(survey.dims, indexing.LazilyIndexedArray(arr),
@@ -187,16 +225,43 @@ def _open_parts(path: Path) -> Result:
     return Result(path, ds, False, tiling, done, manifest.fingerprint, "parts")
 
 
+Loader = Callable[[int, str], "np.ndarray | None"]
+
+
+def _npz_loader(store: BlockStore) -> Loader:
+    def load(index: int, name: str) -> np.ndarray | None:
+        try:
+            with np.load(store.path(index), allow_pickle=False) as z:
+                return z[name]
+        except Exception:  # vanished (the run just finished), truncated, wrong members ...
+            return None
+
+    return load
+
+
+def _zarr_loader(store: Path, tiling: Tiling) -> Loader:
+    zarr = zarr_module()
+    group = zarr.open_group(zarr.storage.LocalStore(store, read_only=True), mode="r")
+
+    def load(index: int, name: str) -> np.ndarray | None:
+        try:
+            return np.asarray(group[name][tiling.slices(index)])
+        except Exception:  # the run just finished and renamed its store, a damaged chunk ...
+            return None
+
+    return load
+
+
 class _BlockArray(BackendArray):
     """One variable of an unfinished run (or, without a store, its computed mask), read lazily
     block by block; points of blocks not computed are NaN (False for the mask)."""
 
     def __init__(
-        self, tiling: Tiling, done: frozenset[int], store: BlockStore | None, dtype: np.dtype
+        self, tiling: Tiling, done: frozenset[int], load: Loader | None, dtype: np.dtype
     ) -> None:
         self.tiling = tiling
         self.done = done
-        self.store = store
+        self.load = load
         self.shape = tiling.shape
         self.dtype = dtype
         self.name = ""
@@ -233,7 +298,7 @@ class _BlockArray(BackendArray):
                 slice(max(s.start, a), min(s.stop, b)) for s, a, b in zip(slab, lo, hi, strict=True)
             ]
             dst = tuple(slice(i.start - a, i.stop - a) for i, a in zip(inter, lo, strict=True))
-            if self.store is None:
+            if self.load is None:
                 box[dst] = True
                 continue
             block = self._load(index)
@@ -248,11 +313,7 @@ class _BlockArray(BackendArray):
     def _load(self, index: int) -> np.ndarray | None:
         """This variable of block ``index``, or None if it is unreadable (never deleted here:
         the run that owns the block decides)."""
-        assert self.store is not None
+        assert self.load is not None
         shape = tuple(s.stop - s.start for s in self.tiling.slices(index))
-        try:
-            with np.load(self.store.path(index), allow_pickle=False) as z:
-                arr = z[self.name]
-        except Exception:  # vanished (the run just finished), truncated, wrong members ...
-            return None
-        return arr if arr.shape == shape else None
+        arr = self.load(index, self.name)
+        return arr if arr is not None and arr.shape == shape else None

@@ -1,0 +1,360 @@
+"""The Zarr backend: Zarr v3 stores with the netCDF file's variables, attributes and chunks.
+
+The same functions as :mod:`engine.io.netcdf` (its docstring states the interface):
+:func:`write_survey`, :func:`merge` (here the final commit of a store whose chunks the workers
+wrote, :mod:`engine.io.zarrstore`), :func:`output_bytes`, :func:`read_fingerprint`,
+:func:`read_info`; and :func:`create` (a new run's store). ``xarray.open_zarr(OUT.zarr)`` reads
+the same Dataset as ``xarray.open_dataset(OUT.nc)``: dims (``dimension_names``), CF attributes
+from :mod:`engine.schema`, ``_FillValue`` NaN on float variables as xarray encodes it, none on
+integers and axes, storage chunks of the netCDF file, bit-identical values. Attributes are JSON,
+so ``flag_values`` read back as a list of ints; :class:`ZarrView` and
+:func:`engine.io.results.open_result` give them the variable's type again.
+
+A store under the output's name is complete: it is built inside the run's private directory
+(``OUT.zarr.parts/store.zarr``), committed (final attributes with the survey fingerprint and
+the content checksum, then zarr's consolidated metadata, fsynced) and renamed into place.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import os
+import shutil
+import sys
+import warnings
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..grid import Tiling
+from ..schema import FINGERPRINT_ATTR, axis_attrs, map_kind, variable_attrs
+from . import OutputError, netcdf
+from .atomic import exists_error, fsync_dir, fsync_path
+from .blocks import Summary, _dims, check_parts_dir
+from .contents import BLOCK_SCHEME, CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher, verify_file
+from .manifest import Manifest, parts_dir
+from .netcdf import _class_counts, cf_attrs
+from .zarrlayout import (
+    UNFINISHED_ATTR,
+    ChunkWriter,
+    ZarrView,
+    json_attr,
+    make_store,
+    read_meta,
+    zarr_module,
+)
+from .zarrstore import RunStore, parts_state
+
+if TYPE_CHECKING:
+    import xarray as xr
+
+    from ..surveyfile import Survey
+
+__all__ = [
+    "SUFFIX",
+    "ZarrView",
+    "backend_for",
+    "create",
+    "is_zarr",
+    "merge",
+    "output_bytes",
+    "put_in_place",
+    "read_fingerprint",
+    "read_info",
+    "unavailable",
+    "write_survey",
+    "zarr_module",
+]
+
+SUFFIX = ".zarr"
+
+
+def is_zarr(path: Path) -> bool:
+    """Whether the output ``path`` is a Zarr store (its name ends in ``.zarr``)."""
+    return Path(path).suffix.lower() == SUFFIX
+
+
+def backend_for(out: Path) -> ModuleType:
+    """The output backend of ``out``: this module for a Zarr store's name, else netCDF."""
+    return sys.modules[__name__] if is_zarr(out) else netcdf
+
+
+def unavailable() -> str:
+    """Why Zarr output cannot be written here ("" if it can: the zarr package imports)."""
+    try:
+        zarr_module()
+    except OutputError as exc:
+        return str(exc)
+    return ""
+
+
+# --- making a store -----------------------------------------------------------------------------
+
+
+def _layout(survey: Survey, names: Mapping[str, np.dtype]) -> dict[str, Any]:
+    kind = map_kind(survey.method, survey.scene)
+    axes = {
+        d: (np.asarray(getattr(survey, d), np.float64), axis_attrs(d, survey.energy_relative))
+        for d in survey.dims
+    }
+    variables = {n: (np.dtype(dt), variable_attrs(n, kind)) for n, dt in names.items()}
+    return {"axes": axes, "variables": variables}
+
+
+def create(
+    root: Path, survey: Survey, tiling: Tiling, complevel: int, warn: Callable[[str], None]
+) -> RunStore:
+    """The directory of a new run of ``survey`` into a Zarr store (:mod:`engine.io.zarrstore`)."""
+    manifest = Manifest.new(survey, tiling)
+    make = functools.partial(
+        make_store, **_layout(survey, manifest.names), tiling=tiling, complevel=complevel
+    )
+    return RunStore.create(root, manifest, make, complevel, warn)
+
+
+def output_bytes(names: Mapping[str, np.dtype], shape: tuple[int, ...]) -> int:
+    """Upper bound [bytes] of a store: the values uncompressed (Blosc adds at most 16 bytes a
+    chunk), the axes, 1 % and 1 MB for file system blocks and metadata."""
+    points = math.prod(shape)
+    data = sum(np.dtype(dt).itemsize for dt in names.values()) * points + 8 * sum(shape)
+    return int(data * 1.01) + (1 << 20)
+
+
+# --- committing a store -------------------------------------------------------------------------
+
+
+def commit_store(path: Path, attrs: Mapping[str, Any], hasher: ContentHasher) -> str:
+    """The final commit of the store ``path``: debris of dead writers removed, the root's
+    attributes replaced by ``attrs`` plus the content checksum (``hasher``, whose values were
+    all added), consolidated metadata, all fsynced. Returns the checksum."""
+    zarr = zarr_module()
+    for dirpath, _, filenames in os.walk(path):
+        for name in filenames:
+            if name.startswith(".") and name.endswith(".tmp"):
+                os.unlink(Path(dirpath) / name)
+    final = {k: json_attr(v) for k, v in attrs.items() if k != CHECKSUM_ATTR}
+    final[CHECKSUM_ATTR] = hasher.finish(ZarrView(path, final))
+    store = zarr.storage.LocalStore(path)
+    group = zarr.open_group(store, mode="r+", zarr_format=3, use_consolidated=False)
+    group.attrs.put(final)
+    with warnings.catch_warnings():  # consolidated metadata is zarr-python's, not in v3 (yet)
+        warnings.simplefilter("ignore", UserWarning)
+        zarr.consolidate_metadata(store)
+    fsync_path(path / "zarr.json")
+    fsync_dir(path)
+    return final[CHECKSUM_ATTR]
+
+
+def put_in_place(src: Path, out: Path, *, overwrite: bool, aside: Path) -> None:
+    """Rename the committed store ``src`` to ``out``. An existing ``out`` is refused
+    (FileExistsError) unless ``overwrite``; then it is first renamed to ``aside`` (in the
+    run's private directory) and deleted after."""
+    if os.path.lexists(out):
+        if not overwrite:
+            raise exists_error(out)
+        os.rename(out, aside)
+    try:
+        os.rename(src, out)
+    except (FileExistsError, IsADirectoryError, NotADirectoryError, OSError) as exc:
+        if os.path.lexists(out):  # appeared meanwhile (a non-empty directory, a file)
+            raise exists_error(out) from None
+        raise exc
+    fsync_dir(out.parent)
+    fsync_dir(src.parent)
+    if os.path.islink(aside) or os.path.isfile(aside):
+        os.unlink(aside)
+    elif os.path.isdir(aside):
+        shutil.rmtree(aside)
+
+
+def _provenance_attrs(survey: Survey, command: str, fingerprint: str, block: tuple[int, ...]):
+    attrs = cf_attrs(
+        survey.attrs(),
+        title=survey.title,
+        survey_definition=survey.source_text,
+        command=command,
+        scene=survey.scene,
+    )
+    return {**attrs, FINGERPRINT_ATTR: fingerprint, CHECKSUM_BLOCK_ATTR: list(block)}
+
+
+def _receipt_block(receipt: dict) -> dict[str, np.ndarray]:
+    """A stand-in block whose statistics (:class:`Summary`) are the receipt's."""
+    out: dict[str, np.ndarray] = {}
+    for name, counts in receipt["summary"]["flags"].items():
+        out[name] = np.repeat(np.arange(len(counts), dtype=np.int64), counts)
+    for name, lo_hi in receipt["summary"]["ranges"].items():
+        out[name] = np.asarray(lo_hi, np.float64)
+    return out
+
+
+def merge(
+    store: RunStore,
+    survey: Survey,
+    out: Path,
+    *,
+    fingerprint: str,
+    command: str = "conesurvey",
+    overwrite: bool = False,
+    complevel: int = 1,
+) -> Summary:
+    """Commit the run's store and rename it to ``out``: every block journaled with chunk files
+    of the recorded size (no value is read: the workers wrote them), the content checksum
+    (scheme ``sha256-blocks-v1``) combined from the receipts, the statistics gathered from
+    them. FileExistsError if ``out`` exists and not ``overwrite``; OutputError if a block is
+    missing or changed; OSError if the disk fails. ``complevel`` was fixed when the store was
+    made."""
+    if os.path.lexists(out) and not overwrite:
+        raise exists_error(out)
+    store.check_sizes()
+    tiling = store.tiling
+    hasher = ContentHasher(tiling.block, BLOCK_SCHEME)
+    for d in survey.dims:
+        hasher.add(d, np.asarray(getattr(survey, d), np.float64))
+    summary = Summary()
+    for i in range(tiling.nblocks):
+        receipt = store.journal[i]
+        for name in store.names:
+            hasher.add_digest(name, bytes.fromhex(receipt["values"][name]))
+        summary.add(_receipt_block(receipt))
+    attrs = _provenance_attrs(survey, command, fingerprint, tiling.block)
+    commit_store(store.store, attrs, hasher)
+    put_in_place(store.store, out, overwrite=overwrite, aside=store.root / "replaced.zarr")
+    return summary
+
+
+def write_survey(
+    ds: xr.Dataset,
+    path: str | os.PathLike[str],
+    survey: Survey,
+    *,
+    command: str = "conesurvey",
+    overwrite: bool = False,
+) -> Path:
+    """Write the in-memory survey ``ds`` (the results of ``survey``) as the Zarr store
+    ``path``, through a temporary store beside it renamed into place."""
+    path = Path(path)
+    if os.path.lexists(path) and not overwrite:
+        raise exists_error(path)
+    names = {n: ds[n].dtype for n in survey.variables() if n in ds}
+    tiling = Tiling.for_grid(survey.shape)
+    blocks = (
+        (i, {n: ds[n].values[tiling.slices(i)] for n in names}) for i in range(tiling.nblocks)
+    )
+    attrs = cf_attrs(
+        ds.attrs, title=survey.title, survey_definition=survey.source_text,
+        command=command, scene=survey.scene,
+    )  # fmt: skip
+    attrs[CHECKSUM_BLOCK_ATTR] = list(tiling.block)
+    write_store(path, _layout(survey, names), tiling, blocks, attrs, overwrite=overwrite)
+    return path
+
+
+def write_store(
+    out: Path,
+    layout: Mapping[str, Any],
+    tiling: Tiling,
+    blocks: Any,
+    attrs: Mapping[str, Any],
+    *,
+    overwrite: bool = False,
+    complevel: int = 1,
+    hasher: ContentHasher | None = None,
+    before_commit: Callable[[], None] | None = None,
+) -> str:
+    """Write a whole store in this process: ``layout`` (axes, variables: see
+    :func:`make_store`), the ``(index, arrays)`` of every block of ``tiling``, the global
+    ``attrs``; built as ``OUT.<random>.tmp`` beside ``out``, committed and renamed into place.
+    The content checksum is ``hasher``'s if given (the caller adds every value to it; a
+    conversion keeps the source's scheme), else one of scheme ``sha256-blocks-v1`` computed
+    as the blocks are written. ``before_commit()`` may still refuse (raise): nothing is then
+    left. Returns the checksum."""
+    tmp = out.with_name(f"{out.name}.{os.urandom(6).hex()}.tmp")
+    run_id = os.urandom(16).hex()
+    try:
+        make_store(tmp, run_id, **layout, tiling=tiling, complevel=complevel)
+        variables = layout["variables"]
+        arrays = tuple((n, dt.str) for n, (dt, _) in variables.items())
+        writer = ChunkWriter(str(tmp), run_id, tiling.shape, tiling.chunk, arrays, complevel)
+        own = ContentHasher(tiling.block, BLOCK_SCHEME)
+        for d, (values, _) in layout["axes"].items():
+            own.add(d, values)
+        for i, block in blocks:
+            receipt = writer.write(i, tiling.slices(i), block)
+            for name in variables:
+                own.add_digest(name, bytes.fromhex(receipt["values"][name]))
+        if before_commit is not None:
+            before_commit()
+        result = commit_store(tmp, attrs, hasher or own)
+        aside = out.with_name(f"{out.name}.{os.urandom(6).hex()}.tmp")
+        put_in_place(tmp, out, overwrite=overwrite, aside=aside)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return result
+
+
+def read_fingerprint(path: Path) -> str | None:
+    """The survey fingerprint a finished store records (None if it has none or is not a
+    readable, finished Zarr store)."""
+    try:
+        attrs = read_meta(Path(path) / "zarr.json").get("attributes", {})
+    except OutputError:
+        return None
+    if not isinstance(attrs, dict) or UNFINISHED_ATTR in attrs:
+        return None
+    fp = attrs.get(FINGERPRINT_ATTR)
+    return fp if isinstance(fp, str) else None
+
+
+def read_info(path: str | os.PathLike[str], *, verify: bool = False) -> dict[str, Any]:
+    """Provenance of a store or of the unfinished run behind it: the keys of
+    :func:`engine.io.netcdf.read_info`. OutputError if there is neither or the store is not
+    readable; never anything else for a damaged or foreign store."""
+    path = Path(path)
+    parts = parts_dir(path)
+    info: dict[str, Any] = {"path": str(path), "notes": []}
+    if os.path.lexists(path):
+        if os.path.islink(path) or not os.path.isdir(path):
+            raise OutputError(f"{path} is not a Zarr store (a directory)")
+        info.update(_store_info(path, verify))
+        info["leftover_parts"] = os.path.lexists(parts)
+    elif os.path.lexists(parts):
+        try:
+            check_parts_dir(parts)
+            state = parts_state(parts)
+            state["dims"] = dict(zip(_dims(state["attrs"]["survey_definition"]),
+                                     state.pop("shape"), strict=True))  # fmt: skip
+            info.update(state)
+        except (OutputError, OSError) as exc:
+            info.update({"complete": False, "attrs": {}, "dims": {}, "problem": str(exc)})
+    else:
+        raise OutputError(f"no such Zarr store: {path}")
+    return info
+
+
+def _store_info(path: Path, verify: bool) -> dict[str, Any]:
+    info: dict[str, Any] = {"notes": []}
+    try:
+        view = ZarrView(path)
+    except OutputError:
+        raise
+    except Exception as exc:  # zarr raises many kinds for a damaged or foreign store
+        raise OutputError(f"{path} is not a readable Zarr store ({exc})") from None
+    attrs = {k: view.getncattr(k) for k in view.ncattrs()}
+    info["attrs"] = attrs
+    info["dims"] = {}
+    for var in view.variables.values():
+        info["dims"].update(zip(var.dimensions, var.shape, strict=False))
+    counts = _class_counts(view, info["notes"])
+    if counts is not None:
+        info["counts"] = counts
+    info["complete"] = FINGERPRINT_ATTR in attrs and UNFINISHED_ATTR not in attrs
+    info["checksum"] = CHECKSUM_ATTR in attrs
+    if verify:
+        info["verified"] = verify_file(view)
+    return info

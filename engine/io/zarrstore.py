@@ -1,0 +1,288 @@
+"""The unfinished Zarr run: chunks written where a block is computed, a journal of receipts.
+
+Layout while a run of ``OUT.zarr`` is under way (README, "Scale out: Zarr output")::
+
+    OUT.zarr.lock               the output's lock (engine.io.lock)
+    OUT.zarr.parts/             created by the run, mode 0700 (engine.io.blocks.check_parts_dir)
+    OUT.zarr.parts/store.zarr/  the Zarr v3 store being written; its root attributes say it is
+                                unfinished (``conesurvey_unfinished``) and name the run
+    OUT.zarr.parts/manifest.json  as for netCDF (engine.io.manifest), written after the store
+    OUT.zarr.parts/journal      one line per committed block: its receipt and a line check
+
+Whoever computes a block (a dask worker, or the run itself) writes its chunks with
+:class:`ChunkWriter`: each chunk file under a fresh ``O_EXCL | O_NOFOLLOW`` temporary name,
+fsynced and renamed, every directory opened without following links, relative to one open
+descriptor of the store (a store that was removed and made again by another run is never
+written through: the writer checks the run's id first). A block's chunks are whole chunks, so
+no two writers ever write one chunk. The writer returns a receipt: the bytes and SHA-256 of
+the block's chunk files and the SHA-256 of each variable's values (the content checksum's
+block digests, :mod:`engine.io.contents`). The run appends the receipt to the journal (fsynced)
+and nothing else crosses from the writer to the run. A block counts only if its chunk files
+hash to its last journal line (:meth:`RunStore.scan`, on resume); a block whose writer died
+midway is computed again and its chunks replaced.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import secrets
+import shutil
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..grid import Tiling
+from . import OutputError
+from .atomic import NEW_FILE, O_CLOEXEC, O_NOFOLLOW, NotRegularFile, fsync_dir, read_regular
+from .blocks import Scan, remove_store
+from .manifest import Manifest, read_manifest, write_manifest
+from .zarrlayout import RUN_ATTR, STORE, ChunkWriter, _files_digest, chunk_keys, read_meta
+
+__all__ = ["JOURNAL", "RunStore", "parts_state", "read_journal"]
+
+JOURNAL = "journal"
+_MAX_JOURNAL_BYTES = 1 << 30
+_RECEIPT = ("i", "bytes", "files", "values", "summary")
+
+
+# --- the journal ------------------------------------------------------------------------------
+
+
+def _line(receipt: dict) -> bytes:
+    body = json.dumps(receipt, sort_keys=True, separators=(",", ":"))
+    return f"{body} {hashlib.sha256(body.encode()).hexdigest()[:16]}\n".encode()
+
+
+def _valid(receipt: Any, names: list[str], nblocks: int) -> bool:
+    if not isinstance(receipt, dict) or set(receipt) != {
+        "i",
+        "bytes",
+        "files",
+        "values",
+        "summary",
+    }:
+        return False
+    i, n, files, values, summary = (
+        receipt[k] for k in ("i", "bytes", "files", "values", "summary")
+    )
+    return (
+        _valid_summary(summary)
+        and isinstance(i, int)
+        and 0 <= i < nblocks
+        and isinstance(n, int)
+        and n >= 0
+        and isinstance(files, str)
+        and len(files) == 64
+        and isinstance(values, dict)
+        and sorted(values) == sorted(names)
+        and all(isinstance(v, str) and len(v) == 64 for v in values.values())
+    )
+
+
+def _valid_summary(summary: Any) -> bool:
+    """The statistics of a receipt: flag counts (lists of counts) and value ranges (lo, hi)."""
+    if not isinstance(summary, dict) or set(summary) != {"flags", "ranges"}:
+        return False
+    flags, ranges = summary["flags"], summary["ranges"]
+    return (
+        isinstance(flags, dict)
+        and isinstance(ranges, dict)
+        and all(
+            isinstance(c, list) and all(isinstance(x, int) and x >= 0 for x in c)
+            for c in flags.values()
+        )
+        and all(
+            isinstance(r, list) and len(r) == 2 and all(isinstance(x, int | float) for x in r)
+            for r in ranges.values()
+        )
+    )
+
+
+def read_journal(root: Path, names: list[str], nblocks: int) -> dict[int, dict]:
+    """index -> receipt of the last valid journal line of each block (torn, damaged or foreign
+    lines are skipped); {} if there is no journal."""
+    try:
+        data = read_regular(root / JOURNAL, _MAX_JOURNAL_BYTES, follow_links=False)
+    except FileNotFoundError:
+        return {}
+    except (NotRegularFile, ValueError) as exc:
+        raise OutputError(f"{root / JOURNAL} is unreadable ({exc})") from None
+    out: dict[int, dict] = {}
+    for raw in data.split(b"\n")[:-1]:  # the part after the last newline is torn
+        body, _, check = raw.rpartition(b" ")
+        try:
+            receipt = json.loads(body)
+        except ValueError:
+            continue
+        if _valid(receipt, names, nblocks) and _line(receipt) == raw + b"\n":
+            out[receipt["i"]] = receipt
+    return out
+
+
+# --- the run's store --------------------------------------------------------------------------
+
+
+@dataclass
+class RunStore:
+    """The unfinished Zarr store of one run and its journal (the runner's view; the same
+    methods as :class:`engine.io.blocks.BlockStore`)."""
+
+    root: Path
+    tiling: Tiling
+    names: dict[str, np.dtype]
+    run_id: str
+    complevel: int
+    warn: Callable[[str], None] = field(default=lambda msg: None)
+    journal: dict[int, dict] = field(default_factory=dict)
+
+    @property
+    def store(self) -> Path:
+        return self.root / STORE
+
+    @property
+    def writer(self) -> ChunkWriter:
+        arrays = tuple((n, dt.str) for n, dt in self.names.items())
+        return ChunkWriter(
+            str(self.store.resolve()),
+            self.run_id,
+            self.tiling.shape,
+            self.tiling.chunk,
+            arrays,
+            self.complevel,
+        )
+
+    @classmethod
+    def create(
+        cls,
+        root: Path,
+        manifest: Manifest,
+        make_store: Callable[[Path, str], None],
+        complevel: int,
+        warn: Callable[[str], None] = lambda msg: None,
+    ) -> RunStore:
+        """A new run: the directory (mode 0700; FileExistsError if it exists), the store made by
+        ``make_store(path, run_id)``, then the manifest (a store without one is debris) and an
+        empty journal. Removed again if any of that fails."""
+        os.mkdir(root, 0o700)
+        run_id = secrets.token_hex(16)
+        try:
+            make_store(root / STORE, run_id)
+            write_manifest(root, manifest)
+            os.close(os.open(root / JOURNAL, NEW_FILE, 0o600))
+            fsync_dir(root)
+            fsync_dir(root.parent)
+        except BaseException:
+            shutil.rmtree(root, ignore_errors=True)
+            raise
+        return cls(root, manifest.tiling, manifest.names, run_id, complevel, warn)
+
+    @classmethod
+    def open(cls, root: Path, warn: Callable[[str], None] = lambda msg: None) -> RunStore:
+        """The existing run ``root``: manifest, journal, the store's run id and compression."""
+        m = read_manifest(root)
+        meta = read_meta(root / STORE / "zarr.json")
+        run_id = meta.get("attributes", {}).get(RUN_ATTR)
+        if not isinstance(run_id, str):
+            raise OutputError(f"{root / STORE} is not the store of an unfinished run")
+        first = next(iter(m.names))
+        codecs = read_meta(root / STORE / first / "zarr.json").get("codecs", [])
+        level = 0 if len(codecs) < 2 else 1
+        journal = read_journal(root, list(m.names), m.tiling.nblocks)
+        return cls(root, m.tiling, m.names, run_id, level, warn, journal)
+
+    def path(self, index: int) -> Path:
+        """Where block ``index`` is written (for messages)."""
+        return self.store
+
+    def keys(self, index: int) -> list[str]:
+        slab = self.tiling.slices(index)
+        return [k for n in self.names for k in chunk_keys(n, slab, self.tiling.chunk)]
+
+    def commit(self, index: int, receipt: dict) -> None:
+        """Journal the receipt of block ``index`` (its chunks are written and fsynced)."""
+        if not _valid(receipt, list(self.names), self.tiling.nblocks) or receipt["i"] != index:
+            raise OutputError(f"block {index}: the writer's receipt is not valid")
+        fd = os.open(self.root / JOURNAL, os.O_WRONLY | os.O_APPEND | O_NOFOLLOW | O_CLOEXEC)
+        try:
+            os.write(fd, _line(receipt))
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        self.journal[index] = receipt
+
+    def _digest(self, index: int) -> tuple[int, str] | None:
+        entries = []
+        for key in self.keys(index):
+            try:
+                fd = os.open(self.store / key, os.O_RDONLY | O_NOFOLLOW | O_CLOEXEC)
+            except OSError:
+                return None
+            with os.fdopen(fd, "rb") as f:
+                data = f.read()
+            entries.append((key, len(data), hashlib.sha256(data).hexdigest()))
+        return sum(n for _, n, _ in entries), _files_digest(entries)
+
+    def scan(self) -> Scan:
+        """Hash the chunk files of every journaled block against its receipt (changes
+        nothing); blocks not journaled are simply written again."""
+        found = Scan()
+        for index, receipt in sorted(self.journal.items()):
+            got = self._digest(index)
+            if got == (receipt["bytes"], receipt["files"]):
+                found.good.add(index)
+            else:
+                why = "missing" if got is None else "its checksum does not match the journal"
+                found.bad[f"block {index}"] = f"chunk files {why}"
+        return found
+
+    def discard(self, found: Scan) -> None:
+        """Report the bad blocks (their chunks are replaced when they are computed again)."""
+        for name, why in found.bad.items():
+            self.warn(f"{name} of {self.store} is corrupt ({why}); recomputing")
+
+    def check_sizes(self) -> None:
+        """OutputError unless every block is journaled and its chunk files have the recorded
+        total size (a cheap check before the store is committed: no value is read)."""
+        for index in range(self.tiling.nblocks):
+            receipt = self.journal.get(index)
+            if receipt is None:
+                raise OutputError(f"block {index} is not recorded in the journal")
+            try:
+                size = sum(os.lstat(self.store / k).st_size for k in self.keys(index))
+            except OSError:
+                size = -1
+            if size != receipt["bytes"]:
+                raise OutputError(
+                    f"the chunk files of block {index} changed since they were written; "
+                    "it will be computed again"
+                )
+
+    def temporaries(self) -> Iterator[Path]:
+        """Temporary files left in the store by writers that died midway."""
+        for dirpath, _, filenames in os.walk(self.store):
+            for name in filenames:
+                if name.startswith(".") and name.endswith(".tmp"):
+                    yield Path(dirpath) / name
+
+    def remove(self) -> None:
+        """Delete the run's directory: the manifest first (what is left is debris)."""
+        remove_store(self.root)
+
+
+def parts_state(root: Path) -> dict[str, Any]:
+    """What an unfinished Zarr run says (``read_info``): OutputError if it cannot be read.
+    Blocks are counted from the journal, not verified."""
+    m = read_manifest(root)
+    journal = read_journal(root, list(m.names), m.tiling.nblocks)
+    return {
+        "complete": False,
+        "attrs": {"survey_definition": m.survey_definition, "engine": m.engine},
+        "blocks_done": len(journal),
+        "blocks_total": m.tiling.nblocks,
+        "shape": m.tiling.shape,
+    }
