@@ -77,6 +77,8 @@ def _newton_step(target, rc, irc2, A, C, lo, hi, r):
     rn = r - F / Fp if 0.0 < Fp < math.inf else math.nan
     if abs(rn - r) <= 2.0 * _EPS * r:
         return rn, lo, hi, True
+    if hi - lo <= 4.0 * _EPS * hi:  # the bracket holds the root to rounding: Newton on a
+        return r, lo, hi, True  # noisy F can step back and forth across it forever
     if not (lo < rn < hi):
         if math.isinf(hi):
             rn = 2.0 * r

@@ -256,6 +256,25 @@ def test_regression_deep_well_outer_turning_point():
     assert float(ds.period) == pytest.approx(DEEP_WELL_PERIOD, rel=1e-10)
 
 
+NEWTON_BRACKET_COLLAPSE = [  # (alpha, energy, h, L_z): ordinary bounded orbits whose outer
+    # turning point's Newton iteration stepped back and forth across the root on a bracket one
+    # ulp wide (out_of_range, 1 point in ~1e5 of a typical survey)
+    (0.5, 73.7, -1.0, 0.95),
+    (0.837282925770223, 1226.42813382275, -2.8749345082056994, -0.9962803579716359),
+    (0.34878959762430445, 296.3909361118312, -2.876097043303211, -0.4463800917013372),
+    (0.4347819436654926, 68.2373051294599, -0.35288439195464694, -0.11456402388448605),
+    (0.16997917252530306, 1255.9279477015984, 2.2522441497866588, 0.8235807055279438),
+]
+
+
+@pytest.mark.parametrize("alpha,E,h,Lz", NEWTON_BRACKET_COLLAPSE)
+def test_regression_turning_points_on_a_one_ulp_bracket(alpha, E, h, Lz):
+    ds = engine.evaluate(alpha, E, h, Lz)
+    o = {name: float(ds[name]) for name in FLOAT_NAMES}
+    assert int(ds.orbit_class) == BOUNDED, o
+    check_point(BOUNDED, o, alpha, E, h, Lz, 1.0, 9.81, 0.4, None)
+
+
 # --- the whole double range ------------------------------------------------------------------
 def _signed_log(lo: float, hi: float) -> st.SearchStrategy[float]:
     return st.builds(lambda e, s: s * 10.0**e, st.floats(lo, hi), st.sampled_from([-1.0, 1.0]))
