@@ -176,7 +176,7 @@ def test_scene_rules_off_cone_escapes_spill_and_slips_first():
     vmin = float(engine.minimum_energy(0.5, 1.0, 0.8))
     energy = vmin + 1.5 * abs(vmin)
     cls, r1, r2, *_, mur = ideal_orbit(0.5, energy, 1.0, 0.8, M, G, K, 1e-12)
-    mu = 0.45
+    mu = 0.6  # |F|/N is 0.584 at r1 and 0.616 at most on the orbit: it first exceeds mu inside
     rs = first_slip(r1, r2, 0.5, 1.0, 0.8, M, G, K, mu)
     assert r1 < rs < r2
     far = orbit_point(0.5, energy, 1.0, 0.8, M, G, K, a, 1e3, mu, 1e-12)
