@@ -17,7 +17,9 @@ On a survey grid the family is the same for every energy of an (alpha, h, L_z) t
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 
+import numba
 import numpy as np
 from numba import prange
 
@@ -315,76 +317,135 @@ def profile_batch(alpha, energy, h, Lz, M, g, k, circ_tol, out_cls, out_f, upto)
                 out_f[0, i0 + j] = S[_R1, j] + S[_T, j] + S[_MU, j] + F[9, j]
 
 
-@parallel_kernel
-def orbit_batch(alpha, energy, h, Lz, M, g, k, a, rim, mu, circ_tol, out_cls, out_f):
-    """:func:`.geometry.orbit_point` over 1-D arrays, in parallel and in lanes: ``out_cls``
-    int8[n], ``out_f`` float64[10, n] (rows :data:`BATCH_ROWS`)."""
-    n = alpha.shape[0]
+@kernel
+def _grid_triples(alpha, h, Lz, ne, t0, m, S, base):
+    """Triples t0..t0+m-1 of the grid (alpha x h x Lz, Lz fastest) into the lanes' table, and
+    the flat index of each at energy 0."""
+    nh, nl = h.size, Lz.size
+    for j in range(m):
+        t = t0 + j
+        ia, ih, il = t // (nh * nl), (t // nl) % nh, t % nl
+        S[_AL, j] = alpha[ia]
+        S[_H, j] = h[ih]
+        S[_LZ, j] = Lz[il]
+        base[j] = (ia * ne * nh + ih) * nl + il
+
+
+@kernel
+def _grid_energy(energy, ie, relative, nhl, m, F, S, base, oidx, out_energy):
+    """Energy ie of the grid for every lane (V_min + offset |V_min| when ``relative``)."""
+    for j in range(m):
+        e = energy[ie]
+        if relative:
+            vmin = F[9, j]
+            e = vmin + e * abs(vmin)
+        S[_E, j] = e
+        o = base[j] + ie * nhl
+        oidx[j] = o
+        out_energy[o] = e
+
+
+@kernel
+def _no_minimum(m, S, out_cls, out_f, oidx):
+    """Lanes whose relative energy is undefined (no V_min): FORBIDDEN, NaN but r_circ."""
+    for j in range(m):
+        if math.isnan(S[_E, j]):
+            o = oidx[j]
+            out_cls[o] = FORBIDDEN
+            for i in range(10):
+                if i != 2:
+                    out_f[i, o] = math.nan
+
+
+def _units(n, ne, nhl, grid):
+    """Units of work: chunks of BLOCKS_PER_CHUNK blocks of points, or (block of LANES triples,
+    chunk of GRID_ENERGY_CHUNK energies) on a grid."""
+    if grid:
+        return (n * nhl + LANES - 1) // LANES * ((ne + GRID_ENERGY_CHUNK - 1) // GRID_ENERGY_CHUNK)
+    return ((n + LANES - 1) // LANES + BLOCKS_PER_CHUNK - 1) // BLOCKS_PER_CHUNK
+
+
+@kernel
+def _orbit_units(u0, u1, alpha, energy, h, Lz, grid, relative, M, g, k, a, rim, mu, circ_tol,
+                 out_cls, out_f, out_energy):  # fmt: skip
+    """Units u0..u1-1 of :func:`orbit_batch` (``grid`` False) or :func:`orbit_grid` (True)."""
+    n, nhl = alpha.size, h.size * Lz.size
+    ntri = alpha.size * nhl
+    nec = (energy.size + GRID_ENERGY_CHUNK - 1) // GRID_ENERGY_CHUNK
     nblk = (n + LANES - 1) // LANES
-    nchunk = (nblk + BLOCKS_PER_CHUNK - 1) // BLOCKS_PER_CHUNK
-    for ch in prange(nchunk):
-        F = np.empty((NF, LANES))
-        S = np.empty((_NS, LANES))
-        R = np.empty((3, LANES))
-        oidx = np.empty(LANES, np.int64)
-        for b in range(ch * BLOCKS_PER_CHUNK, min(nblk, (ch + 1) * BLOCKS_PER_CHUNK)):
-            i0 = b * LANES
-            m = min(LANES, n - i0)
-            _load(alpha, energy, h, Lz, i0, m, S, oidx)
-            families(S[_AL], S[_H], S[_LZ], m, M, g, k, False, F, R)
+    F = np.empty((NF, LANES))
+    S = np.empty((_NS, LANES))
+    R = np.empty((3, LANES))
+    oidx = np.empty(LANES, np.int64)
+    base = np.empty(LANES, np.int64)
+    for unit in range(u0, u1):
+        m = 0
+        if grid:
+            t0 = (unit // nec) * LANES
+            m = min(LANES, ntri - t0)
+            first = (unit % nec) * GRID_ENERGY_CHUNK
+            last = min(energy.size, first + GRID_ENERGY_CHUNK)
+            _grid_triples(alpha, h, Lz, energy.size, t0, m, S, base)
+        else:
+            first = unit * BLOCKS_PER_CHUNK
+            last = min(nblk, first + BLOCKS_PER_CHUNK)
+        for b in range(first, last):
+            if grid:
+                if b == first:
+                    families(S[_AL], S[_H], S[_LZ], m, M, g, k, grid, F, R)
+                _grid_energy(energy, b, relative, nhl, m, F, S, base, oidx, out_energy)
+            else:
+                m = min(LANES, n - b * LANES)
+                _load(alpha, energy, h, Lz, b * LANES, m, S, oidx)
+                families(S[_AL], S[_H], S[_LZ], m, M, g, k, grid, F, R)
             lanes(F, m, M, g, k, a, rim, mu, circ_tol, S, out_cls, out_f, oidx)
+            if grid and relative:
+                _no_minimum(m, S, out_cls, out_f, oidx)
 
 
-@parallel_kernel
+_POOL: dict[int, ThreadPoolExecutor] = {}
+
+
+def _orbits(*args) -> None:
+    """:func:`_orbit_units` over all units, split evenly among ``numba.get_num_threads()``
+    threads (the kernel releases the GIL). Not a ``prange`` kernel: numba compiles a parallel
+    kernel's whole call tree once more (~9 s on a cold cache), a thread pool costs nothing."""
+    alpha, energy, h, Lz, grid = args[:5]
+    units = _units(alpha.size, energy.size, h.size * Lz.size, grid)
+    nt = max(1, min(numba.get_num_threads(), units))
+    if nt == 1:
+        _orbit_units(0, units, *args)
+        return
+    if nt not in _POOL:
+        _POOL[nt] = ThreadPoolExecutor(max_workers=nt, thread_name_prefix="conesurvey-lanes")
+    cuts = [units * i // nt for i in range(nt + 1)]
+    jobs = [_POOL[nt].submit(_orbit_units, cuts[i], cuts[i + 1], *args) for i in range(nt)]
+    for job in jobs:
+        job.result()
+
+
+_NO_ENERGY = np.empty(0)
+
+
+def orbit_batch(alpha, energy, h, Lz, M, g, k, a, rim, mu, circ_tol, out_cls, out_f) -> None:
+    """:func:`.geometry.orbit_point` over 1-D float64 arrays, in parallel and in lanes:
+    ``out_cls`` int8[n], ``out_f`` float64[10, n] (rows :data:`BATCH_ROWS`)."""
+    _orbits(alpha, energy, h, Lz, False, False, float(M), float(g), float(k), float(a),
+            float(rim), float(mu), float(circ_tol), out_cls, out_f, _NO_ENERGY)  # fmt: skip
+
+
 def orbit_grid(alpha, energy, h, Lz, relative, M, g, k, a, rim, mu, circ_tol, out_cls, out_f,
-               out_energy):  # fmt: skip
-    """:func:`orbit_batch` over the grid alpha x energy x h x Lz (1-D axes; outputs flat in
-    that C order), each family computed once per (alpha, h, L_z) for a chunk of energies.
+               out_energy) -> None:  # fmt: skip
+    """:func:`orbit_batch` over the grid alpha x energy x h x Lz (1-D float64 axes; outputs
+    flat in that C order), each family computed once per (alpha, h, L_z) for a chunk of
+    energies.
 
     With ``relative`` the energy axis is an offset: the energy is V_min + offset |V_min| and a
     point whose V_min is undefined is FORBIDDEN with NaN outputs (but r_circ);
     ``out_energy`` float64[n] receives the absolute energy.
     """
-    na, ne, nh, nl = alpha.size, energy.size, h.size, Lz.size
-    ntri = na * nh * nl
-    ntb = (ntri + LANES - 1) // LANES
-    nec = (ne + GRID_ENERGY_CHUNK - 1) // GRID_ENERGY_CHUNK
-    for unit in prange(ntb * nec):
-        tb, ec = unit // nec, unit % nec
-        F = np.empty((NF, LANES))
-        S = np.empty((_NS, LANES))
-        R = np.empty((3, LANES))
-        oidx = np.empty(LANES, np.int64)
-        base = np.empty(LANES, np.int64)
-        t0 = tb * LANES
-        m = min(LANES, ntri - t0)
-        for j in range(m):
-            t = t0 + j
-            ia, ih, il = t // (nh * nl), (t // nl) % nh, t % nl
-            S[_AL, j] = alpha[ia]
-            S[_H, j] = h[ih]
-            S[_LZ, j] = Lz[il]
-            base[j] = (ia * ne * nh + ih) * nl + il
-        families(S[_AL], S[_H], S[_LZ], m, M, g, k, True, F, R)
-        for ie in range(ec * GRID_ENERGY_CHUNK, min(ne, (ec + 1) * GRID_ENERGY_CHUNK)):
-            for j in range(m):
-                e = energy[ie]
-                if relative:
-                    vmin = F[9, j]
-                    e = vmin + e * abs(vmin)
-                S[_E, j] = e
-                o = base[j] + ie * nh * nl
-                oidx[j] = o
-                out_energy[o] = e
-            lanes(F, m, M, g, k, a, rim, mu, circ_tol, S, out_cls, out_f, oidx)
-            if relative:
-                for j in range(m):
-                    if math.isnan(S[_E, j]):
-                        o = oidx[j]
-                        out_cls[o] = FORBIDDEN
-                        for i in range(10):
-                            if i != 2:
-                                out_f[i, o] = math.nan
+    _orbits(alpha, energy, h, Lz, True, bool(relative), float(M), float(g), float(k), float(a),
+            float(rim), float(mu), float(circ_tol), out_cls, out_f, out_energy)  # fmt: skip
 
 
 @parallel_kernel
