@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from . import accessor  # noqa: F401  (registers the ds.cone accessor)
 from ._version import __version__
-from .api import evaluate, minimum_energy, radial_energy, survey
+from .api import evaluate, launch_survey, minimum_energy, radial_energy, survey
 from .fates import Horizon
 from .kernels.fate import FATE_NAMES
 from .kernels.geometry import CLASS_NAMES
@@ -22,6 +22,7 @@ __all__ = [
     "Scene",
     "evaluate",
     "survey",
+    "launch_survey",
     "simulate",
     "minimum_energy",
     "radial_energy",

@@ -1,5 +1,9 @@
-"""Text for error messages about a parsed TOML document: values written back as TOML, type
-names, key paths and did-you-mean suggestions (used by :mod:`engine.surveyfile`)."""
+"""Checks of a parsed TOML document and the text of their error messages: values written back as
+TOML, type names, key paths and did-you-mean suggestions (used by :mod:`engine.surveyfile`).
+
+:class:`TomlChecker` holds the generic checks (a table, known keys, a number that is not a
+boolean or a string, a string, a choice); a reader subclasses it and says, in :meth:`fail`,
+which exception a problem becomes."""
 
 from __future__ import annotations
 
@@ -8,7 +12,7 @@ import difflib
 import math
 from typing import Any
 
-__all__ = ["toml_repr", "toml_type", "suggest", "join_key"]
+__all__ = ["TomlChecker", "toml_repr", "toml_type", "suggest", "join_key"]
 
 
 def toml_repr(value: Any, depth: int = 0) -> str:
@@ -64,3 +68,56 @@ def suggest(key: str, candidates: tuple[str, ...]) -> str:
 
 def join_key(path: str, key: str) -> str:
     return f"{path}.{key}" if path else key
+
+
+class TomlChecker:
+    """Generic checks of values of a parsed TOML document; each problem is raised as
+    ``self.fail(key path, problem)``."""
+
+    def fail(self, key: str, problem: str) -> Exception:
+        """The exception for a problem at ``key`` (subclasses say which)."""
+        return ValueError(f"{key}: {problem}" if key else problem)
+
+    def bad_value(self, key: str, value: Any, problem: str) -> Exception:
+        return self.fail(key, f"{problem}, got {toml_repr(value)}")
+
+    def table(self, parent: dict, key: str, path: str, *, required: bool) -> dict | None:
+        if key not in parent:
+            if required:
+                raise self.fail(join_key(path, key), "missing (a table is required)")
+            return None
+        value = parent[key]
+        if not isinstance(value, dict):
+            raise self.fail(
+                join_key(path, key), f"must be a table, got {toml_type(value)} {toml_repr(value)}"
+            )
+        return value
+
+    def check_keys(self, table: dict, allowed: tuple[str, ...], path: str) -> None:
+        for key in table:
+            if key not in allowed:
+                where = join_key(path, key)
+                raise self.fail(where, f"unknown key{suggest(key, allowed)}")
+
+    def number(self, value: Any, key: str) -> float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise self.fail(key, f"must be a number, got {toml_type(value)} {toml_repr(value)}")
+        try:
+            x = float(value)
+        except OverflowError:  # a TOML integer beyond the range of a double
+            raise self.bad_value(key, value, "must be finite (|x| < 1.8e308)") from None
+        if not math.isfinite(x):
+            raise self.bad_value(key, value, "must be finite")
+        return x
+
+    def string(self, value: Any, key: str) -> str:
+        if not isinstance(value, str):
+            raise self.fail(key, f"must be a string, got {toml_type(value)} {toml_repr(value)}")
+        return value
+
+    def choice(self, value: Any, key: str, choices: tuple[str, ...]) -> str:
+        s = self.string(value, key)
+        if s not in choices:
+            hint = suggest(s, choices)
+            raise self.fail(key, f"unknown value {toml_repr(s)}{hint}")
+        return s

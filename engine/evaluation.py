@@ -9,8 +9,10 @@ the in-memory survey, local streamed runs and dask workers compute the very same
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
+import numba
 import numpy as np
 
 from .fates import Horizon, fates, require_horizon
@@ -19,15 +21,18 @@ from .kernels.batch import (
     BATCH_ROWS,
     empty_outputs,
     minimum_energy_batch,
-    orbit_batch,
-    orbit_grid,
+    orbit_units,
+    work_units,
 )
 from .kernels.geometry import BOUNDED, CIRCULAR_TOL
+from .kernels.protocol import NOT_BOUNDED
+from .launch import invariants
 from .methods import DEFAULT_RTOL
 from .scene import Scene
 from .schema import (
     DIMS,
     INTEGRATED,
+    LAUNCH_DIMS,
     REPLACED_BY_INTEGRATION,
     RESULTS,
     map_kind,
@@ -48,6 +53,7 @@ def evaluate_flat(
     circular_tol: float = CIRCULAR_TOL,
     rtol: float = DEFAULT_RTOL,
     horizon: Horizon | None = None,
+    r_start: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """Kernel call on equal-length 1-D float64 arrays (validated by the caller).
 
@@ -55,7 +61,8 @@ def evaluate_flat(
     ``energy_absolute``. Every map holds the closed form; what else depends on the kind of map
     (:func:`engine.schema.map_kind`): where rolling ends on a cone with a rim or a friction
     limit (closed form), one integrated radial period, or each orbit's fate (integrated up to
-    ``horizon``; then the closed form describes the launch orbit on the ideal cone).
+    ``horizon`` from ``r_start``, by default r_min; then the closed form describes the launch
+    orbit on the ideal cone).
     """
     a = np.ascontiguousarray(alpha, np.float64)
     e = np.ascontiguousarray(energy, np.float64)
@@ -75,24 +82,75 @@ def evaluate_flat(
     if kind == "one period":
         out.update(_integrate_bounded(a, e, hh, lz, scene, method, rtol, cls))
     elif kind == "fate":
-        out.update(fates(a, e, hh, lz, f[0], scene, method, rtol, require_horizon(horizon),
+        start = f[0] if r_start is None else np.ascontiguousarray(r_start, np.float64)
+        out.update(fates(a, e, hh, lz, start, scene, method, rtol, require_horizon(horizon),
                          classes=cls))  # fmt: skip
     return out
 
 
 def _integrate_bounded(a, e, hh, lz, scene, method, rtol, cls) -> dict[str, np.ndarray]:
-    """The one-period variables for every point: bounded points integrated, the others NaN,
-    no steps, status 0."""
+    """The one-period variables for every point: bounded points integrated; the others NaN,
+    no steps and the status "not_bounded" (nothing to integrate over a period)."""
     n = a.shape[0]
     sel = np.flatnonzero(cls == BOUNDED)
     res = evaluate_integrated(a[sel], e[sel], hh[sel], lz[sel], scene, method, rtol)
     upd: dict[str, np.ndarray] = {}
     for name in (*REPLACED_BY_INTEGRATION, *INTEGRATED):
         dtype = np.dtype(RESULTS[name].dtype)
-        col = np.full(n, np.nan if dtype.kind == "f" else 0, dtype)
+        fill = NOT_BOUNDED if name == "status" else (np.nan if dtype.kind == "f" else 0)
+        col = np.full(n, fill, dtype)
         col[sel] = res[name]
         upd[name] = col
     return upd
+
+
+#: Jobs per thread: units of work are handed out in this many pieces per thread, so a thread
+#: that finishes early (cheap points: forbidden, circular) takes more.
+JOBS_PER_THREAD = 8
+_POOL: dict[int, ThreadPoolExecutor] = {}
+_NO_ENERGY = np.empty(0)
+
+
+def _in_threads(*args) -> None:
+    """:func:`.kernels.batch.orbit_units` over all its units of work, on
+    ``numba.get_num_threads()`` threads (the kernel releases the GIL). Not a ``prange`` kernel:
+    numba compiles a parallel kernel's whole call tree once more (~9 s on a cold cache); a
+    thread pool costs nothing. The results do not depend on the number of threads."""
+    alpha, energy, h, Lz, grid = args[:5]
+    units = work_units(alpha.size, energy.size, h.size * Lz.size, grid)
+    nt = max(1, min(numba.get_num_threads(), units))
+    if nt == 1:
+        orbit_units(0, units, *args)
+        return
+    if nt not in _POOL:
+        _POOL[nt] = ThreadPoolExecutor(max_workers=nt, thread_name_prefix="conesurvey-lanes")
+    nj = min(units, nt * JOBS_PER_THREAD)
+    cuts = [units * i // nj for i in range(nj + 1)]
+    jobs = [_POOL[nt].submit(orbit_units, cuts[i], cuts[i + 1], *args) for i in range(nj)]
+    for job in jobs:
+        job.result()
+
+
+def orbit_batch(alpha: np.ndarray, energy: np.ndarray, h: np.ndarray, Lz: np.ndarray,
+                M: float, g: float, k: float, a: float, rim: float, mu: float, circ_tol: float,
+                out_cls: np.ndarray, out_f: np.ndarray) -> None:  # fmt: skip
+    """:func:`.kernels.geometry.orbit_point` over 1-D float64 arrays, in parallel and in lanes:
+    ``out_cls`` int8[n], ``out_f`` float64[10, n] (rows :data:`.kernels.batch.BATCH_ROWS`)."""
+    _in_threads(alpha, energy, h, Lz, False, False, float(M), float(g), float(k), float(a),
+                float(rim), float(mu), float(circ_tol), out_cls, out_f, _NO_ENERGY)  # fmt: skip
+
+
+def orbit_grid(alpha: np.ndarray, energy: np.ndarray, h: np.ndarray, Lz: np.ndarray,
+               relative: bool, M: float, g: float, k: float, a: float, rim: float, mu: float,
+               circ_tol: float, out_cls: np.ndarray, out_f: np.ndarray,
+               out_energy: np.ndarray) -> None:  # fmt: skip
+    """:func:`orbit_batch` over the grid alpha x energy x h x Lz (1-D float64 axes; outputs
+    flat in that C order), each family computed once per (alpha, h, L_z) for a chunk of
+    energies; ``relative``: the energy axis is an offset (:func:`.kernels.batch.orbit_units`),
+    ``out_energy`` float64[n] receives the absolute energy."""
+    _in_threads(alpha, energy, h, Lz, True, bool(relative), float(M), float(g), float(k),
+                float(a), float(rim), float(mu), float(circ_tol), out_cls, out_f,
+                out_energy)  # fmt: skip
 
 
 def minimum_energy_flat(alpha: np.ndarray, h: np.ndarray, Lz: np.ndarray, scene: Scene):
@@ -105,24 +163,28 @@ def minimum_energy_flat(alpha: np.ndarray, h: np.ndarray, Lz: np.ndarray, scene:
 def evaluate_block(spec: dict[str, Any], slices: tuple[slice, ...]) -> dict[str, np.ndarray]:
     """Results on one hyperslab of the grid, each array shaped like the slab.
 
-    ``spec``: axes ``alpha``, ``energy``, ``h``, ``Lz`` (1-D float64), ``scene`` (Scene),
+    ``spec``: ``dims`` (:data:`engine.schema.DIMS`, the default, or
+    :data:`engine.schema.LAUNCH_DIMS`) and each axis (1-D float64), ``scene`` (Scene),
     ``method``, ``energy_relative``, ``circular_tol``, ``rtol``, ``horizon`` (fate maps).
     With a relative energy axis the absolute energy (``energy_absolute``) is V_min + offset
-    |V_min| from the slab's own V_min; where V has no minimum it is NaN and the point is
-    classed forbidden. A closed-form map runs the grid kernel, which computes what does not
-    depend on the energy once per (alpha, h, L_z); its numbers equal :func:`evaluate_flat`'s
-    on the same points bit for bit.
+    |V_min| from the slab's own V_min; where V has no minimum it is NaN and the point is classed
+    forbidden. On a grid of launch states the invariants of each launch are computed
+    (:func:`engine.launch.invariants`) and returned too, and fates start at the launch. A
+    closed-form map on (alpha, energy, h, L_z) runs the grid kernel, which computes what does
+    not depend on the energy once per (alpha, h, L_z); its numbers equal
+    :func:`evaluate_flat`'s on the same points bit for bit.
     """
+    dims = spec.get("dims", DIMS)
     sub = [
         np.ascontiguousarray(np.asarray(spec[d])[s], np.float64)
-        for d, s in zip(DIMS, slices, strict=False)
+        for d, s in zip(dims, slices, strict=True)
     ]
     shape = tuple(x.size for x in sub)
     scene = spec["scene"]
-    if map_kind(spec["method"], scene) == "closed form":
+    if tuple(dims) == DIMS and map_kind(spec["method"], scene) == "closed form":
         res = _closed_form_grid(sub, scene, spec)
     else:
-        res = _flat_block(sub, scene, spec)
+        res = _flat_block(sub, dims, scene, spec)
     return {name: col.reshape(shape) for name, col in res.items()}
 
 
@@ -144,25 +206,24 @@ def _closed_form_grid(sub: list[np.ndarray], scene: Scene, spec: dict[str, Any])
     return out
 
 
-def _flat_block(sub: list[np.ndarray], scene: Scene, spec: dict[str, Any]):
+def _flat_block(sub: list[np.ndarray], dims: tuple[str, ...], scene: Scene,
+                spec: dict[str, Any]):  # fmt: skip
     """Any map on the grid of the axes ``sub``, through :func:`evaluate_flat` on its points."""
-    A, E, H, L = (x.reshape(-1) for x in np.meshgrid(*sub, indexing="ij"))
+    A, X1, X2, X3 = (x.reshape(-1) for x in np.meshgrid(*sub, indexing="ij"))
     e_abs = None
-    if spec["energy_relative"]:
-        vmin = minimum_energy_flat(A, H, L, scene)
-        e_abs = vmin + E * np.abs(vmin)
-        E = e_abs
-    res = evaluate_flat(
-        A,
-        E,
-        H,
-        L,
-        scene,
-        spec["method"],
-        circular_tol=spec["circular_tol"],
-        rtol=spec["rtol"],
-        horizon=spec.get("horizon"),
-    )
+    r_start = None
+    if dims == LAUNCH_DIMS:
+        inv = invariants(A, X1, 0.0, X2, X3, scene)
+        E, H, L, r_start = inv["energy"], inv["h"], inv["Lz"], X1
+    else:
+        E, H, L = X1, X2, X3
+        if spec["energy_relative"]:
+            vmin = minimum_energy_flat(A, H, L, scene)
+            e_abs = vmin + E * np.abs(vmin)
+            E = e_abs
+    res = evaluate_flat(A, E, H, L, scene, spec["method"], circular_tol=spec["circular_tol"],
+                        rtol=spec["rtol"], horizon=spec.get("horizon"),
+                        r_start=r_start)  # fmt: skip
     if e_abs is not None:
         undefined = np.isnan(e_abs)
         if undefined.any():
@@ -173,4 +234,6 @@ def _flat_block(sub: list[np.ndarray], scene: Scene, spec: dict[str, Any]):
             if "fate" in res:
                 res["fate"][undefined] = 0  # no orbit
         res["energy_absolute"] = e_abs
+    if r_start is not None:
+        res.update(energy=E, h=H, Lz=L)
     return res

@@ -15,8 +15,9 @@ from .kernels.geometry import BOUNDED, CIRCULAR, HYPERBOLIC, RADIAL
 from .kernels.model import P_THETA_MAX, REVOLUTIONS
 from .methods import check_method
 from .scene import Scene
+from .schema import map_kind
 
-__all__ = ["Horizon", "fates", "DEFAULT_MAX_STEPS"]
+__all__ = ["Horizon", "fates", "check_horizon", "require_horizon", "DEFAULT_MAX_STEPS"]
 
 #: Step budget of one orbit's fate run (accepted + rejected steps).
 DEFAULT_MAX_STEPS = 10_000_000
@@ -63,6 +64,23 @@ class Horizon:
         for name, v in (("horizon_time", self.time), ("horizon_revolutions", self.revolutions)):
             out[name] = "none" if v is None else float(v)
         return out
+
+
+def check_horizon(
+    method: str, scene: Scene, time: float | None, revolutions: float | None
+) -> Horizon | None:
+    """The horizon of a fate map (required there), None for other maps (and refused if given,
+    since nothing would use it): the one check of the API and the survey file."""
+    horizon = Horizon(time, revolutions)
+    kind = map_kind(method, scene)
+    if kind == "fate":
+        return require_horizon(horizon)
+    if horizon.given:
+        raise ValueError(
+            "a horizon applies to fate maps only (an integrator on a scene with rolling "
+            f"resistance, a rim or a friction limit); this is a {kind} map"
+        )
+    return None
 
 
 def require_horizon(horizon: Horizon | None) -> Horizon:

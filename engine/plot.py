@@ -64,6 +64,18 @@ CLASS_COLORS: dict[str, str] = {
     "hyperbolic": "#ff7f0e",
     "radial": "#9467bd",
     "spills": "#2ca02c",
+    "slips": "#e377c2",
+    "off_cone": "#8c564b",
+    "out_of_range": "#000000",
+}
+FATE_COLORS: dict[str, str] = {
+    "no_orbit": "#d9d9d9",
+    "rolling": "#1f77b4",
+    "spilled": "#17becf",
+    "slipped": "#e377c2",
+    "rest": "#a65628",
+    "vertex": "#9467bd",
+    "failed": "#000000",
 }
 STATUS_COLORS: dict[str, str] = {
     "ok": "#4daf4a",
@@ -75,6 +87,8 @@ STATUS_COLORS: dict[str, str] = {
     "non_finite": "#000000",
     "unsupported_scene": "#7f7f7f",
     "buffer_full": "#bcbd22",
+    "rest": "#a65628",
+    "vertex": "#9467bd",
 }
 FALLBACK_COLORS = ("#e41a1c", "#377eb8", "#984ea3", "#ff7f00", "#a65628", "#f781bf", "#999999")
 UNDEFINED_COLOR = "#d9d9d9"
@@ -116,7 +130,7 @@ def _edges(v: np.ndarray, log: bool) -> np.ndarray:
 
 def flag_color(name: str, i: int) -> str:
     """The colour of flag ``name`` (the ``i``-th of its variable)."""
-    known = CLASS_COLORS.get(name) or STATUS_COLORS.get(name)
+    known = CLASS_COLORS.get(name) or FATE_COLORS.get(name) or STATUS_COLORS.get(name)
     return known or FALLBACK_COLORS[i % len(FALLBACK_COLORS)]
 
 

@@ -21,7 +21,7 @@ from collections.abc import Callable
 from types import TracebackType
 from typing import TextIO
 
-__all__ = ["Progress", "format_duration", "format_rate"]
+__all__ = ["Progress", "format_bytes", "format_duration", "format_rate"]
 
 #: Seconds between redraws of the terminal bar.
 TTY_INTERVAL = 0.1
@@ -38,6 +38,15 @@ def format_duration(seconds: float) -> str:
     h, rest = divmod(s, 3600)
     m, s = divmod(rest, 60)
     return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
+
+
+def format_bytes(n: float) -> str:
+    """A size [bytes] with an SI prefix: ``950 B``, ``85.8 MB``, ``1.2 TB``."""
+    for unit in ("B", "kB", "MB", "GB"):
+        if n < 999.5:
+            return f"{n:.3g} {unit}"
+        n /= 1000
+    return f"{n:.3g} TB"
 
 
 def format_rate(points_per_second: float, unit: str = " points/s") -> str:

@@ -1,65 +1,94 @@
 """Streaming, resumable survey runs: blocks to disk as they finish, one netCDF file at the end.
 
-The order of a run (the README, "Large surveys: streaming, resume, dask", tells the user's
-side):
+The order of a run (the README, "Large surveys: streaming, resume, dask" and "Guarantees",
+tells the user's side). Every refusal comes before anything is written:
 
-1. refuse an existing output, unless it already holds this very survey (nothing to do) or
-   ``overwrite`` is given (then an unfinished run behind it is discarded too);
-2. open the block store ``OUT.parts`` (:mod:`engine.io.blocks`): a new one, or the unfinished
-   run's if its fingerprint matches (stale ``.tmp`` files deleted, every stored block
-   verified, a corrupt one reported and recomputed);
-3. compile the kernels (or load them from numba's cache) on one point;
-4. compute the missing blocks (:mod:`engine.backends`: here or on dask) and store each one as
-   it arrives; a run killed at any moment (SIGKILL included) loses at most the blocks in
-   flight;
-5. merge the blocks into ``OUT.tmp``, fsync, rename to ``OUT`` (:func:`engine.io.netcdf.merge`);
-   only then remove the parts. Peak memory is a few blocks, whatever the grid size.
+1. take the output's lock (:mod:`engine.io.lock`), held until the end: a second run of the
+   same output is refused, naming the holder;
+2. look, without writing: an existing output is refused unless it already holds this very
+   survey (nothing to do) or ``overwrite`` is given; an unfinished run ``OUT.parts`` is
+   resumed if its manifest is valid and of this survey (every stored block is hashed against
+   the journal), refused otherwise; leftovers of a finished run (or of a run killed as it
+   started) are recognised as debris;
+3. check the disk: the blocks still to compute plus the output being merged beside them must
+   fit; compile the kernels (or load them from numba's cache) on one point, which also lets
+   the engine refuse the survey; reach the dask cluster if one is asked for;
+4. write: remove debris, the discarded run or the bad blocks; create the store; compute the
+   missing blocks (:mod:`engine.backends`) and commit each one as it arrives; a run killed at
+   any moment (SIGKILL included) loses at most the blocks in flight;
+5. merge the verified blocks into a temporary file inside the store, fsync, rename to ``OUT``
+   (:func:`engine.io.netcdf.merge`); only then remove the store (manifest first).
+
+A failure after step 3 (a full disk, a lost dask cluster, a block that changed on disk) raises
+:class:`RunFailed`: the blocks stored so far are kept and the same call resumes.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import shutil
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .backends import BackendError, block_source, block_spec
+from .backends import BackendError, block_spec, check_address, open_backend
 from .evaluation import evaluate_block
 from .grid import BLOCK_POINTS, Tiling
 from .io import OutputError, netcdf
+from .io.atomic import not_regular
 from .io.blocks import (
-    FINGERPRINT_ATTR,
-    MANIFEST,
     BlockStore,
-    Manifest,
+    Scan,
     Summary,
+    block_file_bytes,
+    check_parts_dir,
+    remove_store,
+)
+from .io.lock import Locked, LockError, OutputLock, describe_holder
+from .io.manifest import (
+    MANIFEST,
+    Manifest,
     fingerprint,
     parts_dir,
     read_manifest,
     survey_variables,
-    write_manifest,
 )
+from .progress import format_bytes
 from .schema import DIMS
 
 if TYPE_CHECKING:
     from .surveyfile import Survey
 
-__all__ = ["AlreadyComplete", "RunError", "RunStats", "run_survey"]
+__all__ = [
+    "AlreadyComplete",
+    "RunError",
+    "RunFailed",
+    "RunStats",
+    "remove_leftovers",
+    "run_survey",
+]
 
 
 class RunError(Exception):
-    """A run that cannot start or resume (the message says why); CLI exit status 2."""
+    """A run that cannot start or resume (the message says why); nothing was written.
+    CLI exit status 2."""
 
 
 class AlreadyComplete(RunError):
     """The output already holds this very survey, finished: nothing to compute."""
+
+
+class RunFailed(Exception):
+    """A run that stopped after it began to write (a full disk, a lost dask cluster, a block
+    that changed on disk); the blocks stored so far are kept and the same run resumes.
+    CLI exit status 1."""
 
 
 @dataclass
@@ -69,6 +98,8 @@ class RunStats:
     shape: tuple[int, ...]
     counts: np.ndarray
     ranges: dict[str, tuple[float, float, str]]
+    dims: tuple[str, ...] = DIMS
+    flags: dict[str, np.ndarray] = field(default_factory=dict)
     compute_seconds: float = 0.0
     write_seconds: float = 0.0
     compile_seconds: float = 0.0
@@ -81,74 +112,119 @@ class RunStats:
         return math.prod(self.shape)
 
 
-def _refuse_existing(out: Path, fp: str) -> None:
-    """RunError for an existing output (AlreadyComplete if it holds this survey, finished)."""
+def _is_debris(root: Path, finished: str | None) -> bool:
+    """Whether the store ``root`` holds nothing to resume: it has no manifest (a killed cleanup
+    or start), or it is the store of the finished output's own survey."""
+    if not os.path.lexists(root / MANIFEST):
+        return True
+    if finished is None:
+        return False
     try:
-        info = netcdf.read_info(out)
+        return read_manifest(root).fingerprint == finished
     except OutputError:
-        info = {}
-    if info.get("attrs", {}).get(FINGERPRINT_ATTR) == fp:
-        raise AlreadyComplete(f"{out} already holds this survey, complete; nothing to do")
-    raise RunError(f"output file exists: {out} (use --overwrite to replace it)")
+        return False
 
 
-def _open_store(
-    out: Path, survey: Survey, block_points: int | None, warn: Callable[[str], None]
-) -> tuple[BlockStore, set[int]]:
-    """Create ``OUT.parts``, or reopen the unfinished run's; returns the store and the indices
-    of the verified blocks it holds."""
+def remove_leftovers(out: Path) -> bool:
+    """Remove the block store left beside the finished output ``out`` by a killed cleanup
+    (under the output's lock; nothing is done while a run holds it). Returns whether it did."""
     root = parts_dir(out)
-    names = survey_variables(survey)
-    current = Manifest.new(survey, Tiling.for_grid(survey.shape, block_points or BLOCK_POINTS))
-    if not (root / MANIFEST).exists():
-        root.mkdir(parents=True, exist_ok=True)
-        write_manifest(root, current)
-        return BlockStore(root, current.tiling, names, warn), set()
     try:
-        stored = read_manifest(root)
+        with OutputLock.acquire(out, "conesurvey info"):
+            if not check_parts_dir(root) or not _is_debris(root, netcdf.read_fingerprint(out)):
+                return False
+            if not os.path.lexists(out):
+                return False
+            remove_store(root)
+            return True
+    except (LockError, OutputError, OSError):
+        return False
+
+
+@dataclass
+class _Plan:
+    """What step 2 found: the store to resume (with its scan), or a store to remove first."""
+
+    fp: str
+    remove_first: str = ""  # why the existing store is removed ("" = keep it)
+    store: BlockStore | None = None
+    scan: Scan = field(default_factory=Scan)
+    tiling: Tiling | None = None
+
+
+def _inspect(
+    out: Path, survey: Survey, overwrite: bool, block_points: int | None, warn: Callable
+) -> _Plan:
+    """Step 2 (reads only): RunError or AlreadyComplete, else the plan."""
+    plan = _Plan(fingerprint(survey))
+    root = parts_dir(out)
+    try:
+        has_store = check_parts_dir(root)
     except OutputError as exc:
-        raise RunError(f"cannot resume: {exc}; delete {root} to start over") from None
-    if stored.fingerprint != current.fingerprint:
-        why = (
-            f"engine version {stored.engine} != {current.engine}"
-            if stored.engine != current.engine
-            else "the survey definition or scene differs"
-        )
+        raise RunError(str(exc)) from None
+    kind = not_regular(out, follow_links=False)
+    if kind is not None and kind != "a symbolic link":
+        raise RunError(f"output path {out} is {kind}; give a file name")
+    if os.path.lexists(out) and not overwrite:
+        finished = netcdf.read_fingerprint(out)
+        if finished != plan.fp:
+            raise RunError(f"output file exists: {out} (use --overwrite to replace it)")
+        if has_store and _is_debris(root, finished):
+            remove_store(root)  # not a refusal: the run has nothing to do but tidy up
+            warn(f"removed {root}, left behind by the run that finished {out}")
+        raise AlreadyComplete(f"{out} already holds this survey, complete; nothing to do")
+    if not has_store:
+        return plan
+    if overwrite:
+        plan.remove_first = "discarded (--overwrite)"
+        return plan
+    if _is_debris(root, None):
+        plan.remove_first = "removed: it has no manifest (left by a killed run)"
+        return plan
+    try:
+        plan.store = BlockStore.open(root, warn)
+    except OutputError as exc:
+        raise RunError(
+            f"cannot resume: {exc}; use --overwrite to discard {root} and start again"
+        ) from None
+    why = read_manifest(root).mismatch(survey)
+    if why is not None:
         raise RunError(
             f"cannot resume into {out}: the unfinished run in {root} is of another survey "
             f"({why}); use --overwrite to discard it and start again"
         )
-    if block_points is not None and stored.tiling != current.tiling:
-        warn(f"resuming with the unfinished run's block size {math.prod(stored.tiling.block):,}")
-    store = BlockStore(root, stored.tiling, names, warn)
-    store.remove_stale_tmp()
-    return store, store.verify()
+    stored = plan.store.tiling
+    if block_points is not None and stored != Tiling.for_grid(survey.shape, block_points):
+        warn(f"resuming with the unfinished run's block size {math.prod(stored.block):,}")
+    plan.scan = plan.store.scan()
+    return plan
 
 
-def _merge(
-    store: BlockStore,
-    survey: Survey,
-    out: Path,
-    fp: str,
-    command: str,
-    overwrite: bool,
-    complevel: int,
-) -> Summary:
-    """The blocks merged into the output file (RunError if it appeared meanwhile or a block
-    is gone)."""
-    try:
-        return netcdf.merge(
-            store,
-            survey,
-            out,
-            fingerprint=fp,
-            command=command,
-            overwrite=overwrite,
-            complevel=complevel,
+def _check_space(out: Path, survey: Survey, tiling: Tiling, pending: list[int]) -> None:
+    """RunError unless the blocks still to compute and the output merged beside all of them
+    fit on the output's file system."""
+    names = survey_variables(survey)
+    blocks = sum(block_file_bytes(names, tiling.points(i)) for i in pending)
+    merged = netcdf.output_bytes(names, tiling.shape)
+    free = shutil.disk_usage(out.parent).free
+    if blocks + merged > free:
+        raise RunError(
+            f"the survey needs up to {format_bytes(blocks + merged)} of disk "
+            f"({format_bytes(blocks)} for the blocks still to compute + "
+            f"{format_bytes(merged)} for the output merged beside them) but {out.parent} "
+            f"has {format_bytes(free)} free ({survey.size:,} points); use --force to run anyway"
         )
-    except FileExistsError:
-        raise RunError(f"output file exists: {out} (use --overwrite)") from None
-    except OutputError as exc:
+
+
+def _take_lock(out: Path, command: str) -> OutputLock:
+    try:
+        return OutputLock.acquire(out, command)
+    except Locked as exc:
+        raise RunError(
+            f"another run is writing {out} ({describe_holder(exc.holder)}); "
+            "wait for it to finish (its lock is released when it exits)"
+        ) from None
+    except LockError as exc:
         raise RunError(str(exc)) from None
 
 
@@ -165,56 +241,68 @@ def run_survey(
     warn: Callable[[str], None] | None = None,
     on_block: Callable[[int], None] | None = None,
     complevel: int = netcdf.ZLIB_LEVEL,
+    check_space: bool = True,
 ) -> RunStats:
     """Run ``survey`` into the netCDF file ``out``, streaming blocks and resuming a killed run.
 
     ``block_points``: points per block (default :data:`engine.grid.BLOCK_POINTS`; a resumed
     run keeps its own). ``scheduler`` / ``workers``: run blocks on a dask cluster (an address,
-    or a LocalCluster of that many workers). Raises :class:`RunError` when the run cannot start
-    or resume. ``on_block(index)`` is called after each block is safely stored (for tests and
-    hooks). ``complevel``: zlib level of the netCDF variables, 0 = uncompressed (HDF5
-    compresses on one thread: level 1 writes ~36 MB/s of results here, uncompressed is
-    disk-bound).
+    or a LocalCluster of that many workers). ``check_space``: refuse a run whose blocks and
+    output do not fit on the disk. Raises :class:`RunError` when the run cannot start or
+    resume (nothing written), :class:`RunFailed` when it stopped after writing (resumable).
+    ``on_block(index)`` is called after each block is safely stored (for tests and hooks).
+    ``complevel``: zlib level of the netCDF variables, 0 = uncompressed.
     """
-    if not (isinstance(complevel, int) and 0 <= complevel <= 9):
+    if not (isinstance(complevel, int) and not isinstance(complevel, bool) and 0 <= complevel <= 9):
         raise RunError(f"complevel must be an integer 0..9; got {complevel!r}")
+    if scheduler is not None:
+        try:
+            check_address(scheduler)
+        except ValueError as exc:
+            raise RunError(str(exc)) from None
     out = Path(out)
     warn = warn or (lambda msg: print(f"conesurvey: warning: {msg}", file=sys.stderr))
-    fp = fingerprint(survey)
-    if out.exists() and not overwrite:
-        _refuse_existing(out, fp)
-    if overwrite and parts_dir(out).is_dir():
-        shutil.rmtree(parts_dir(out))
-    store, done = _open_store(out, survey, block_points, warn)
-    tiling = store.tiling
-    pending = [i for i in range(tiling.nblocks) if i not in done]
-    points_done = sum(tiling.points(i) for i in done)
-    if progress is not None:
-        progress(points_done, tiling.size)
-    spec = block_spec(survey)
-    # Compile (or load from numba's cache) before timing, on one point of the grid; this also
-    # warms the cache before dask workers start (concurrent first compiles race, numba#4807).
-    tc = time.perf_counter()
-    if pending:
+    if not out.parent.is_dir():
+        raise RunError(f"output directory does not exist: {out.parent}")
+    with _take_lock(out, command):
+        plan = _inspect(out, survey, overwrite, block_points, warn)
+        tiling = (
+            plan.store.tiling
+            if plan.store is not None
+            else Tiling.for_grid(survey.shape, block_points or BLOCK_POINTS)
+        )
+        done = plan.scan.good
+        pending = [i for i in range(tiling.nblocks) if i not in done]
+        if check_space:
+            _check_space(out, survey, tiling, pending)
+        spec = block_spec(survey)
+        # Compile (or load from numba's cache) on one point of the grid before anything is
+        # written: the engine may still refuse the survey. This also warms the cache before
+        # dask workers start (concurrent first compiles race, numba#4807).
+        tc = time.perf_counter()
         evaluate_block(spec, tuple(slice(0, 1) for _ in DIMS))
-    t0 = time.perf_counter()
-    try:
-        for i, res in block_source(spec, tiling, pending, scheduler=scheduler, workers=workers):
-            store.save(i, res)
-            points_done += tiling.points(i)
-            if progress is not None:
-                progress(points_done, tiling.size)
-            if on_block is not None:
-                on_block(i)
-    except BackendError as exc:
-        raise RunError(str(exc)) from None
-    t1 = time.perf_counter()
-    summary = _merge(store, survey, out, fp, command, overwrite, complevel)
-    shutil.rmtree(store.root, ignore_errors=True)
+        t0 = time.perf_counter()
+        try:
+            backend = open_backend(scheduler, workers)
+        except BackendError as exc:
+            raise RunFailed(f"{exc}; nothing was written") from None
+        try:
+            store = _prepare(out, survey, plan, tiling, warn)
+            _compute(store, backend, spec, pending, len(done), progress, on_block)
+            t1 = time.perf_counter()
+            summary = _merge(store, survey, out, plan.fp, command, overwrite, complevel)
+        finally:
+            backend.close()
+        try:
+            store.remove()
+        except OSError as exc:
+            warn(f"could not remove {store.root} ({exc.strerror}); the next run removes it")
     return RunStats(
         tiling.shape,
         summary.counts,
         summary.ranges,
+        survey.dims,
+        summary.flags,
         compute_seconds=t1 - t0,
         write_seconds=time.perf_counter() - t1,
         compile_seconds=t0 - tc,
@@ -222,3 +310,96 @@ def run_survey(
         blocks_reused=len(done),
         path=out,
     )
+
+
+def _prepare(out: Path, survey: Survey, plan: _Plan, tiling: Tiling, warn: Callable) -> BlockStore:
+    """Step 4's first writes: remove what goes, create or tidy the store."""
+    root = parts_dir(out)
+    try:
+        if plan.remove_first:
+            remove_store(root)
+            warn(f"{root} {plan.remove_first}")
+        if plan.store is not None:
+            plan.store.discard(plan.scan)
+            return plan.store
+        return BlockStore.create(root, Manifest.new(survey, tiling), warn)
+    except OSError as exc:
+        raise RunFailed(_cannot_write(exc, root)) from None
+
+
+def _compute(
+    store: BlockStore,
+    backend: object,
+    spec: dict,
+    pending: list[int],
+    reused: int,
+    progress: Callable[[int, int], None] | None,
+    on_block: Callable[[int], None] | None,
+) -> None:
+    """Compute and commit the pending blocks (RunFailed if a block cannot be stored or the
+    backend fails)."""
+    tiling = store.tiling
+    points = tiling.size - sum(tiling.points(i) for i in pending)
+    if progress is not None:
+        progress(points, tiling.size)
+    stored = reused
+    try:
+        for i, res in backend.blocks(spec, tiling, pending):  # type: ignore[attr-defined]
+            try:
+                store.commit(i, res)
+            except OSError as exc:
+                raise RunFailed(
+                    f"{_cannot_write(exc, store.path(i))}; {stored} of {tiling.nblocks} "
+                    "blocks are stored"
+                ) from None
+            stored += 1
+            points += tiling.points(i)
+            if progress is not None:
+                progress(points, tiling.size)
+            if on_block is not None:
+                on_block(i)
+    except BackendError as exc:
+        raise RunFailed(f"{exc}; {stored} of {tiling.nblocks} blocks are stored") from None
+
+
+def _cannot_write(exc: OSError, where: Path) -> str:
+    return f"cannot write {exc.filename or where}: {exc.strerror or exc}"
+
+
+def _merge(
+    store: BlockStore,
+    survey: Survey,
+    out: Path,
+    fp: str,
+    command: str,
+    overwrite: bool,
+    complevel: int,
+) -> Summary:
+    """The blocks merged into the output file (RunError if it appeared meanwhile, RunFailed if
+    it cannot be written or a block changed)."""
+    try:
+        return netcdf.merge(
+            store,
+            survey,
+            out,
+            fingerprint=fp,
+            command=command,
+            overwrite=overwrite,
+            complevel=complevel,
+        )
+    except FileExistsError:
+        raise RunError(
+            f"output file exists: {out} (created while this run computed; use --overwrite)"
+        ) from None
+    except OSError as exc:
+        free = format_bytes(_free(out.parent))
+        raise RunFailed(f"{_cannot_write(exc, out)} ({free} free)") from None
+    except OutputError as exc:
+        free = format_bytes(_free(out.parent))
+        raise RunFailed(f"{exc} ({free} free on {out.parent})") from None
+
+
+def _free(directory: Path) -> int:
+    with contextlib.suppress(OSError):
+        return shutil.disk_usage(directory).free
+    return 0

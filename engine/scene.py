@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -13,10 +14,14 @@ __all__ = ["Scene"]
 
 
 def _check_positive(name: str, value: float, *, allow_zero: bool = False) -> float:
+    """``value`` as a float; ValueError naming the field unless it is a finite real number in
+    range. Booleans, strings and arrays are not numbers (``Scene(M=True)`` is refused)."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
+        raise ValueError(f"Scene.{name} must be a real number, got {value!r}")
     try:
         v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"Scene.{name} must be a real number, got {value!r}") from None
+    except OverflowError:  # an int beyond the doubles
+        raise ValueError(f"Scene.{name} must be finite, got {value!r}") from None
     if math.isnan(v) or math.isinf(v):
         raise ValueError(f"Scene.{name} must be finite, got {value!r}")
     if v < 0 or (v == 0 and not allow_zero):

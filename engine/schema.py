@@ -19,7 +19,7 @@ from ._version import __version__
 from .kernels.fate import FATE_NAMES
 from .kernels.geometry import CLASS_NAMES
 from .kernels.protocol import EVENT_NAMES, STATUS_FLAGS
-from .methods import get_method
+from .methods import METHODS, get_method
 
 if TYPE_CHECKING:
     from .fates import Horizon
@@ -27,6 +27,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DIMS",
+    "LAUNCH_DIMS",
     "FINGERPRINT_ATTR",
     "Variable",
     "AXES",
@@ -38,10 +39,15 @@ __all__ = [
     "result_attrs",
     "survey_attrs",
     "map_kind",
+    "map_summary",
 ]
 
 #: The four survey axes, in the order of a survey's dims.
 DIMS = ("alpha", "energy", "h", "Lz")
+#: The axes of a survey over launch states (the sphere released with u = 0).
+LAUNCH_DIMS = ("alpha", "r0", "v0", "w0")
+#: The invariants a survey over launch states stores as variables.
+INVARIANTS = ("energy", "h", "Lz")
 #: Global attribute of a finished survey file holding the survey's fingerprint.
 FINGERPRINT_ATTR = "survey_fingerprint"
 
@@ -77,6 +83,9 @@ AXES: dict[str, Variable] = {
     "energy": _f("J", "radial energy calE = E/(1+k) - k M h^2/(2(1+k))"),
     "h": _f("m s-1", "spin invariant h = w - L_z cos(alpha)/(M r sin^2 alpha)"),
     "Lz": _f("kg m2 s-1", "axial angular momentum of the centre of mass"),
+    "r0": _f("m", "launch radius: distance of the centre from the vertex of its cone"),
+    "v0": _f("m s-1", "launch azimuthal speed r sin(alpha) dtheta/dt (radial speed 0)"),
+    "w0": _f("m s-1", "launch spin about the normal times the radius, a omega_nu"),
 }
 _ENERGY_RELATIVE = _f("1", "energy offset from the potential minimum, (calE - V_min)/|V_min|")
 
@@ -118,6 +127,8 @@ RESULTS: dict[str, Variable] = {
     ),
     # surveys with an energy axis relative to V_min
     "energy_absolute": _f("J", "radial energy calE (absolute)"),
+    # surveys over launch states: the invariants of each launch
+    **{name: AXES[name] for name in INVARIANTS},
     # engine.integrated.evaluate_integrated with rolling resistance (one period, not a map)
     "energy_loss": _f("J", "total energy lost over the first radial period"),
 }
@@ -215,9 +226,10 @@ def map_kind(method: str, scene: Scene) -> str:
 
 
 def result_variables(
-    method: str, scene: Scene, energy_relative: bool = False
+    method: str, scene: Scene, energy_relative: bool = False, launch: bool = False
 ) -> dict[str, np.dtype]:
-    """Names and dtypes of the variables a map of ``scene`` by ``method`` holds, in file order."""
+    """Names and dtypes of the variables a map of ``scene`` by ``method`` holds, in file order
+    (``launch``: a survey over launch states, which stores the invariants too)."""
     kind = map_kind(method, scene)
     names = list(CLOSED_FORM)
     if kind == "closed form" and ("rim" in scene.effects or "slip_check" in scene.effects):
@@ -228,7 +240,26 @@ def result_variables(
         names += FATE
     if energy_relative:
         names.append("energy_absolute")
+    if launch:
+        names += INVARIANTS
     return {n: np.dtype(RESULTS[n].dtype) for n in names}
+
+
+def map_summary(
+    method: str, scene: Scene, energy_relative: bool = False, launch: bool = False
+) -> list[str]:
+    """What a map of ``scene`` by ``method`` will hold, in lines for people (``conesurvey
+    validate``): which methods honour each effect the scene names, the kind of map, its
+    variables."""
+    lines = []
+    for effect in scene.effects:
+        able = [m.name for m in METHODS.values() if effect not in dict(m.refuses)]
+        lines.append(f"effect {effect}: honoured by {', '.join(able)}")
+    kind = map_kind(method, scene)
+    lines.append(f"map    {kind}: {MAP_KINDS[kind]}")
+    names = result_variables(method, scene, energy_relative, launch)
+    lines.append("holds  " + ", ".join(names))
+    return lines
 
 
 def result_attrs(
@@ -259,8 +290,12 @@ def survey_attrs(
     rtol: float,
     energy_relative: bool,
     horizon: Horizon | None = None,
+    launch: bool = False,
 ) -> dict[str, Any]:
-    """Global attributes of a survey (:func:`result_attrs` plus the energy axis' meaning)."""
+    """Global attributes of a survey (:func:`result_attrs` plus what its axes are)."""
     attrs = result_attrs(scene, method, circular_tol, rtol, horizon)
+    if launch:
+        attrs["grid"] = "launch states: released at r0 with radial speed 0, speed v0, spin w0"
+        return attrs
     attrs["energy_axis"] = "relative to V_min" if energy_relative else "absolute"
     return attrs

@@ -32,6 +32,16 @@ A survey evaluates every point of the grid alpha x energy x h x Lz. Example::
     stop = 1.0
     num = 10
 
+Instead of the invariants (energy, h, Lz) a survey may span launch states: ``[axes.r0]`` (the
+launch radius [m], > 0), ``[axes.v0]`` (speed along the parallel [m s-1]) and ``[axes.w0]``
+(spin a omega_nu [m s-1]), the sphere released with radial speed 0; the invariants of each
+launch are then stored as variables. A fate map (an integrator on a scene with rolling
+resistance, a rim or a friction limit) needs a horizon::
+
+    [horizon]
+    time = 30.0                              # [s], and/or
+    revolutions = 100                        # about the axis
+
 Each of the four axes is required and is given either as ``values = [...]`` (a non-empty list
 of distinct finite numbers, in the order they should appear) or as a range: ``start``, ``stop``
 (both included) and ``num`` (a positive integer, at most ``MAX_AXIS_POINTS``; ``num = 1`` needs
@@ -58,35 +68,39 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .api import launch_survey as api_launch_survey
 from .api import survey as api_survey
-from .errortext import join_key, suggest, toml_repr, toml_type
+from .errortext import toml_repr, toml_type
+from .fates import Horizon, check_horizon
+from .io.atomic import read_regular
 from .kernels.geometry import CIRCULAR_TOL as DEFAULT_CIRCULAR_TOL
-from .methods import DEFAULT_RTOL, METHODS
+from .methods import DEFAULT_RTOL, METHODS, RTOL_RANGE, check_method, check_rtol
 from .scene import Scene
 from .schema import DIMS as AXES
+from .schema import LAUNCH_DIMS, result_variables, survey_attrs
+from .surveyaxes import MAX_AXIS_POINTS, RELATIVE_TO, SCALES, AxisReader
 
 if TYPE_CHECKING:
     import xarray as xr
 
 __all__ = [
     "AXES",
+    "LAUNCH_DIMS",
+    "MAX_AXIS_POINTS",
+    "RELATIVE_TO",
+    "SCALES",
     "Survey",
     "SurveyError",
     "load_survey",
     "parse_survey",
 ]
 
-#: Accepted values of ``axes.energy.relative_to``.
-RELATIVE_TO = ("V_min",)
-SCALES = ("linear", "log")
-
 DEFAULT_METHOD = "exact"
-#: Largest ``num`` of a range axis (the axes are held in memory: 8 bytes a point).
-MAX_AXIS_POINTS = 10**8
+#: Largest survey file read [bytes] (``values`` lists of ~10^5 numbers fit).
+MAX_SURVEY_BYTES = 4 << 20
 
-_TOP_KEYS = ("title", "method", "rtol", "circular_tol", "scene", "axes")
-_RANGE_KEYS = ("start", "stop", "num", "scale")
-_AXIS_KEYS = ("values", *_RANGE_KEYS)
+_TOP_KEYS = ("title", "method", "rtol", "circular_tol", "scene", "horizon", "axes")
+_HORIZON_KEYS = ("time", "revolutions")
 _SCENE_FIELDS = tuple(f.name for f in dataclasses.fields(Scene) if not f.name.startswith("_"))
 
 
@@ -123,50 +137,87 @@ class Survey:
     circular_tol: float
     scene: Scene
     alpha: np.ndarray
-    energy: np.ndarray
-    h: np.ndarray
-    Lz: np.ndarray
+    energy: np.ndarray | None
+    h: np.ndarray | None
+    Lz: np.ndarray | None
     energy_relative: bool
     source_text: str
+    r0: np.ndarray | None = None
+    v0: np.ndarray | None = None
+    w0: np.ndarray | None = None
+    horizon: Horizon | None = None
 
     @property
-    def shape(self) -> tuple[int, int, int, int]:
-        """Grid shape (alpha, energy, h, Lz)."""
-        return (self.alpha.size, self.energy.size, self.h.size, self.Lz.size)
+    def dims(self) -> tuple[str, ...]:
+        """The survey's axes: (alpha, energy, h, Lz), or (alpha, r0, v0, w0) over launch
+        states."""
+        return LAUNCH_DIMS if self.launch else AXES
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """Grid shape, in the order of :attr:`dims`."""
+        return tuple(getattr(self, d).size for d in self.dims)
 
     @property
     def size(self) -> int:
         """Number of grid points."""
         return math.prod(self.shape)
 
+    @property
+    def launch(self) -> bool:
+        """A survey over launch states (its dims are alpha, r0, v0, w0)."""
+        return self.r0 is not None
+
+    def variables(self) -> dict[str, np.dtype]:
+        """Names and dtypes of the result variables, in file order (:mod:`engine.schema`)."""
+        return result_variables(self.method, self.scene, self.energy_relative, self.launch)
+
+    def attrs(self) -> dict[str, Any]:
+        """The global attributes of its results (:func:`engine.schema.survey_attrs`)."""
+        return survey_attrs(self.scene, self.method, self.circular_tol, self.rtol,
+                            self.energy_relative, self.horizon, self.launch)  # fmt: skip
+
     def to_toml_text(self) -> str:
         """The definition as TOML: the source text verbatim (comments included)."""
         return self.source_text
 
     def run(self, progress: Callable[[int, int], None] | None = None) -> xr.Dataset:
-        """Evaluate the survey with :func:`engine.survey`; ``progress(done, total)`` per chunk."""
-        return api_survey(
-            self.alpha,
-            self.energy,
-            self.h,
-            self.Lz,
+        """Evaluate the survey in memory (:func:`engine.survey` or :func:`engine.launch_survey`);
+        ``progress(done, total)`` per block."""
+        horizon = self.horizon or Horizon()
+        kw: dict[str, Any] = dict(
             scene=self.scene,
             method=self.method,
-            energy_relative=self.energy_relative,
             circular_tol=self.circular_tol,
             rtol=self.rtol,
+            horizon_time=horizon.time,
+            horizon_revolutions=horizon.revolutions,
             progress=progress,
         )
+        if self.launch:
+            return api_launch_survey(self.alpha, self.r0, self.v0, self.w0, **kw)
+        return api_survey(self.alpha, self.energy, self.h, self.Lz,
+                          energy_relative=self.energy_relative, **kw)  # fmt: skip
 
 
 def load_survey(path: str | os.PathLike[str]) -> Survey:
     """Read and validate the survey definition in the TOML file ``path``.
 
-    Raises :class:`SurveyError` for an invalid definition (or a file that is not UTF-8 text)
-    and :class:`OSError` (e.g. ``FileNotFoundError``) when the file cannot be read.
+    Raises :class:`SurveyError` for an invalid definition (a file that is not UTF-8 text, or
+    larger than ``MAX_SURVEY_BYTES``) and :class:`OSError` (e.g. ``FileNotFoundError``) when
+    the file cannot be read; a FIFO, a device or a directory raises
+    :class:`engine.io.atomic.NotRegularFile` (an OSError) without being read.
     """
     p = Path(path)
-    data = p.read_bytes()
+    try:
+        data = read_regular(p, MAX_SURVEY_BYTES)
+    except ValueError:
+        raise SurveyError(
+            str(p),
+            "",
+            f"larger than {MAX_SURVEY_BYTES >> 20} MiB: not a survey definition "
+            "(give long axes as start, stop and num)",
+        ) from None
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
@@ -195,7 +246,7 @@ def parse_survey(text: str, *, origin: str = "<string>") -> Survey:
 # --- validation -----------------------------------------------------------------------------
 
 
-class _Reader:
+class _Reader(AxisReader):
     """Validates a parsed TOML document, raising :class:`SurveyError` at the first problem."""
 
     def __init__(self, origin: str) -> None:
@@ -204,57 +255,13 @@ class _Reader:
     def fail(self, key: str, problem: str) -> SurveyError:
         return SurveyError(self.origin, key, problem)
 
-    def bad_value(self, key: str, value: Any, problem: str) -> SurveyError:
-        return self.fail(key, f"{problem}, got {toml_repr(value)}")
-
-    # -- generic checks --
-
-    def table(self, parent: dict, key: str, path: str, *, required: bool) -> dict | None:
-        if key not in parent:
-            if required:
-                raise self.fail(join_key(path, key), "missing (a table is required)")
-            return None
-        value = parent[key]
-        if not isinstance(value, dict):
-            raise self.fail(
-                join_key(path, key), f"must be a table, got {toml_type(value)} {toml_repr(value)}"
-            )
-        return value
-
-    def check_keys(self, table: dict, allowed: tuple[str, ...], path: str) -> None:
-        for key in table:
-            if key not in allowed:
-                where = join_key(path, key)
-                raise self.fail(where, f"unknown key{suggest(key, allowed)}")
-
-    def number(self, value: Any, key: str) -> float:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise self.fail(key, f"must be a number, got {toml_type(value)} {toml_repr(value)}")
-        try:
-            x = float(value)
-        except OverflowError:  # a TOML integer beyond the range of a double
-            raise self.bad_value(key, value, "must be finite (|x| < 1.8e308)") from None
-        if not math.isfinite(x):
-            raise self.bad_value(key, value, "must be finite")
-        return x
-
-    def string(self, value: Any, key: str) -> str:
-        if not isinstance(value, str):
-            raise self.fail(key, f"must be a string, got {toml_type(value)} {toml_repr(value)}")
-        return value
-
-    def choice(self, value: Any, key: str, choices: tuple[str, ...]) -> str:
-        s = self.string(value, key)
-        if s not in choices:
-            hint = suggest(s, choices)
-            raise self.fail(key, f"unknown value {toml_repr(s)}{hint}")
-        return s
-
     # -- sections --
 
     def survey(self, doc: dict, text: str) -> Survey:
         self.check_keys(doc, _TOP_KEYS, "")
         title = self.string(doc.get("title", "conesurvey survey"), "title")
+        if "\0" in title:
+            raise self.bad_value("title", title, "must not contain NUL (netCDF text ends there)")
         method = self.choice(doc.get("method", DEFAULT_METHOD), "method", tuple(METHODS))
         rtol = self.number(doc.get("rtol", DEFAULT_RTOL), "rtol")
         if not 0.0 < rtol < 1.0:
@@ -263,15 +270,27 @@ class _Reader:
         if circular_tol < 0.0:
             raise self.bad_value("circular_tol", doc["circular_tol"], "must be >= 0")
         scene = self.scene(self.table(doc, "scene", "", required=False) or {})
+        self.method_for(method, scene, rtol, doc.get("rtol", DEFAULT_RTOL))
+        horizon = self.horizon(doc, method, scene)
         axes = self.table(doc, "axes", "", required=True)
-        self.check_keys(axes, AXES, "axes")
-        for name in AXES:
-            if name not in axes:
+        dims = LAUNCH_DIMS if any(n in axes for n in LAUNCH_DIMS[1:]) else AXES
+        other = AXES if dims == LAUNCH_DIMS else LAUNCH_DIMS
+        for name in axes:
+            if name in other and name not in dims:
                 raise self.fail(
-                    f"axes.{name}", "missing; every axis of alpha, energy, h, Lz is required"
+                    f"axes.{name}",
+                    "a survey spans invariants (alpha, energy, h, Lz) or launch states "
+                    "(alpha, r0, v0, w0), not both",
                 )
-        arrays = {name: self.axis(axes, name) for name in AXES}
-        energy_relative = "relative_to" in axes["energy"]
+        self.check_keys(axes, dims, "axes")
+        for name in dims:
+            if name not in axes:
+                sets = "alpha, energy, h, Lz (invariants) or alpha, r0, v0, w0 (launch states)"
+                raise self.fail(f"axes.{name}", f"missing; give every axis of {sets}")
+        arrays: dict[str, Any] = {name: self.axis(axes, name) for name in dims}
+        if dims == LAUNCH_DIMS:
+            arrays.update(energy=None, h=None, Lz=None)
+        energy_relative = "relative_to" in axes.get("energy", {})
         return Survey(
             title=title,
             method=method,
@@ -280,8 +299,38 @@ class _Reader:
             scene=scene,
             energy_relative=energy_relative,
             source_text=text,
+            horizon=horizon,
             **arrays,
         )
+
+    def horizon(self, doc: dict, method: str, scene: Scene) -> Horizon | None:
+        """``[horizon]``: how long a fate map follows each orbit (the API's check)."""
+        table = self.table(doc, "horizon", "", required=False) or {}
+        self.check_keys(table, _HORIZON_KEYS, "horizon")
+        values = {k: self.number(table[k], f"horizon.{k}") for k in _HORIZON_KEYS if k in table}
+        for key, v in values.items():
+            if not v > 0.0:
+                raise self.bad_value(f"horizon.{key}", table[key], "must be > 0")
+        try:
+            return check_horizon(method, scene, values.get("time"), values.get("revolutions"))
+        except ValueError as exc:
+            raise self.fail("horizon", str(exc)) from None
+
+    def method_for(self, method: str, scene: Scene, rtol: float, raw_rtol: Any) -> None:
+        """The checks ``run`` makes (engine.methods): the method honours the scene's effects,
+        and an integrator's rtol lies in the registry's range."""
+        try:
+            integrates = check_method(method, scene).integrates
+        except ValueError as exc:
+            raise self.fail("method", str(exc)) from None
+        if integrates:
+            try:
+                check_rtol(rtol)
+            except ValueError:
+                lo, hi = RTOL_RANGE
+                raise self.bad_value(
+                    "rtol", raw_rtol, f"must lie in [{lo:g}, {hi:g}] for the integrator {method}"
+                ) from None
 
     def scene(self, table: dict) -> Scene:
         self.check_keys(table, _SCENE_FIELDS, "scene")
@@ -309,99 +358,3 @@ class _Reader:
             if m:  # "Scene.M must be > 0, got -1.0" -> "must be > 0, got -1.0"
                 message = message[m.end() :].strip()
             raise self.fail(key, message) from None
-
-    def axis(self, axes: dict, name: str) -> np.ndarray:
-        path = f"axes.{name}"
-        table = self.table(axes, name, "axes", required=True)
-        assert table is not None
-        allowed = _AXIS_KEYS + (("relative_to",) if name == "energy" else ())
-        for key in table:
-            if key == "relative_to" and name != "energy":
-                raise self.fail(f"{path}.relative_to", "only allowed on axes.energy")
-        self.check_keys(table, allowed, path)
-        if "relative_to" in table:
-            self.choice(table["relative_to"], f"{path}.relative_to", RELATIVE_TO)
-
-        range_keys = [k for k in _RANGE_KEYS if k in table]
-        if "values" in table:
-            if range_keys:
-                raise self.fail(
-                    f"{path}.{range_keys[0]}",
-                    "give either values = [...] or start/stop/num, not both",
-                )
-            values = self.values(table["values"], f"{path}.values")
-            if name == "alpha":
-                for i, x in enumerate(values):
-                    self.check_alpha(x, f"{path}.values[{i}]", table["values"][i])
-            return values
-        if not range_keys:
-            raise self.fail(path, "give either values = [...] or start, stop and num")
-        for key in ("start", "stop", "num"):
-            if key not in table:
-                raise self.fail(f"{path}.{key}", "missing (a range needs start, stop and num)")
-        start = self.number(table["start"], f"{path}.start")
-        stop = self.number(table["stop"], f"{path}.stop")
-        num = table["num"]
-        if isinstance(num, bool) or not isinstance(num, int) or num < 1:
-            raise self.bad_value(f"{path}.num", num, "must be a positive integer")
-        if num > MAX_AXIS_POINTS:
-            raise self.bad_value(f"{path}.num", num, f"must be <= {MAX_AXIS_POINTS:.0e} per axis")
-        scale = self.choice(table.get("scale", "linear"), f"{path}.scale", SCALES)
-        if name == "alpha":
-            self.check_alpha(start, f"{path}.start", table["start"])
-            self.check_alpha(stop, f"{path}.stop", table["stop"])
-        if num == 1 and start != stop:
-            raise self.bad_value(f"{path}.num", num, "must be > 1 when start != stop")
-        if num > 1 and start == stop:
-            raise self.bad_value(
-                f"{path}.stop", table["stop"], "must differ from start when num > 1"
-            )
-        if scale == "log":
-            for key, x in (("start", start), ("stop", stop)):
-                if x <= 0.0:
-                    raise self.bad_value(
-                        f"{path}.{key}", table[key], 'must be > 0 with scale = "log"'
-                    )
-            with np.errstate(over="ignore"):  # 10**log10(stop) may round above DBL_MAX
-                grid = np.geomspace(start, stop, num)
-        else:
-            with np.errstate(over="ignore", invalid="ignore"):
-                grid = np.linspace(start, stop, num)
-            if not np.isfinite(grid).all():  # stop - start overflowed: halve, exactly
-                grid = np.linspace(0.5 * start, 0.5 * stop, num) * 2.0
-        grid[0], grid[-1] = start, stop  # exact end points (geomspace rounds them)
-        steps = np.diff(grid)
-        if not ((steps > 0.0).all() or (steps < 0.0).all()):
-            raise self.bad_value(
-                f"{path}.num",
-                num,
-                "is more points than there are distinct doubles between start and stop",
-            )
-        return _frozen(grid)
-
-    def values(self, value: Any, key: str) -> np.ndarray:
-        if not isinstance(value, list):
-            raise self.fail(
-                key, f"must be an array of numbers, got {toml_type(value)} {toml_repr(value)}"
-            )
-        if not value:
-            raise self.fail(key, "must not be empty")
-        out = np.array(
-            [self.number(v, f"{key}[{i}]") for i, v in enumerate(value)], dtype=np.float64
-        )
-        seen: dict[float, int] = {}
-        for i, x in enumerate(out.tolist()):
-            if x in seen:
-                raise self.bad_value(f"{key}[{i}]", value[i], f"duplicates {key}[{seen[x]}]")
-            seen[x] = i
-        return _frozen(out)
-
-    def check_alpha(self, x: float, key: str, raw: Any) -> None:
-        if not 0.0 < x < math.pi / 2:
-            raise self.bad_value(key, raw, "alpha must lie in the open interval (0, pi/2) [radian]")
-
-
-def _frozen(a: np.ndarray) -> np.ndarray:
-    a = np.ascontiguousarray(a, dtype=np.float64)
-    a.setflags(write=False)
-    return a

@@ -177,7 +177,9 @@ def survey_block() -> tuple[dict, tuple[slice, ...], int]:
     survey = load_survey(SURVEY)
     tiling = Tiling.for_grid(survey.shape)
     slices = tiling.slices(0)
-    n = math.prod(len(range(*s.indices(size))) for s, size in zip(slices, survey.shape, strict=True))
+    n = math.prod(
+        len(range(*s.indices(size))) for s, size in zip(slices, survey.shape, strict=True)
+    )
     return block_spec(survey), slices, n
 
 
@@ -269,7 +271,10 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
     T_carl, psi_carl = carlson_numpy(a, lz, pts["r1"], pts["r2"])
     agree = {
         "peer": (np.max(np.abs(T_peer / pts["T"] - 1)), np.max(np.abs(psi_peer / pts["psi"] - 1))),
-        "carlson": (np.max(np.abs(T_carl / pts["T"] - 1)), np.max(np.abs(psi_carl / pts["psi"] - 1))),
+        "carlson": (
+            np.max(np.abs(T_carl / pts["T"] - 1)),
+            np.max(np.abs(psi_carl / pts["psi"] - 1)),
+        ),
     }
     block = evaluate_block(spec, slices)
     sub = [np.asarray(spec[d])[s] for d, s in zip(DIMS, slices, strict=True)]

@@ -12,16 +12,9 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from engine._version import __version__
 from engine.grid import Tiling
-from engine.io.blocks import (
-    BlockStore,
-    Manifest,
-    fingerprint,
-    parts_dir,
-    survey_variables,
-    write_manifest,
-)
+from engine.io.blocks import BlockStore
+from engine.io.manifest import Manifest, parts_dir
 from engine.runner import run_survey
 from engine.surveyfile import Survey, parse_survey
 
@@ -122,13 +115,10 @@ def unfinished_run(
     survey = parse_survey(text)
     full = survey.run()
     tiling = Tiling(survey.shape, chunk, block)
-    root = parts_dir(out)
-    root.mkdir()
-    write_manifest(root, Manifest(fingerprint(survey), __version__, tiling, survey.source_text))
-    store = BlockStore(root, tiling, survey_variables(survey))
+    store = BlockStore.create(parts_dir(out), Manifest.new(survey, tiling))
     for i in keep:
         sl = tiling.slices(i)
-        store.save(i, {n: full[n].values[sl] for n in store.names})
+        store.commit(i, {n: full[n].values[sl] for n in store.names})
     return survey, full, tiling
 
 

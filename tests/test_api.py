@@ -124,5 +124,6 @@ def test_integrator_method_outputs_and_status_flags():
     assert ds.status.attrs["flag_values"].dtype == np.int8
     assert ds.status.attrs["flag_meanings"].split()[0] == "ok"
     assert ds.status.values[1] == 0 and ds.n_steps.values[1] > 0
-    assert np.isnan(ds.period.values[0])  # forbidden: not integrated
+    assert np.isnan(ds.period.values[0])  # forbidden: not integrated, and the status says so
+    assert ds.status.attrs["flag_meanings"].split()[ds.status.values[0]] == "not_bounded"
     assert ds.apsidal_angle.values[1] == pytest.approx(exact.apsidal_angle.values[1], rel=1e-8)

@@ -184,6 +184,7 @@ def test_output_path_is_a_directory_exit_2(workdir, capsys):
 
 
 def test_value_error_from_engine_exit_2(workdir, capsys, monkeypatch):
+    """The engine refuses on the first point it computes, before anything is written."""
     from engine import runner
 
     def refuse(*args, **kwargs):
@@ -192,22 +193,22 @@ def test_value_error_from_engine_exit_2(workdir, capsys, monkeypatch):
     monkeypatch.setattr(runner, "evaluate_block", refuse)
     assert cli.main(["run", "small.toml"]) == 2
     assert "conesurvey: error: small.toml: method rk45 needs something" in capsys.readouterr().err
-    assert not (workdir / "small.nc").exists()
+    assert listing(workdir) == ["bad.toml", "small.toml"]
 
 
 def test_interrupt_exit_130_keeps_blocks_for_resume(workdir, capsys, monkeypatch):
-    from engine import runner
+    from engine import backends
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    original = runner.evaluate_block
-    monkeypatch.setattr(runner, "evaluate_block", interrupted)
+    original = backends.evaluate_block
+    monkeypatch.setattr(backends, "evaluate_block", interrupted)
     assert cli.main(["run", "small.toml"]) == 130
     err = capsys.readouterr().err
     assert "0/56 points" in err and "interrupted" in err and "resume" in err
     assert listing(workdir) == ["bad.toml", "small.nc.parts", "small.toml"]
-    monkeypatch.setattr(runner, "evaluate_block", original)
+    monkeypatch.setattr(backends, "evaluate_block", original)
     assert cli.main(["run", "small.toml", "-q"]) == 0  # resumes, then cleans up
     assert listing(workdir) == ["bad.toml", "small.nc", "small.toml"]
 
@@ -222,7 +223,8 @@ def test_write_failure_exit_1(workdir, capsys, monkeypatch):
     assert cli.main(["run", "small.toml"]) == 1
     err = capsys.readouterr().err
     assert "conesurvey: error: cannot write" in err and "No space left on device" in err
-    assert not (workdir / "small.nc").exists()
+    assert "the run is resumable: run the same command again" in err
+    assert listing(workdir) == ["bad.toml", "small.nc.parts", "small.toml"]
 
 
 # --- subprocess: the real entry points --------------------------------------------------------

@@ -65,3 +65,27 @@ def test_bad_launch_inputs_name_the_argument(kwargs, match):
     args = dict(alpha=0.5, r=1.0, u=0.0, v=1.0, w=0.0) | kwargs
     with pytest.raises(ValueError, match=match):
         engine.invariants(**args)
+
+
+def test_launch_survey_stores_the_invariants_and_starts_fates_at_the_launch():
+    alpha, r0, v0, w0 = [0.5, 1.0], [0.6, 1.2], [2.5, 4.0], [0.0, 0.4]
+    ds = engine.launch_survey(alpha, r0, v0, w0)
+    assert ds.orbit_class.dims == ("alpha", "r0", "v0", "w0")
+    assert ds.attrs["grid"].startswith("launch states")
+    a, r, v, w = np.meshgrid(alpha, r0, v0, w0, indexing="ij")
+    inv = engine.invariants(a, r, 0.0, v, w)
+    for name in ("energy", "h", "Lz"):
+        np.testing.assert_array_equal(ds[name].values, inv[name])
+    ref = engine.evaluate(a, inv["energy"], inv["h"], inv["Lz"])
+    np.testing.assert_array_equal(ds.orbit_class.values, ref.orbit_class.values)
+    # fast launches start at their r_min (u = 0 there, moving out): the fate of the launch
+    # equals the fate map over the same invariants, which starts at r_min
+    scene = engine.Scene(c_rr=0.02, rim=2.5, mu=1e6)
+    kw = dict(method="rk45", rtol=1e-10, horizon_time=20.0)
+    fl = engine.launch_survey(alpha, r0, v0, w0, scene, **kw)
+    fi = engine.evaluate(a, inv["energy"], inv["h"], inv["Lz"], scene=scene, **kw)
+    at_rmin = np.isclose(fi.r_min.values, r, rtol=1e-9)
+    assert at_rmin.sum() >= 4
+    np.testing.assert_array_equal(fl.fate.values[at_rmin], fi.fate.values[at_rmin])
+    np.testing.assert_allclose(fl.fate_time.values[at_rmin], fi.fate_time.values[at_rmin],
+                               rtol=1e-7)  # fmt: skip

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import os
+import re
 import signal
 import subprocess
 import sys
@@ -10,12 +10,12 @@ import time
 from pathlib import Path
 from types import SimpleNamespace
 
-import numpy as np
 import pytest
-import xarray as xr
+import runs
 
 from engine import runner
-from engine.io import blocks as io_blocks
+from engine.grid import Tiling
+from engine.io import manifest as io_manifest
 from engine.io.netcdf import read_info
 from engine.runner import RunError, run_survey
 from engine.surveyfile import parse_survey
@@ -23,59 +23,20 @@ from engine.surveyfile import parse_survey
 ROOT = Path(__file__).resolve().parent.parent
 
 # 4 x 100 x 33 x 100 = 1.32e6 points in 32 blocks of one storage chunk each
-SURVEY = """\
-title = "runner test"
-
-[axes.alpha]
-values = [0.3, 0.6, 0.9, 1.2]
-
-[axes.energy]
-start = 1e-6
-stop = 10.0
-num = 100
-scale = "log"
-relative_to = "V_min"
-
-[axes.h]
-start = -2.0
-stop = 2.0
-num = 33
-
-[axes.Lz]
-start = 0.05
-stop = 1.0
-num = 100
-"""
-SMALL = SURVEY.replace("num = 100\nscale", "num = 10\nscale").replace(
-    "stop = 1.0\nnum = 100", "stop = 1.0\nnum = 10"
-)
+SURVEY = runs.gravity_survey("runner test")
+SMALL = runs.gravity_survey("runner test", energy=10, lz=10)
 CHUNK = 1 << 16
 
 
 def _env() -> dict[str, str]:
-    env = dict(os.environ)
-    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
-    return env
+    return runs.env()
 
 
 def _cli(*args: str) -> list[str]:
-    return [sys.executable, "-m", "engine.cli", *args]
+    return runs.cli(*args)
 
 
-def _same_content(a: Path, b: Path) -> None:
-    with xr.open_dataset(a) as x, xr.open_dataset(b) as y:
-        x.load()
-        y.load()
-    assert set(x.variables) == set(y.variables)
-    for name in x.variables:
-        np.testing.assert_array_equal(x[name].values, y[name].values, err_msg=name)
-        assert x[name].attrs.keys() == y[name].attrs.keys()
-        for key, value in x[name].attrs.items():
-            np.testing.assert_array_equal(value, y[name].attrs[key])
-    skip = {"history"}
-    assert {k: v for k, v in x.attrs.items() if k not in skip} == {
-        k: v for k, v in y.attrs.items() if k not in skip
-    }
+_same_content = runs.same_content
 
 
 @pytest.fixture(scope="module")
@@ -152,7 +113,7 @@ def test_resume_refuses_another_survey_or_engine_version(tmp_path, monkeypatch):
     other = parse_survey(SMALL.replace("num = 33", "num = 330").replace("runner test", "x"))
     with pytest.raises(RunError, match="another survey"):
         run_survey(other, out, block_points=CHUNK)
-    monkeypatch.setattr(io_blocks, "__version__", "9.9.9")  # the version the block store records
+    monkeypatch.setattr(io_manifest, "__version__", "9.9.9")  # the version the store records
     with pytest.raises(RunError, match="engine version"):
         run_survey(s, out, block_points=CHUNK)
     assert not out.exists()
@@ -183,7 +144,7 @@ def test_completed_output_is_not_recomputed_and_info_reports_it(tmp_path, capsys
     with pytest.raises(runner.AlreadyComplete):
         run_survey(s, out)
     info = read_info(out)
-    assert info["complete"] and info["attrs"]["survey_fingerprint"] == io_blocks.fingerprint(s)
+    assert info["complete"] and info["attrs"]["survey_fingerprint"] == io_manifest.fingerprint(s)
     assert sum(info["counts"].values()) == stats.points
     assert info["counts"]["bounded"] == int(stats.counts[1])
     from engine import cli
@@ -204,15 +165,61 @@ def test_validate_prints_size_and_time(tmp_path, capsys):
     assert list(tmp_path.iterdir()) == [tmp_path / "s.toml"]
 
 
+def _needed_mb(err: str) -> tuple[float, float, float]:
+    """(total, blocks, output) [MB] of a refusal for lack of disk space."""
+    m = re.search(
+        r"needs up to ([0-9.]+) MB of disk \(([0-9.]+) [kM]B for the blocks still to compute "
+        r"\+ ([0-9.]+) MB for the output",
+        err,
+    )
+    assert m, err
+    unit = 1.0 if " MB for the blocks" in err else 1e-3
+    return float(m.group(1)), float(m.group(2)) * unit, float(m.group(3))
+
+
 def test_refuses_a_grid_too_large_for_the_disk(tmp_path, capsys, monkeypatch):
+    """The check counts the blocks and the output merged beside them: 1.32e6 points x 65 bytes
+    (orbit_class int8, 7 closed-form float64, energy_absolute) = 85.8 MB of blocks, and the
+    output bounded by the same values uncompressed (+1 %, +1 MB of metadata)."""
     from engine import cli
 
     (tmp_path / "s.toml").write_text(SURVEY)
-    monkeypatch.setattr(cli.shutil, "disk_usage", lambda p: SimpleNamespace(free=1000))
+    monkeypatch.setattr(runner.shutil, "disk_usage", lambda p: SimpleNamespace(free=1000))
     assert cli.main(["run", str(tmp_path / "s.toml"), "-o", str(tmp_path / "o.nc")]) == 2
     err = capsys.readouterr().err
-    assert "needs up to 85.8 MB" in err and "1 kB free" in err and "--force" in err
+    values = 65 * 1.32e6 / 1e6
+    total, blocks, output = _needed_mb(err)
+    assert blocks == round(values, 1)  # 3 significant digits; the zip headers are < 0.1 MB
+    assert values * 1.01 <= output <= values * 1.01 + 1.1, err
+    assert abs(total - (blocks + output)) <= 1.0
+    assert "blocks still to compute" in err and "output merged beside them" in err
+    assert "1 kB free" in err and "--force" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+
+
+def test_space_check_counts_only_the_blocks_still_to_compute(tmp_path, capsys, monkeypatch):
+    """A resumed run needs room for its missing blocks and the output, not for the blocks it
+    already stored (after a disk-full stop the rerun is not refused by the same check)."""
+    from engine import cli
+
+    s = parse_survey(SMALL.replace("num = 33", "num = 330"))
+    (tmp_path / "s.toml").write_text(SMALL.replace("num = 33", "num = 330"))
+    out = tmp_path / "o.nc"
+    with pytest.raises(KeyboardInterrupt):
+        run_survey(s, out, block_points=CHUNK, on_block=_kill_after(2))
+    args = ["run", str(tmp_path / "s.toml"), "-o", str(out), "-q"]
+    monkeypatch.setattr(runner.shutil, "disk_usage", lambda p: SimpleNamespace(free=10**6))
+    assert cli.main(args) == 2
+    need_now, blocks, _ = _needed_mb(capsys.readouterr().err)
+    tiling = Tiling.for_grid(s.shape, CHUNK)
+    stored = [int(p.stem[1:]) for p in (tmp_path / "o.nc.parts").glob("b*.npz")]
+    assert len(stored) == 2
+    left = s.size - sum(tiling.points(i) for i in stored)
+    assert blocks == pytest.approx(65 * left / 1e6, rel=5e-3)
+    free = int((need_now + 0.01) * 1e6)
+    monkeypatch.setattr(runner.shutil, "disk_usage", lambda p: SimpleNamespace(free=free))
+    assert cli.main(args) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["o.nc", "s.toml"]
 
 
 def test_chunk_points_flag_must_be_positive(tmp_path, capsys):

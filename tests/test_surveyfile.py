@@ -134,8 +134,14 @@ def test_integers_are_numbers_and_num_one_with_equal_ends():
 
 
 def test_scene_boolean_field():
-    s = parse_survey(mutated("scene.attitude", True))
+    doc = copy.deepcopy(BASE)
+    doc["method"] = "rk45"  # the closed form cannot follow the attitude (issue 9): it refuses
+    doc["horizon"] = {"time": 10.0}  # the rim makes an integrator's map a fate map
+    doc.setdefault("scene", {})["attitude"] = True
+    s = parse_survey(to_toml(doc))
     assert s.scene.attitude is True
+    with pytest.raises(SurveyError, match="exact.*attitude"):
+        parse_survey(mutated("scene.attitude", True))
 
 
 def test_load_survey_reads_file_and_names_it_in_errors(tmp_path):
@@ -289,3 +295,53 @@ def test_unknown_key_without_close_match_lists_the_choices():
     with pytest.raises(SurveyError) as info:
         parse_survey(mutated("zzzz", 1))
     assert "expected one of" in str(info.value) and "axes" in str(info.value)
+
+
+LAUNCH = """\
+method = "rk45"
+[scene]
+c_rr = 0.02
+rim = 1.0
+[horizon]
+time = 30.0
+[axes.alpha]
+values = [0.6]
+[axes.r0]
+start = 0.1
+stop = 0.9
+num = 5
+[axes.v0]
+values = [0.5, 1.0]
+[axes.w0]
+values = [0.0]
+"""
+
+
+def test_launch_state_axes_and_horizon():
+    s = parse_survey(LAUNCH)
+    assert s.dims == ("alpha", "r0", "v0", "w0") and s.shape == (1, 5, 2, 1)
+    assert s.launch and s.energy is None
+    assert s.horizon.time == 30.0 and s.horizon.revolutions is None
+    assert {"energy", "h", "Lz", "fate"} <= set(s.variables())
+    assert s.attrs()["horizon_time"] == 30.0
+
+
+@pytest.mark.parametrize(
+    "text,key,words",
+    [
+        (LAUNCH.replace("[horizon]\ntime = 30.0\n", ""), "horizon", "horizon"),
+        (LAUNCH.replace("time = 30.0", "time = -1.0"), "horizon.time", "must be > 0"),
+        (LAUNCH.replace("time = 30.0", "days = 3"), "horizon.days", "unknown key"),
+        (LAUNCH.replace("start = 0.1", "start = 0.0"), "axes.r0.start", "must be > 0"),
+        (LAUNCH.replace("[axes.w0]", "[axes.h]"), "axes", "launch states"),
+        (
+            LAUNCH.replace('method = "rk45"', 'method = "exact"').replace("c_rr = 0.02", ""),
+            "horizon",
+            "fate maps only",
+        ),
+    ],
+)
+def test_bad_horizons_and_launch_axes_are_named(text, key, words):
+    with pytest.raises(SurveyError) as info:
+        parse_survey(text)
+    assert info.value.key.startswith(key) and words in str(info.value), str(info.value)

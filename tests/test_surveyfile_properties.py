@@ -16,6 +16,8 @@ from hypothesis import strategies as st
 import engine
 from engine.cli import main as cli_main
 from engine.methods import METHODS as _REGISTRY
+from engine.methods import RTOL_RANGE
+from engine.schema import map_kind
 from engine.surveyfile import AXES, SurveyError, parse_survey
 
 METHODS = tuple(_REGISTRY)
@@ -136,9 +138,9 @@ def check_key_refers_to_document(err: SurveyError, doc: dict | None) -> None:
 
 # --- strategies: valid survey documents -------------------------------------------------------
 
-# Titles: any unicode but lone surrogates (not representable in TOML), quotes and
-# backslashes and control characters included.
-titles = st.text(st.characters(exclude_categories=("Cs",)), max_size=40)
+# Titles: any unicode but lone surrogates (not representable in TOML) and NUL (refused: netCDF
+# text ends there; issue 11), quotes and backslashes and other control characters included.
+titles = st.text(st.characters(exclude_categories=("Cs",), exclude_characters="\x00"), max_size=40)
 # Strings inside error messages: no control characters (messages show them raw).
 plain_text = st.text(st.characters(exclude_categories=("Cs", "Cc")), max_size=12)
 
@@ -219,12 +221,17 @@ def valid_docs(draw) -> dict:
         doc["title"] = draw(titles)
     if draw(st.booleans()):
         doc["method"] = draw(st.sampled_from(METHODS))
-    if draw(st.booleans()):
-        doc["rtol"] = draw(st.floats(0.0, 1.0, exclude_min=True, exclude_max=True))
+    if draw(st.booleans()):  # the registry's range (issue 11: validate refuses what run does)
+        doc["rtol"] = draw(st.floats(*RTOL_RANGE))
     if draw(st.booleans()):
         doc["circular_tol"] = draw(nonneg)
     if draw(st.booleans()):
         doc["scene"] = draw(scenes())
+    method = _REGISTRY[doc.get("method", "exact")]
+    scene = {k: (v if isinstance(v, bool) else float(v)) for k, v in doc.get("scene", {}).items()}
+    assume(not method.refused_effects(engine.Scene(**scene)))  # a method that honours the scene
+    if map_kind(method.name, engine.Scene(**scene)) == "fate":  # a fate map needs a horizon
+        doc["horizon"] = {"time": draw(st.floats(1e-3, 1e3))}
     order = draw(st.permutations(AXES))
     doc["axes"] = {name: draw(axis_specs(name)) for name in order}
     return doc
@@ -397,6 +404,9 @@ def invalid_cases(draw) -> dict:
                 "relative_to",
                 "nested",
                 "malformed",
+                "method_scene",
+                "rtol_range",
+                "nul_title",
             ]
         )
     )
@@ -406,9 +416,9 @@ def invalid_cases(draw) -> dict:
     if kind == "unknown":
         level = draw(st.sampled_from([(), ("scene",), ("axes",)] + [("axes", n) for n in AXES]))
         allowed = {
-            (): {"title", "method", "rtol", "circular_tol", "scene", "axes"},
+            (): {"title", "method", "rtol", "circular_tol", "scene", "horizon", "axes"},
             ("scene",): {"M", "g", "a", "k", "rim", "mu", "c_rr", "attitude"},
-            ("axes",): set(AXES),
+            ("axes",): set(AXES) | {"r0", "v0", "w0"},  # launch-state axes are known keys
         }.get(level, {"values", "start", "stop", "num", "scale", "relative_to"})
         if level == ("axes", "energy"):
             allowed = allowed | {"relative_to"}
@@ -545,6 +555,29 @@ def invalid_cases(draw) -> dict:
         assume(name != "energy" or value != "V_min")
         axes[name]["relative_to"] = value
         key = f"axes.{name}.relative_to"
+    elif kind == "method_scene":  # a method that cannot honour an effect of the scene
+        method = draw(st.sampled_from([m for m in _REGISTRY.values() if m.refuses]))
+        effect = draw(st.sampled_from([name for name, _ in method.refuses]))
+        doc["method"] = method.name
+        scene = doc.setdefault("scene", {})
+        scene.update({"rolling_resistance": {"c_rr": 1e-3}, "attitude": {"attitude": True}}[effect])
+        key, shows = "method", effect
+    elif kind == "rtol_range":  # in (0, 1) but outside the registry's range, for an integrator
+        doc["method"] = draw(st.sampled_from([m.name for m in _REGISTRY.values() if m.integrates]))
+        doc.pop("scene", None)
+        value = draw(
+            st.one_of(
+                st.floats(0.0, RTOL_RANGE[0], exclude_min=True, exclude_max=True),
+                st.floats(RTOL_RANGE[1], 1.0, exclude_min=True, exclude_max=True),
+            )
+        )
+        doc["rtol"] = value
+        key, shows = "rtol", shown(value)
+    elif kind == "nul_title":
+        title = draw(titles)
+        i = draw(st.integers(0, len(title)))
+        doc["title"] = title[:i] + "\x00" + title[i:]
+        key = "title"
     elif kind == "nested":
         depth = draw(st.one_of(st.integers(1, 50), st.integers(1000, 20000)))
         raw = to_toml(doc)

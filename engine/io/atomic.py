@@ -1,35 +1,48 @@
-"""Files that appear under their name complete or not at all.
+"""Files that appear under their name complete or not at all, never written through a link.
 
 Every file conesurvey writes (a netCDF result, a block of a streamed run, the run's manifest)
-goes through :func:`replacing`: it is written as ``NAME.tmp`` in the same directory, made
+goes through :func:`write_atomic` or :func:`replacing`: it is written under a fresh temporary
+name in the same directory, ``NAME.<random>.tmp``, created with ``O_CREAT | O_EXCL |
+O_NOFOLLOW`` (so it is never an existing file, and never a symbolic link planted there), made
 durable (fsync), renamed to ``NAME`` and the directory is fsynced so that the rename survives a
-power cut. On any error, KeyboardInterrupt included, the ``.tmp`` file is removed and ``NAME``,
-new or old, is untouched.
+power cut. On any error, KeyboardInterrupt included, the temporary file is removed and ``NAME``,
+new or old, is untouched. Two writers of the same name never share a temporary file.
 
-Renaming either replaces an existing ``NAME`` atomically (``os.replace``) or refuses to
-(:func:`rename_no_clobber`: a hard link, which fails if ``NAME`` appeared meanwhile).
+Renaming either replaces an existing ``NAME`` atomically (``os.replace``; a link at ``NAME`` is
+replaced, its target untouched) or refuses to (:func:`rename_no_clobber`: a hard link, which
+fails if ``NAME`` appeared meanwhile).
 
 Policy for the directory fsync (:func:`fsync_dir`): skipped on Windows, where a directory cannot
 be opened; elsewhere an error that means "this file system cannot fsync a directory"
 (:data:`NOT_SUPPORTED`) is ignored and any other error (EIO, ...) is raised, since the rename
 may then not be durable.
+
+:func:`read_regular` is the one way conesurvey reads a file it did not just write (a survey
+definition, a manifest): regular files only (a FIFO or a device is refused without blocking),
+at most a given number of bytes.
 """
 
 from __future__ import annotations
 
 import contextlib
 import errno
+import hashlib
 import os
+import secrets
+import stat
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import BinaryIO
 
 __all__ = [
     "NOT_SUPPORTED",
-    "tmp_path",
+    "NotRegularFile",
+    "create_new",
     "fsync_path",
     "fsync_dir",
     "exists_error",
+    "not_regular",
+    "read_regular",
     "rename_no_clobber",
     "replacing",
     "write_atomic",
@@ -41,16 +54,34 @@ NOT_SUPPORTED = frozenset(
 )
 #: Whether directories can be opened (and fsynced) on this operating system.
 DIRECTORIES_OPEN = os.name != "nt"
+O_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
+O_CLOEXEC = getattr(os, "O_CLOEXEC", 0)
+O_NONBLOCK = getattr(os, "O_NONBLOCK", 0)
+#: Flags of a file created by this package: new, never through a link.
+NEW_FILE = os.O_RDWR | os.O_CREAT | os.O_EXCL | O_NOFOLLOW | O_CLOEXEC | getattr(os, "O_BINARY", 0)
+#: Suffix of every temporary file (a killed run may leave some; they are never reused).
+TMP_SUFFIX = ".tmp"
 
 
-def tmp_path(path: Path) -> Path:
-    """Where ``path`` is written before it is renamed: ``path.tmp`` in the same directory."""
-    return path.with_name(path.name + ".tmp")
+class NotRegularFile(OSError):
+    """A path that is a FIFO, a device, a socket or a directory where a file was expected."""
+
+
+def create_new(directory: Path, stem: str, mode: int = 0o666) -> tuple[int, Path]:
+    """Create ``directory/stem.<random>.tmp`` exclusively (``O_EXCL | O_NOFOLLOW``): a new,
+    empty regular file of this process. Returns (open file descriptor, path)."""
+    for _ in range(64):
+        path = directory / f"{stem}.{secrets.token_hex(6)}{TMP_SUFFIX}"
+        try:
+            return os.open(path, NEW_FILE, mode), path
+        except FileExistsError:  # taken (or a planted link): draw another name
+            continue
+    raise FileExistsError(errno.EEXIST, "no free temporary name", str(directory / stem))
 
 
 def fsync_path(path: Path) -> None:
     """Flush the contents of the file ``path`` to the disk."""
-    fd = os.open(path, os.O_RDONLY)
+    fd = os.open(path, os.O_RDONLY | O_NOFOLLOW | O_CLOEXEC)
     try:
         os.fsync(fd)
     finally:
@@ -62,7 +93,7 @@ def fsync_dir(directory: Path) -> None:
     if not DIRECTORIES_OPEN:
         return
     try:
-        fd = os.open(directory, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+        fd = os.open(directory, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0) | O_CLOEXEC)
     except OSError as exc:
         if exc.errno in NOT_SUPPORTED:
             return
@@ -93,43 +124,123 @@ def rename_no_clobber(src: Path, dst: Path) -> None:
         os.link(src, dst)  # atomic: fails if dst exists
     except FileExistsError:
         raise exists_error(dst) from None
-    except OSError:  # no hard links here
-        if dst.exists():
+    except OSError as exc:
+        if exc.errno == errno.ENOSPC:
+            raise
+        if os.path.lexists(dst):  # no hard links here
             raise exists_error(dst) from None
         os.replace(src, dst)
         return
     os.unlink(src)
 
 
-@contextlib.contextmanager
-def replacing(path: Path, *, overwrite: bool = True) -> Iterator[Path]:
-    """Yield ``path.tmp`` to be written and made durable (:func:`fsync_path`) by the caller;
-    then rename it to ``path`` and fsync the directory.
+def _put_in_place(tmp: Path, path: Path, overwrite: bool) -> None:
+    if overwrite:
+        os.replace(tmp, path)
+    else:
+        rename_no_clobber(tmp, path)
+    fsync_dir(path.parent)
+    if tmp.parent != path.parent:
+        fsync_dir(tmp.parent)
 
-    Without ``overwrite`` an existing ``path`` is never replaced (FileExistsError, checked
-    before writing and again when renaming). A stale ``.tmp`` is removed first; on any error
-    the ``.tmp`` is removed and ``path`` is untouched.
+
+@contextlib.contextmanager
+def replacing(path: Path, *, overwrite: bool = True, tmp_dir: Path | None = None) -> Iterator[Path]:
+    """Yield a new empty temporary file (:func:`create_new`) for a writer that needs a path
+    (HDF5); the caller writes it and makes it durable (:func:`fsync_path`); then it is renamed
+    to ``path`` and the directory fsynced.
+
+    ``tmp_dir`` (default: beside ``path``, on the same file system) is where the temporary file
+    lives; the streamed runs use their private block store. Without ``overwrite`` an existing
+    ``path`` is never replaced (FileExistsError, checked before writing and again, atomically,
+    when renaming). On any error the temporary file is removed and ``path`` is untouched.
     """
-    if not overwrite and path.exists():
+    if not overwrite and os.path.lexists(path):
         raise exists_error(path)
-    tmp = tmp_path(path)
+    fd, tmp = create_new(tmp_dir or path.parent, path.name)
+    os.close(fd)
     try:
-        tmp.unlink(missing_ok=True)  # left over by a crashed run
         yield tmp
-        if overwrite:
-            os.replace(tmp, path)
-        else:
-            rename_no_clobber(tmp, path)
-        fsync_dir(path.parent)
+        _put_in_place(tmp, path, overwrite)
     except BaseException:
         with contextlib.suppress(OSError):
             tmp.unlink(missing_ok=True)
         raise
 
 
-def write_atomic(path: Path, write: Callable[[BinaryIO], None]) -> None:
-    """Write ``path`` through :func:`replacing` with ``write(file)`` (binary), replacing it."""
-    with replacing(path) as tmp, open(tmp, "wb") as f:
-        write(f)
-        f.flush()
-        os.fsync(f.fileno())
+def write_atomic(
+    path: Path, write: Callable[[BinaryIO], None], *, mode: int = 0o666, overwrite: bool = True
+) -> tuple[int, str]:
+    """Write ``path`` with ``write(file)`` (binary) through a new temporary file opened with
+    ``O_EXCL | O_NOFOLLOW``, fsync it and rename it into place (replacing ``path`` unless not
+    ``overwrite``). Returns the size [bytes] and SHA-256 (hex) of what was written, read back
+    through the same descriptor before the rename."""
+    fd, tmp = create_new(path.parent, path.name, mode)
+    try:
+        with os.fdopen(fd, "w+b") as f:
+            write(f)
+            f.flush()
+            os.fsync(f.fileno())
+            f.seek(0)
+            digest = hashlib.file_digest(f, "sha256").hexdigest()
+            size = f.tell()
+        _put_in_place(tmp, path, overwrite)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
+        raise
+    return size, digest
+
+
+def _kind(mode: int) -> str:
+    if stat.S_ISDIR(mode):
+        return "a directory"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    if stat.S_ISLNK(mode):
+        return "a symbolic link"
+    return "not a regular file"
+
+
+def not_regular(path: Path, *, follow_links: bool = True) -> str | None:
+    """What ``path`` is if it is not a regular file ("a FIFO (named pipe)", "a device", ...);
+    None if it is one or does not exist."""
+    try:
+        st = os.stat(path, follow_symlinks=follow_links)
+    except (FileNotFoundError, NotADirectoryError):
+        return None
+    return None if stat.S_ISREG(st.st_mode) else _kind(st.st_mode)
+
+
+def read_regular(path: Path, limit: int, *, follow_links: bool = True) -> bytes:
+    """The bytes of the regular file ``path``.
+
+    NotRegularFile (an OSError) for a FIFO, device, socket or directory (checked before and
+    after opening, which never blocks), or for a link when not ``follow_links``; ValueError if
+    the file holds more than ``limit`` bytes (only ``limit + 1`` are read).
+    """
+    try:
+        st = os.stat(path, follow_symlinks=follow_links)
+    except OSError:
+        st = None  # let open() report it
+    if st is not None and not stat.S_ISREG(st.st_mode):
+        raise NotRegularFile(errno.EINVAL, f"is {_kind(st.st_mode)}", str(path))
+    flags = os.O_RDONLY | O_NONBLOCK | O_CLOEXEC | getattr(os, "O_BINARY", 0)
+    try:
+        fd = os.open(path, flags | (0 if follow_links else O_NOFOLLOW))
+    except OSError as exc:
+        if exc.errno == errno.ELOOP and not follow_links:
+            raise NotRegularFile(errno.ELOOP, "is a symbolic link", str(path)) from None
+        raise
+    with os.fdopen(fd, "rb") as f:
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            raise NotRegularFile(errno.EINVAL, f"is {_kind(mode)}", str(path))
+        data = f.read(limit + 1)
+    if len(data) > limit:
+        raise ValueError(f"{path} is larger than {limit:,} bytes")
+    return data

@@ -1,22 +1,37 @@
-"""The block store of a streamed run, its manifest, and the survey fingerprint.
+"""The block store of a streamed run: verified blocks, a journal of their checksums, cleanup.
 
 Layout while a run is under way, next to the output ``OUT``::
 
-    OUT.parts/manifest.json     fingerprint of the survey, engine version, tiling, definition
+    OUT.parts/                  created by the run, mode 0700 (a link or another user's
+                                directory is refused)
+    OUT.parts/manifest.json     the survey's fingerprint, tiling, variables (engine.io.manifest)
+    OUT.parts/journal           one line per committed block: index, size, SHA-256, line check
     OUT.parts/b00000042.npz     results of block 42 (written through engine.io.atomic)
 
-A block is done when its file exists; :meth:`BlockStore.verify` loads every stored block and
-removes (after a warning) the ones that are corrupt or have the wrong layout. Nothing here
-depends on the output format: a backend's ``merge`` reads the blocks with
-:meth:`BlockStore.blocks` and gathers the run's statistics with :class:`Summary`. The streamed
-run itself is described in the README ("Large surveys: streaming, resume, dask").
+A block is committed in this order: its file is written under a fresh temporary name (``O_EXCL
+| O_NOFOLLOW``), fsynced and renamed into place; then its size and SHA-256 are appended to the
+journal and the journal is fsynced. A block counts only if its file's bytes have the size and
+hash its last journal line records: a file without a journal line (killed between the two
+steps), a truncated, edited or swapped file, or a link in its place is reported and computed
+again (:meth:`BlockStore.scan`, on resume), and every block is hashed again as the merge reads
+it (:meth:`BlockStore.blocks`). A torn last journal line (killed mid-append) fails its line
+check and is ignored. Files that are not the store's are reported and left alone.
+
+Removing a store (:meth:`BlockStore.remove`) deletes the manifest first: a store without a
+manifest is the debris of a killed cleanup (or of a run killed as it started) and holds nothing
+that can be verified; the next run removes it.
 """
 
 from __future__ import annotations
 
 import contextlib
 import hashlib
-import json
+import io
+import os
+import re
+import shutil
+import stat
+import tomllib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,42 +39,41 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .._version import __version__
 from ..grid import Tiling
 from ..kernels.geometry import CLASS_NAMES
-from ..schema import DIMS, FINGERPRINT_ATTR, result_variables, variable_attrs
+from ..schema import DIMS, LAUNCH_DIMS, RESULTS, variable_attrs
 from . import OutputError
-from .atomic import write_atomic
+from .atomic import (
+    NEW_FILE,
+    O_CLOEXEC,
+    O_NOFOLLOW,
+    TMP_SUFFIX,
+    NotRegularFile,
+    fsync_dir,
+    read_regular,
+    write_atomic,
+)
+from .manifest import MANIFEST, Manifest, read_manifest, survey_variables, write_manifest
 
 if TYPE_CHECKING:
     from ..surveyfile import Survey
 
 __all__ = [
-    "FINGERPRINT_ATTR",
-    "MANIFEST",
+    "JOURNAL",
     "BlockStore",
-    "Manifest",
+    "Scan",
     "Summary",
+    "block_file_bytes",
+    "check_parts_dir",
     "estimate_bytes",
-    "fingerprint",
-    "parts_dir",
     "parts_info",
-    "read_manifest",
-    "survey_variables",
-    "write_manifest",
 ]
 
-MANIFEST = "manifest.json"
-
-
-def parts_dir(out: Path) -> Path:
-    """The block store of the output ``out``: ``OUT.parts`` next to it."""
-    return out.with_name(out.name + ".parts")
-
-
-def survey_variables(survey: Survey) -> dict[str, np.dtype]:
-    """Names and dtypes of the result variables of ``survey``, in file order."""
-    return result_variables(survey.method, survey.scene, survey.energy_relative)
+JOURNAL = "journal"
+_BLOCK = re.compile(r"b(\d{8})\.npz")
+#: Zip headers of one member of a block file, an upper bound [bytes].
+_NPZ_MEMBER_OVERHEAD = 512
+_MAX_JOURNAL_BYTES = 1 << 30
 
 
 def estimate_bytes(survey: Survey) -> int:
@@ -68,156 +82,283 @@ def estimate_bytes(survey: Survey) -> int:
     return per_point * survey.size
 
 
-def fingerprint(survey: Survey) -> str:
-    """SHA-256 of everything that determines the results: axes, scene, method, tolerances,
-    title and the engine version."""
-    doc = {
-        "engine": __version__,
-        "title": survey.title,
-        "method": survey.method,
-        "rtol": survey.rtol.hex(),
-        "circular_tol": survey.circular_tol.hex(),
-        "energy_relative": survey.energy_relative,
-        "scene": {k: str(v) for k, v in survey.scene.as_attrs().items()},
-        "axes": {d: [float(x).hex() for x in getattr(survey, d)] for d in DIMS},
-    }
-    return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
+def block_file_bytes(names: dict[str, np.dtype], points: int) -> int:
+    """Upper bound of the size [bytes] of one block file of ``points`` points."""
+    per_point = sum(dt.itemsize for dt in names.values())
+    return per_point * points + _NPZ_MEMBER_OVERHEAD * (len(names) + 1)
 
 
-# --- the manifest -----------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Manifest:
-    """What a block store holds: the survey's fingerprint, the engine that wrote it, the tiling
-    and the survey definition (TOML text)."""
-
-    fingerprint: str
-    engine: str | None
-    tiling: Tiling
-    survey_definition: str = ""
-
-    @classmethod
-    def new(cls, survey: Survey, tiling: Tiling) -> Manifest:
-        """The manifest of a run of ``survey`` by this engine, in blocks of ``tiling``."""
-        return cls(fingerprint(survey), __version__, tiling, survey.source_text)
-
-
-def read_manifest(root: Path) -> Manifest:
-    """The manifest of the block store ``root``; OutputError if it is missing or unreadable."""
-    path = root / MANIFEST
+def check_parts_dir(root: Path) -> bool:
+    """Whether the block store ``root`` exists; OutputError if it is a link, not a directory,
+    another user's, or writable by others (nothing in it could be trusted)."""
     try:
-        m = json.loads(path.read_text())
-        tiling = Tiling(tuple(m["shape"]), tuple(m["chunk"]), tuple(m["block"]))
-        return Manifest(m["fingerprint"], m.get("engine"), tiling, m.get("survey_definition", ""))
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise OutputError(f"{path} is unreadable ({exc})") from None
+        st = os.lstat(root)
+    except FileNotFoundError:
+        return False
+    if stat.S_ISLNK(st.st_mode):
+        raise OutputError(f"{root} is a symbolic link; refusing to use it (remove it)")
+    if not stat.S_ISDIR(st.st_mode):
+        raise OutputError(f"{root} is not a directory; refusing to use it (remove it)")
+    uid = getattr(os, "getuid", None)
+    if uid is not None and st.st_uid != uid():
+        raise OutputError(f"{root} belongs to another user (uid {st.st_uid}); refusing to use it")
+    if st.st_mode & 0o022:
+        raise OutputError(f"{root} is writable by other users; refusing to use it")
+    return True
 
 
-def write_manifest(root: Path, manifest: Manifest) -> None:
-    """Write the manifest of the block store ``root`` (atomically)."""
-    doc = {
-        "fingerprint": manifest.fingerprint,
-        "engine": manifest.engine,
-        "shape": list(manifest.tiling.shape),
-        "chunk": list(manifest.tiling.chunk),
-        "block": list(manifest.tiling.block),
-        "survey_definition": manifest.survey_definition,
-    }
-    write_atomic(root / MANIFEST, lambda f: f.write(json.dumps(doc, indent=1).encode()))
+def _line(index: int, size: int, digest: str) -> bytes:
+    body = f"{index} {size} {digest}"
+    return f"{body} {hashlib.sha256(body.encode()).hexdigest()[:16]}\n".encode()
 
 
-# --- the blocks -------------------------------------------------------------------------------
+def read_journal(root: Path, nblocks: int) -> dict[int, tuple[int, str]]:
+    """index -> (size, SHA-256) of the last valid journal line of each block (torn or damaged
+    lines are skipped); {} if there is no journal."""
+    try:
+        data = read_regular(root / JOURNAL, _MAX_JOURNAL_BYTES, follow_links=False)
+    except FileNotFoundError:
+        return {}
+    except (NotRegularFile, ValueError) as exc:
+        raise OutputError(f"{root / JOURNAL} is unreadable ({exc})") from None
+    entries: dict[int, tuple[int, str]] = {}
+    for raw in data.split(b"\n")[:-1]:  # the part after the last newline is torn
+        parts = raw.split(b" ")
+        if len(parts) != 4 or not all(p.isalnum() and p.isascii() for p in parts):
+            continue
+        try:
+            index, size, digest = int(parts[0]), int(parts[1]), parts[2].decode()
+        except ValueError:
+            continue
+        if _line(index, size, digest) == raw + b"\n" and 0 <= index < nblocks:
+            entries[index] = (size, digest)
+    return entries
+
+
+def _file_digest(path: Path, size: int) -> str | None:
+    """SHA-256 of the regular file ``path`` (not followed), None if it is not one or its size
+    is not ``size``; FileNotFoundError if it is gone."""
+    try:
+        fd = os.open(path, os.O_RDONLY | O_NOFOLLOW | O_CLOEXEC)
+    except OSError as exc:
+        if isinstance(exc, FileNotFoundError):
+            raise
+        return None
+    with os.fdopen(fd, "rb") as f:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode) or st.st_size != size:
+            return None
+        return hashlib.file_digest(f, "sha256").hexdigest()
+
+
+@dataclass
+class Scan:
+    """What :meth:`BlockStore.scan` found: verified block indices, bad block files (name ->
+    reason), stale temporary files and files that are not the store's."""
+
+    good: set[int] = field(default_factory=set)
+    bad: dict[str, str] = field(default_factory=dict)
+    tmp: list[str] = field(default_factory=list)
+    stray: list[str] = field(default_factory=list)
 
 
 @dataclass
 class BlockStore:
-    """Finished blocks of one run, one ``.npz`` file each (the manifest is written apart)."""
+    """The committed blocks of one run, verified against the journal."""
 
     root: Path
     tiling: Tiling
     names: dict[str, np.dtype]
     warn: Callable[[str], None] = field(default=lambda msg: None)
+    journal: dict[int, tuple[int, str]] = field(default_factory=dict)
+
+    @classmethod
+    def create(
+        cls, root: Path, manifest: Manifest, warn: Callable[[str], None] = lambda msg: None
+    ) -> BlockStore:
+        """A new store: the directory (mode 0700; FileExistsError if it exists), the manifest
+        and an empty journal. Removed again if any of that fails."""
+        os.mkdir(root, 0o700)
+        try:
+            write_manifest(root, manifest)
+            os.close(os.open(root / JOURNAL, NEW_FILE, 0o600))
+            fsync_dir(root)
+            fsync_dir(root.parent)
+        except BaseException:
+            shutil.rmtree(root, ignore_errors=True)
+            raise
+        return cls(root, manifest.tiling, manifest.names, warn)
+
+    @classmethod
+    def open(cls, root: Path, warn: Callable[[str], None] = lambda msg: None) -> BlockStore:
+        """The existing store ``root`` (its manifest and journal read and checked)."""
+        m = read_manifest(root)
+        return cls(root, m.tiling, m.names, warn, read_journal(root, m.tiling.nblocks))
 
     def path(self, index: int) -> Path:
         return self.root / f"b{index:08d}.npz"
 
-    def save(self, index: int, arrays: dict[str, np.ndarray]) -> None:
-        """Store block ``index`` (atomically: a block file is complete or absent)."""
-        clean = {n: np.ascontiguousarray(arrays[n], dtype=dt) for n, dt in self.names.items()}
-        write_atomic(self.path(index), lambda f: np.savez(f, **clean))
+    # -- writing --
 
-    def load(self, index: int) -> dict[str, np.ndarray] | None:
-        """The block's arrays, or None (after a warning) if its file is missing or corrupt."""
+    def commit(self, index: int, arrays: dict[str, np.ndarray]) -> None:
+        """Store block ``index``: write its file atomically, then journal its size and hash."""
+        clean = {n: np.ascontiguousarray(arrays[n], dtype=dt) for n, dt in self.names.items()}
+        size, digest = write_atomic(self.path(index), lambda f: np.savez(f, **clean), mode=0o600)
+        fd = os.open(self.root / JOURNAL, os.O_WRONLY | os.O_APPEND | O_NOFOLLOW | O_CLOEXEC)
+        try:
+            os.write(fd, _line(index, size, digest))
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        self.journal[index] = (size, digest)
+
+    # -- verifying --
+
+    def scan(self) -> Scan:
+        """Check every file of the store against the journal (reads and hashes every block;
+        changes nothing)."""
+        found = Scan()
+        for name in sorted(os.listdir(self.root)):
+            if name in (MANIFEST, JOURNAL):
+                continue
+            if name.endswith(TMP_SUFFIX):
+                found.tmp.append(name)
+                continue
+            m = _BLOCK.fullmatch(name)
+            if m is None or int(m.group(1)) >= self.tiling.nblocks:
+                found.stray.append(name)
+                continue
+            index = int(m.group(1))
+            entry = self.journal.get(index)
+            if entry is None:
+                found.bad[name] = "not recorded in the journal"
+                continue
+            try:
+                digest = _file_digest(self.root / name, entry[0])
+            except FileNotFoundError:
+                continue
+            if digest is None:
+                found.bad[name] = "not a regular file of the recorded size"
+            elif digest != entry[1]:
+                found.bad[name] = "its checksum does not match the journal"
+            else:
+                found.good.add(index)
+        return found
+
+    def discard(self, found: Scan) -> None:
+        """Report and delete the bad blocks and stale temporary files; report strays."""
+        for name, why in found.bad.items():
+            self.warn(f"block file {name} is corrupt ({why}); recomputing")
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(self.root / name)
+        for name in found.tmp:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(self.root / name)
+        if found.stray:
+            shown = ", ".join(found.stray[:5]) + (" ..." if len(found.stray) > 5 else "")
+            self.warn(f"ignoring files that are not blocks of this run in {self.root}: {shown}")
+
+    def load(self, index: int) -> dict[str, np.ndarray]:
+        """Block ``index``, its bytes verified against the journal as they are read;
+        OutputError if it is missing, changed or of the wrong layout."""
+        entry = self.journal.get(index)
         p = self.path(index)
+        if entry is None:
+            raise OutputError(f"block {index} is not recorded in the journal")
+        try:
+            data = read_regular(p, entry[0], follow_links=False)
+        except FileNotFoundError:
+            raise OutputError(f"block file {p.name} vanished") from None
+        except (NotRegularFile, ValueError):
+            data = b""
+        if len(data) != entry[0] or hashlib.sha256(data).hexdigest() != entry[1]:
+            raise OutputError(f"block file {p.name} changed since it was written")
         shape = tuple(s.stop - s.start for s in self.tiling.slices(index))
         try:
-            with np.load(p, allow_pickle=False) as z:
+            with np.load(io.BytesIO(data), allow_pickle=False) as z:
                 out = {n: z[n] for n in self.names}
-        except FileNotFoundError:
-            return None
-        except Exception as exc:  # truncated zip, bad CRC, missing member ...
-            self.warn(f"block file {p.name} is corrupt ({exc.__class__.__name__}); recomputing")
-            p.unlink(missing_ok=True)
-            return None
+        except Exception as exc:  # a journaled file that numpy cannot read: not ours
+            raise OutputError(f"block file {p.name} is unreadable ({exc})") from None
         for n, dt in self.names.items():
             if out[n].shape != shape or out[n].dtype != dt:
-                self.warn(f"block file {p.name} has the wrong {n} layout; recomputing")
-                p.unlink(missing_ok=True)
-                return None
+                raise OutputError(f"block file {p.name} has the wrong {n} layout")
         return out
 
-    def done(self) -> set[int]:
-        """Indices of blocks whose file exists (not yet verified)."""
-        found = set()
-        for p in self.root.glob("b*.npz"):
-            with contextlib.suppress(ValueError):
-                found.add(int(p.stem[1:]))
-        return {i for i in found if i < self.tiling.nblocks}
-
-    def verify(self) -> set[int]:
-        """Indices of stored blocks that load and have the right layout."""
-        return {i for i in sorted(self.done()) if self.load(i) is not None}
-
-    def remove_stale_tmp(self) -> None:
-        """Delete the ``.tmp`` files a killed run left behind."""
-        for tmp in self.root.glob("*.tmp"):
-            tmp.unlink(missing_ok=True)
-
     def blocks(self) -> Iterator[tuple[tuple[slice, ...], dict[str, np.ndarray]]]:
-        """(hyperslab, arrays) of every block in order; OutputError if one is missing."""
+        """(hyperslab, arrays) of every block in order, each verified as it is read; a bad
+        block is deleted (so that the next run computes it again) and raises OutputError."""
         for i in range(self.tiling.nblocks):
-            block = self.load(i)
-            if block is None:
-                raise OutputError(f"block {i} vanished or is corrupt during the merge; rerun")
+            try:
+                block = self.load(i)
+            except OutputError as exc:
+                with contextlib.suppress(OSError):
+                    os.unlink(self.path(i))
+                raise OutputError(f"{exc}; it will be computed again") from None
             yield self.tiling.slices(i), block
+
+    def remove(self) -> None:
+        """Delete the store: the manifest first (what is left is recognisable debris)."""
+        remove_store(self.root)
+
+
+def remove_store(root: Path) -> None:
+    """Delete the block store ``root`` (a link is not followed): manifest first, then the rest."""
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(root / MANIFEST)
+    fsync_dir(root)
+    shutil.rmtree(root)
+
+
+def _dims(definition: str) -> tuple[str, ...]:
+    """The axes named in a survey definition (launch states or invariants)."""
+    return LAUNCH_DIMS if "r0" in _axes_table(definition) else DIMS
+
+
+def _axes_table(definition: str) -> dict[str, Any]:
+    try:
+        axes = tomllib.loads(definition).get("axes", {})
+    except (tomllib.TOMLDecodeError, RecursionError):
+        return {}
+    return axes if isinstance(axes, dict) else {}
 
 
 def parts_info(root: Path) -> dict[str, Any]:
-    """What an unfinished run's block store says about it (``read_info`` of a backend)."""
+    """What an unfinished run's block store says about it (``read_info`` of a backend):
+    OutputError if the manifest is missing or invalid. Blocks are counted, not verified."""
     m = read_manifest(root)
+    names = os.listdir(root)
+    done = {int(mm.group(1)) for n in names if (mm := _BLOCK.fullmatch(n))}
     return {
         "complete": False,
         "attrs": {"survey_definition": m.survey_definition, "engine": m.engine},
-        "dims": dict(zip(DIMS, m.tiling.shape, strict=True)),
-        "blocks_done": len(BlockStore(root, m.tiling, {}).done()),
+        "dims": dict(zip(_dims(m.survey_definition), m.tiling.shape, strict=True)),
+        "blocks_done": len({i for i in done if i < m.tiling.nblocks}),
         "blocks_total": m.tiling.nblocks,
     }
 
 
 class Summary:
-    """Class counts and finite value ranges of the results, gathered block by block."""
+    """Counts of every flag variable (orbit classes, fates, statuses) and finite value ranges
+    of the results, gathered block by block."""
 
     def __init__(self) -> None:
-        self.counts = np.zeros(len(CLASS_NAMES), np.int64)
+        self.flags: dict[str, np.ndarray] = {}
         self._lo: dict[str, float] = {}
         self._hi: dict[str, float] = {}
 
+    @property
+    def counts(self) -> np.ndarray:
+        """Counts of the orbit classes."""
+        return self.flags.get("orbit_class", np.zeros(len(CLASS_NAMES), np.int64))
+
     def add(self, block: dict[str, np.ndarray]) -> None:
-        """Count the classes of ``block`` and widen the ranges of its float variables."""
+        """Count the flags of ``block`` and widen the ranges of its float variables."""
         for name, arr in block.items():
-            if name == "orbit_class":
-                self.counts += np.bincount(arr.ravel(), minlength=len(CLASS_NAMES))
+            meanings = RESULTS[name].flags if name in RESULTS else None
+            if meanings is not None:
+                n = len(meanings)
+                seen = np.bincount(arr.ravel(), minlength=n)[:n]
+                self.flags[name] = self.flags.get(name, np.zeros(n, np.int64)) + seen
             elif arr.dtype.kind == "f":
                 fin = arr[np.isfinite(arr)]
                 if fin.size:

@@ -29,10 +29,11 @@ from xarray.backends import BackendArray
 from xarray.core import indexing
 
 from ..grid import Tiling, block_shape, storage_chunks
-from ..schema import DIMS, FINGERPRINT_ATTR, axis_attrs, survey_attrs, variable_attrs
+from ..schema import DIMS, FINGERPRINT_ATTR, LAUNCH_DIMS, axis_attrs, map_kind, variable_attrs
 from ..surveyfile import SurveyError, parse_survey
 from . import OutputError
-from .blocks import BlockStore, parts_dir, read_manifest, survey_variables
+from .blocks import BlockStore
+from .manifest import parts_dir, read_manifest
 
 __all__ = ["READ_POINTS", "Result", "open_result"]
 
@@ -57,6 +58,11 @@ class Result:
     done: frozenset[int] | None = None
     fingerprint: str | None = None
     kind: str = "netcdf"
+
+    @property
+    def dims(self) -> tuple[str, ...]:
+        """The survey's axes, in order: (alpha, energy, h, Lz) or (alpha, r0, v0, w0)."""
+        return LAUNCH_DIMS if "r0" in self.ds.dims else DIMS
 
     @property
     def blocks_total(self) -> int:
@@ -89,14 +95,15 @@ class Result:
         if self.done is None:
             return None
         arr = _BlockArray(self.tiling, self.done, None, np.dtype(bool))
-        var = xr.Variable(DIMS, indexing.LazilyIndexedArray(arr))
-        return xr.DataArray(var, coords={d: self.ds.coords[d] for d in DIMS}, name="computed")
+        var = xr.Variable(self.dims, indexing.LazilyIndexedArray(arr))
+        coords = {d: self.ds.coords[d] for d in self.dims}
+        return xr.DataArray(var, coords=coords, name="computed")
 
     def tiles(self) -> Iterator[dict[str, slice]]:
         """Selections (dim -> slice) covering every computed point once, tile by tile."""
         indices = range(self.tiling.nblocks) if self.done is None else sorted(self.done)
         for i in indices:
-            yield dict(zip(DIMS, self.tiling.slices(i), strict=True))
+            yield dict(zip(self.dims, self.tiling.slices(i), strict=True))
 
     def close(self) -> None:
         self.ds.close()
@@ -131,12 +138,13 @@ def _open_netcdf(path: Path) -> Result:
         ds = xr.open_dataset(path, engine="netcdf4")
     except (OSError, ValueError) as exc:
         raise OutputError(f"{path} is not a readable netCDF file ({exc})") from None
-    missing = [d for d in DIMS if d not in ds.dims]
+    dims = LAUNCH_DIMS if "r0" in ds.dims else DIMS
+    missing = [d for d in dims if d not in ds.dims]
     if missing or "orbit_class" not in ds:
         ds.close()
         what = f"the axes {missing}" if missing else "the variable orbit_class"
         raise OutputError(f"{path} is not a conesurvey survey: it has no {what}")
-    shape = tuple(ds.sizes[d] for d in DIMS)
+    shape = tuple(ds.sizes[d] for d in dims)
     chunk = ds["orbit_class"].encoding.get("chunksizes") or storage_chunks(shape)
     tiling = Tiling(shape, tuple(chunk), block_shape(shape, tuple(chunk), READ_POINTS))
     fp = ds.attrs.get(FINGERPRINT_ATTR)
@@ -152,11 +160,14 @@ def _open_parts(path: Path) -> Result:
     except SurveyError as exc:
         raise OutputError(f"cannot read the unfinished run's survey definition: {exc}") from None
     tiling = manifest.tiling
-    axes = {d: np.asarray(getattr(survey, d), np.float64) for d in DIMS}
+    axes = {d: np.asarray(getattr(survey, d), np.float64) for d in survey.dims}
     if tuple(a.size for a in axes.values()) != tiling.shape:
         raise OutputError(f"{root}: the manifest's grid does not match its survey definition")
-    store = BlockStore(root, tiling, survey_variables(survey))
-    done = frozenset(store.done())
+    store = BlockStore.open(root)
+    kind = map_kind(survey.method, survey.scene)
+    # Blocks journaled (committed) whose files are there; a reader hashes nothing and changes
+    # nothing (the run that owns the store verifies its blocks).
+    done = frozenset(i for i in store.journal if store.path(i).is_file())
     coords = {d: xr.Variable(d, v, axis_attrs(d, survey.energy_relative)) for d, v in axes.items()}
     data = {}
     for name, dtype in store.names.items():
@@ -164,12 +175,11 @@ def _open_parts(path: Path) -> Result:
             tiling, done, store, np.dtype(np.float64) if dtype.kind in "iub" else dtype
         )
         arr.name = name
-        data[name] = xr.Variable(DIMS, indexing.LazilyIndexedArray(arr), variable_attrs(name))
+        data[name] = xr.Variable(survey.dims, indexing.LazilyIndexedArray(arr),
+                                 variable_attrs(name, kind))  # fmt: skip
     attrs: dict[str, Any] = {
         "title": survey.title,
-        **survey_attrs(
-            survey.scene, survey.method, survey.circular_tol, survey.rtol, survey.energy_relative
-        ),
+        **survey.attrs(),
         "source": f"conesurvey {manifest.engine}",
         "survey_definition": manifest.survey_definition,
     }

@@ -11,15 +11,14 @@ path of :mod:`.geometry`, which computes the same numbers bit for bit: every num
 computes comes from the same scalar helpers, in the same order (tests/kernels/test_batch.py).
 
 On a survey grid the family is the same for every energy of an (alpha, h, L_z) triple:
-:func:`orbit_grid` computes it once per triple and runs the energies through the lanes.
+:func:`orbit_units` computes it once per triple and runs the energies through the lanes. The
+callers (:mod:`engine.evaluation`) split the units of work among threads.
 """
 
 from __future__ import annotations
 
 import math
-from concurrent.futures import ThreadPoolExecutor
 
-import numba
 import numpy as np
 from numba import prange
 
@@ -44,12 +43,12 @@ from .roots import (
     RC_STEPS,
     TP_STEPS,
     circular_radius,
-    polish,
     rc_eligible,
     rc_finish,
     rc_start,
     rc_step,
     tp_accept,
+    tp_final,
     tp_safe,
     tp_starts,
     tp_step,
@@ -62,19 +61,9 @@ BLOCKS_PER_CHUNK = 16
 GRID_ENERGY_CHUNK = 64
 NF = len(FAMILY_FIELDS)
 
-#: Rows of the float output of :func:`orbit_batch` and :func:`orbit_grid`.
-BATCH_ROWS = (
-    "r_min",
-    "r_max",
-    "r_circ",
-    "period",
-    "apsidal_angle",
-    "precession_rate",
-    "mu_required",
-    "end_r",
-    "end_time",
-    "end_theta",
-)
+#: Rows of the float output of :func:`orbit_units`.
+BATCH_ROWS = ("r_min", "r_max", "r_circ", "period", "apsidal_angle", "precession_rate",
+              "mu_required", "end_r", "end_time", "end_theta")  # fmt: skip
 
 # Rows of the lanes' scratch table.
 (_E, _AL, _H, _LZ, _REG, _RC, _CC, _AA, _DEL, _G1, _G2, _R1, _R2, _D1, _D2, _KC, _P1, _A1, _B1,
@@ -183,10 +172,7 @@ def turning_lanes(F, m, S):
         if not tp_accept(r2, S[_D2, j] != 0.0, rc, False):
             r2 = tp_safe(S[_G2, j], rc, C, a, delta, False)
         e = S[_E, j]
-        A, B = F[3, j], F[4, j]
-        noise_c = abs(e) + F[12, j]
-        S[_R1, j] = polish(r1, e, A, B, C, noise_c, 0.0, rc)
-        S[_R2, j] = polish(r2, e, A, B, C, noise_c, rc, math.inf)
+        S[_R1, j], S[_R2, j] = tp_final(r1, r2, e, F[3, j], F[4, j], C, rc, abs(e) + F[12, j])
 
 
 @kernel
@@ -288,7 +274,7 @@ def _load(alpha, energy, h, Lz, i0, m, S, oidx):
 
 @kernel
 def profile_batch(alpha, energy, h, Lz, M, g, k, circ_tol, out_cls, out_f, upto):
-    """:func:`orbit_batch` on one thread, stopping after stage ``upto`` of :data:`STAGES` (a
+    """:func:`orbit_units` on flat points, one thread, stopping after stage ``upto`` of :data:`STAGES` (a
     benchmark times each prefix: the stages' cost per point)."""
     n = alpha.shape[0]
     F = np.empty((NF, LANES))
@@ -357,18 +343,29 @@ def _no_minimum(m, S, out_cls, out_f, oidx):
                     out_f[i, o] = math.nan
 
 
-def _units(n, ne, nhl, grid):
-    """Units of work: chunks of BLOCKS_PER_CHUNK blocks of points, or (block of LANES triples,
-    chunk of GRID_ENERGY_CHUNK energies) on a grid."""
+@kernel
+def work_units(n, ne, nhl, grid):
+    """Units of work of :func:`orbit_units`: chunks of BLOCKS_PER_CHUNK blocks of n points, or
+    on a grid (``grid``: n alphas, ne energies, nhl (h, L_z) pairs) a block of LANES triples
+    times a chunk of GRID_ENERGY_CHUNK energies."""
     if grid:
         return (n * nhl + LANES - 1) // LANES * ((ne + GRID_ENERGY_CHUNK - 1) // GRID_ENERGY_CHUNK)
     return ((n + LANES - 1) // LANES + BLOCKS_PER_CHUNK - 1) // BLOCKS_PER_CHUNK
 
 
 @kernel
-def _orbit_units(u0, u1, alpha, energy, h, Lz, grid, relative, M, g, k, a, rim, mu, circ_tol,
-                 out_cls, out_f, out_energy):  # fmt: skip
-    """Units u0..u1-1 of :func:`orbit_batch` (``grid`` False) or :func:`orbit_grid` (True)."""
+def orbit_units(u0, u1, alpha, energy, h, Lz, grid, relative, M, g, k, a, rim, mu, circ_tol,
+                out_cls, out_f, out_energy):  # fmt: skip
+    """Units u0..u1-1 (:func:`work_units`) of :func:`.geometry.orbit_point` in lanes.
+
+    Flat (``grid`` False): over 1-D arrays of points, outputs ``out_cls`` int8[n], ``out_f``
+    float64[10, n] (rows :data:`BATCH_ROWS`), ``out_energy`` unused. On the grid alpha x
+    energy x h x Lz (1-D axes; outputs flat in that C order), each family is computed once per
+    (alpha, h, L_z) and a chunk of energies; with ``relative`` the energy axis is an offset:
+    the energy is V_min + offset |V_min| and a point whose V_min is undefined is FORBIDDEN with
+    NaN outputs (but r_circ); ``out_energy`` float64[n] receives the absolute energy. Every
+    unit's numbers are independent of the others' (callers run units on several threads; the
+    kernel releases the GIL)."""
     n, nhl = alpha.size, h.size * Lz.size
     ntri = alpha.size * nhl
     nec = (energy.size + GRID_ENERGY_CHUNK - 1) // GRID_ENERGY_CHUNK
@@ -403,51 +400,6 @@ def _orbit_units(u0, u1, alpha, energy, h, Lz, grid, relative, M, g, k, a, rim, 
                 _no_minimum(m, S, out_cls, out_f, oidx)
 
 
-_POOL: dict[int, ThreadPoolExecutor] = {}
-
-
-def _orbits(*args) -> None:
-    """:func:`_orbit_units` over all units, split evenly among ``numba.get_num_threads()``
-    threads (the kernel releases the GIL). Not a ``prange`` kernel: numba compiles a parallel
-    kernel's whole call tree once more (~9 s on a cold cache), a thread pool costs nothing."""
-    alpha, energy, h, Lz, grid = args[:5]
-    units = _units(alpha.size, energy.size, h.size * Lz.size, grid)
-    nt = max(1, min(numba.get_num_threads(), units))
-    if nt == 1:
-        _orbit_units(0, units, *args)
-        return
-    if nt not in _POOL:
-        _POOL[nt] = ThreadPoolExecutor(max_workers=nt, thread_name_prefix="conesurvey-lanes")
-    cuts = [units * i // nt for i in range(nt + 1)]
-    jobs = [_POOL[nt].submit(_orbit_units, cuts[i], cuts[i + 1], *args) for i in range(nt)]
-    for job in jobs:
-        job.result()
-
-
-_NO_ENERGY = np.empty(0)
-
-
-def orbit_batch(alpha, energy, h, Lz, M, g, k, a, rim, mu, circ_tol, out_cls, out_f) -> None:
-    """:func:`.geometry.orbit_point` over 1-D float64 arrays, in parallel and in lanes:
-    ``out_cls`` int8[n], ``out_f`` float64[10, n] (rows :data:`BATCH_ROWS`)."""
-    _orbits(alpha, energy, h, Lz, False, False, float(M), float(g), float(k), float(a),
-            float(rim), float(mu), float(circ_tol), out_cls, out_f, _NO_ENERGY)  # fmt: skip
-
-
-def orbit_grid(alpha, energy, h, Lz, relative, M, g, k, a, rim, mu, circ_tol, out_cls, out_f,
-               out_energy) -> None:  # fmt: skip
-    """:func:`orbit_batch` over the grid alpha x energy x h x Lz (1-D float64 axes; outputs
-    flat in that C order), each family computed once per (alpha, h, L_z) for a chunk of
-    energies.
-
-    With ``relative`` the energy axis is an offset: the energy is V_min + offset |V_min| and a
-    point whose V_min is undefined is FORBIDDEN with NaN outputs (but r_circ);
-    ``out_energy`` float64[n] receives the absolute energy.
-    """
-    _orbits(alpha, energy, h, Lz, True, bool(relative), float(M), float(g), float(k), float(a),
-            float(rim), float(mu), float(circ_tol), out_cls, out_f, out_energy)  # fmt: skip
-
-
 @parallel_kernel
 def minimum_energy_batch(alpha, h, Lz, M, g, k, out):
     """V_min [J] for each (alpha, h, Lz); NaN where V has no minimum."""
@@ -457,5 +409,5 @@ def minimum_energy_batch(alpha, h, Lz, M, g, k, out):
 
 
 def empty_outputs(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Output buffers for :func:`orbit_batch` and :func:`orbit_grid`."""
+    """Output buffers (out_cls, out_f) of :func:`orbit_units`."""
     return np.empty(n, np.int8), np.empty((len(BATCH_ROWS), n), np.float64)

@@ -170,7 +170,7 @@ def orbit_in(fam, energy, M, g, k, circ_tol):
             cls = HYPERBOLIC
             r1 = free_fall_r_min(energy, A, B)
             r2 = math.inf
-            psi = math.atan2(2.0 * math.sqrt(A * energy), B) / Om
+            psi = math.atan2(2.0 * math.sqrt(A) * math.sqrt(energy), B) / Om
         elif has_min:
             cls = BOUNDED
             r1, r2 = _turning(fam, energy)

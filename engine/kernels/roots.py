@@ -17,8 +17,11 @@ energy - V_min itself, i.e. as the problem's conditioning allows. With x = r - r
 sigma = sqrt(delta / (C r_c + A/r_c^2)) and c3 = C r_c / (C r_c + A/r_c^2) the roots are
 x/r_c = +-sigma + (1 - c3/2) sigma^2 + O(sigma^3) near the circular limit; far from it
 r1 ~ sqrt(A/delta) and r2 solves the quadratic the cubic becomes for large x. Both roots are
-iterated together (two independent dependency chains overlap in the CPU). Free fall (C = 0)
-has closed forms, written without cancellation.
+iterated together (two independent dependency chains overlap in the CPU). Each root is then
+checked against energy = V(r) to rounding; one that fails (a very deep well, where the
+factorised excess is all rounding, or a radius beyond the range of r^2) is solved on the
+monotone side of the well by bracketed Newton, or is NaN. Free fall (C = 0) has closed
+forms, written without cancellation.
 """
 
 from __future__ import annotations
@@ -219,8 +222,8 @@ def tp_safe(r, rc, C, a, delta, inner):
     for _ in range(_MAX_NEWTON):
         r, lo, hi, done = _safe_step(r, rc, C, a, delta, lo, hi, inner)
         if done:
-            break
-    return r
+            return r
+    return math.nan  # not converged: never a silently wrong root (tp_final solves it anew)
 
 
 @kernel
@@ -285,12 +288,7 @@ def turning_points_in(energy, A, B, C, rc, a, vmin, c3, igam, noise):
         r1 = tp_safe(g1, rc, C, a, delta, True)
     if not tp_accept(r2, d2, rc, False):
         r2 = tp_safe(g2, rc, C, a, delta, False)
-    # The excess energy - V_min carries a rounding error of eps |V_min| (plus the terms of V at
-    # r_c); where V is evaluated more accurately at the root itself (a deep narrow well:
-    # |V_min| >> |V(r)|), polish on energy - V(r) directly.
-    noise_c = abs(energy) + noise
-    return polish(r1, energy, A, B, C, noise_c, 0.0, rc), polish(r2, energy, A, B, C, noise_c,
-                                                                   rc, math.inf)  # fmt: skip
+    return tp_final(r1, r2, energy, A, B, C, rc, abs(energy) + noise)
 
 
 @kernel
@@ -313,8 +311,72 @@ def turning_points(energy, A, B, C, rc):
 
 
 @kernel
+def _is_root(r, energy, A, B, C):
+    """Whether energy - V(r) vanishes to rounding (64 eps of the terms' sizes)."""
+    ir = 1.0 / r
+    scale = A * ir * ir + abs(B) * ir + C * r + abs(energy)
+    return abs(energy - (A * ir * ir + B * ir + C * r)) <= 64.0 * _EPS * scale
+
+
+@kernel
+def _above_outer(energy, A, B, C, rc):
+    """A radius beyond the outer turning point (V > energy there)."""
+    r = max(2.0 * rc, energy / C if energy > 0.0 else 0.0)
+    for _ in range(2100):
+        if A / (r * r) + B / r + C * r > energy:
+            break
+        r *= 2.0
+    return r
+
+
+@kernel
+def _bracketed(energy, A, B, C, lo, hi):
+    """The root of V(r) = energy in (lo, hi), where V is monotone: safeguarded Newton with
+    (geometric) bisection; NaN unless it converges to a root."""
+    glo = energy - (A / (lo * lo) + B / lo + C * lo)
+    r = math.sqrt(lo * hi) if lo > 0.0 and hi > 4.0 * lo else 0.5 * (lo + hi)
+    for _ in range(4 * _MAX_NEWTON):
+        ir = 1.0 / r
+        g = energy - (A * ir * ir + B * ir + C * r)
+        if (g > 0.0) == (glo > 0.0):
+            lo = r
+        else:
+            hi = r
+        gp = 2.0 * A * ir * ir * ir + B * ir * ir - C
+        rn = r - g / gp if gp != 0.0 else math.nan
+        if not (lo < rn < hi):
+            rn = math.sqrt(lo * hi) if lo > 0.0 and hi > 4.0 * lo else 0.5 * (lo + hi)
+        if abs(rn - r) <= 2.0 * _EPS * r:
+            return rn if _is_root(rn, energy, A, B, C) else math.nan
+        r = rn
+    return math.nan
+
+
+@kernel
+def tp_final(r1, r2, energy, A, B, C, rc, noise_c):
+    """The turning points (r1, r2) from the Halley iterates: polished, then checked as roots.
+
+    The excess energy - V_min carries a rounding error of eps |V_min| (plus the terms of V at
+    r_c, ``noise_c``); where V is evaluated more accurately at the root itself (a deep narrow
+    well: |V_min| >> |V(r)|), polish on energy - V(r) directly. Where the factorised excess is
+    dominated by rounding (a very deep well) or the iteration did not converge (NaN), solve
+    V(r) = energy on the monotone side of the well instead; NaN if even that fails.
+    """
+    r1 = polish(r1, energy, A, B, C, noise_c, 0.0, rc)
+    r2 = polish(r2, energy, A, B, C, noise_c, rc, math.inf)
+    if not _is_root(r1, energy, A, B, C):
+        # A/r1^2 = energy - B/r1 - C r1 <= |energy| + |B|/r1 bounds r1 from below.
+        lo1 = 2.0 * A / (abs(B) + math.hypot(B, 2.0 * math.sqrt(A) * math.sqrt(abs(energy))))
+        r1 = _bracketed(energy, A, B, C, lo1, rc)
+    if not _is_root(r2, energy, A, B, C):
+        r2 = _bracketed(energy, A, B, C, rc, _above_outer(energy, A, B, C, rc))
+    return r1, r2
+
+
+@kernel
 def free_fall_r_min(energy, A, B):
     """Pericentre [m] of an escaping free-fall orbit (energy >= 0): root of energy r^2 - B r - A."""
+    root = math.hypot(B, 2.0 * math.sqrt(A) * math.sqrt(energy))  # sqrt(B^2 + 4 A E), no underflow
     if B > 0.0:
-        return (B + math.sqrt(B * B + 4.0 * A * energy)) / (2.0 * energy)
-    return 2.0 * A / (math.sqrt(B * B + 4.0 * A * energy) - B)
+        return (B + root) / (2.0 * energy)
+    return 2.0 * A / (root - B)

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import errno
+import hashlib
 import os
+import re
 
 import pytest
 
@@ -57,12 +59,19 @@ def test_rename_no_clobber_without_hard_links(tmp_path, monkeypatch, target_exis
 # --- replacing / write_atomic -----------------------------------------------------------------
 
 
+TMP = re.compile(r"f\.[0-9a-f]{12}\.tmp")
+
+
 def test_write_atomic_replaces_and_leaves_no_tmp(tmp_path):
+    """A stale temporary file (of an old version, or of a live writer) is never reused nor
+    removed: each writer creates its own name."""
     (tmp_path / "f").write_bytes(b"old")
     (tmp_path / "f.tmp").write_bytes(b"stale, left by a crash")
-    write_atomic(tmp_path / "f", lambda f: f.write(b"new"))
+    size, digest = write_atomic(tmp_path / "f", lambda f: f.write(b"new"))
     assert (tmp_path / "f").read_bytes() == b"new"
-    assert listing(tmp_path) == ["f"]
+    assert (size, digest) == (3, hashlib.sha256(b"new").hexdigest())
+    assert listing(tmp_path) == ["f", "f.tmp"]
+    assert (tmp_path / "f.tmp").read_bytes() == b"stale, left by a crash"
 
 
 @pytest.mark.parametrize("error", [ValueError, KeyboardInterrupt])
@@ -106,7 +115,9 @@ def test_write_atomic_fsyncs_the_file_then_the_directory(tmp_path, monkeypatch):
     monkeypatch.setattr(os, "fsync", spy)
     write_atomic(tmp_path / "f", lambda f: f.write(b"x"))
     if os.path.exists("/proc/self"):
-        assert synced == [str(tmp_path / "f.tmp"), str(tmp_path)]
+        assert len(synced) == 2 and synced[1] == str(tmp_path)
+        assert TMP.fullmatch(os.path.basename(synced[0])), synced
+        assert os.path.dirname(synced[0]) == str(tmp_path)
     else:
         assert len(synced) == 2
 

@@ -57,6 +57,10 @@ def ds_relative():
     return engine.survey([0.4], np.geomspace(1e-6, 1.0, 4), [0.0, 1.0], [0.3], energy_relative=True)
 
 
+#: The name of a temporary file of out.nc (engine.io.atomic.create_new).
+TMP = re.compile(r"out\.nc\.[0-9a-f]{12}\.tmp")
+
+
 def write(ds, path, survey, **kw):
     return write_survey(ds, path, survey, command="conesurvey run roundtrip.toml", **kw)
 
@@ -90,7 +94,9 @@ def test_round_trip_values_and_attrs(tmp_path, survey, ds):
     assert back.attrs["survey_definition"] == SURVEY_TEXT
     assert back.orbit_class.dtype == np.int8
     assert back.orbit_class.attrs["flag_values"].dtype == np.int8
-    np.testing.assert_array_equal(back.orbit_class.attrs["flag_values"], np.arange(6))
+    np.testing.assert_array_equal(
+        back.orbit_class.attrs["flag_values"], np.arange(len(engine.CLASS_NAMES))
+    )
     assert back.orbit_class.attrs["flag_meanings"].split() == list(engine.CLASS_NAMES)
 
 
@@ -213,7 +219,7 @@ def test_interrupt_before_rename_leaves_nothing(tmp_path, ds, monkeypatch):
     monkeypatch.setattr(netcdf, "fsync_path", interrupted)
     with pytest.raises(KeyboardInterrupt):
         write_netcdf(ds, tmp_path / "out.nc")
-    assert seen == [tmp_path / "out.nc.tmp"]
+    assert len(seen) == 1 and TMP.fullmatch(seen[0].name) and seen[0].parent == tmp_path
     assert listing(tmp_path) == []
 
 
@@ -233,10 +239,13 @@ def test_output_created_meanwhile_is_not_clobbered(tmp_path, ds, monkeypatch):
     assert listing(tmp_path) == ["out.nc"]
 
 
-def test_stale_tmp_file_is_replaced(tmp_path, ds):
+def test_stale_tmp_file_is_left_alone(tmp_path, ds):
+    """A temporary file another writer (or a crashed one) left is neither reused nor written
+    through: each write makes its own."""
     (tmp_path / "out.nc.tmp").write_bytes(b"left by a crashed run")
     write_netcdf(ds, tmp_path / "out.nc")
-    assert listing(tmp_path) == ["out.nc"]
+    assert listing(tmp_path) == ["out.nc", "out.nc.tmp"]
+    assert (tmp_path / "out.nc.tmp").read_bytes() == b"left by a crashed run"
     with xr.open_dataset(tmp_path / "out.nc") as back:
         assert back.sizes == ds.sizes
 
@@ -252,7 +261,8 @@ def test_file_and_directory_are_fsynced(tmp_path, ds, monkeypatch):
     monkeypatch.setattr(os, "fsync", spy)
     write_netcdf(ds, tmp_path / "out.nc")
     if os.path.exists("/proc/self"):
-        assert synced == [str(tmp_path / "out.nc.tmp"), str(tmp_path)]
+        assert len(synced) == 2 and synced[1] == str(tmp_path)
+        assert TMP.fullmatch(os.path.basename(synced[0])), synced
     else:
         assert len(synced) == 2
 

@@ -7,13 +7,12 @@ import numpy as np
 import pytest
 from numba import njit
 
+from engine.evaluation import orbit_batch, orbit_grid
 from engine.kernels.batch import (
     LANES,
     STAGES,
     empty_outputs,
     minimum_energy_batch,
-    orbit_batch,
-    orbit_grid,
     profile_batch,
 )
 from engine.kernels.geometry import BOUNDED, CLASS_NAMES, orbit_point

@@ -173,20 +173,18 @@ def test_scene_rules_off_cone_escapes_spill_and_slips_first():
     beyond = orbit_point(alpha, -0.05, h, Lz, M, 0.0, K, a, 0.5 * r1, math.inf, 1e-12)
     assert beyond[0] == OFF_CONE and math.isnan(beyond[8])
     # slip before the rim: SLIPS at the first failing radius; the rim first: SPILLS
-    vmin = float(engine.minimum_energy(0.5, 1.0, 0.8))
-    energy = vmin + 1.5 * abs(vmin)
-    cls, r1, r2, *_, mur = ideal_orbit(0.5, energy, 1.0, 0.8, M, G, K, 1e-12)
-    mu = 0.6  # |F|/N is 0.584 at r1 and 0.616 at most on the orbit: it first exceeds mu inside
-    rs = first_slip(r1, r2, 0.5, 1.0, 0.8, M, G, K, mu)
+    orbit = (1.1, 9.0, -2.0, 1.2)
+    cls, r1, r2, *_, mur = ideal_orbit(*orbit, M, G, K, 1e-12)
+    mu = 0.1
+    rs = first_slip(r1, r2, 1.1, -2.0, 1.2, M, G, K, mu)
     assert r1 < rs < r2
-    far = orbit_point(0.5, energy, 1.0, 0.8, M, G, K, a, 1e3, mu, 1e-12)
+    far = orbit_point(*orbit, M, G, K, a, 1e3, mu, 1e-12)
     assert far[0] == SLIPS and far[8] == rs
-    rim_first = (rs + r1) / 2 + a / math.tan(0.5)
-    near = orbit_point(0.5, energy, 1.0, 0.8, M, G, K, a, rim_first, mu, 1e-12)
+    rim_first = (rs + r1) / 2 + a / math.tan(1.1)
+    near = orbit_point(*orbit, M, G, K, a, rim_first, mu, 1e-12)
     assert near[0] == SPILLS
-    assert (
-        orbit_point(0.5, energy, 1.0, 0.8, M, G, K, a, math.inf, mur * 1.001, 1e-12)[0] == BOUNDED
-    )
+    holds = orbit_point(*orbit, M, G, K, a, math.inf, mur * 1.001, 1e-12)
+    assert holds[0] == BOUNDED
     # a radial orbit slips at once where cot(alpha) k/(1+k) > mu
     rad = orbit_point(0.5, 3.0, 0.0, 0.0, M, G, K, a, math.inf, 0.1, 1e-12)
     assert rad[0] == SLIPS and rad[8] == 0.0 and rad[9] == 0.0

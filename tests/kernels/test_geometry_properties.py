@@ -17,6 +17,7 @@ from engine.kernels.geometry import (
     FORBIDDEN,
     HYPERBOLIC,
     OFF_CONE,
+    OUT_OF_RANGE,
     RADIAL,
     SPILLS,
 )
@@ -180,8 +181,8 @@ def check_point(cls: int, o: dict, alpha, E, h, Lz, M, g, k, offset, vmin=None) 
     if cls in (BOUNDED, HYPERBOLIC):
         for r in (r1, r2):
             if _fin(r):
-                scale = 2 * A / r**2 + abs(B) / r + C * r + abs(E)
-                residual = abs(A / r**2 + B / r + C * r - E)
+                scale = 2 * (A / r) / r + abs(B) / r + C * r + abs(E)  # no overflow of r^2
+                residual = abs((A / r) / r + B / r + C * r - E)
                 worst = max(worst, residual / scale)
                 tol = 1e-12 * scale
                 assert residual <= tol, (r, where)
@@ -253,3 +254,30 @@ def test_regression_deep_well_outer_turning_point():
     assert int(ds.orbit_class) == BOUNDED
     assert float(ds.r_max) == pytest.approx(DEEP_WELL_R_MAX, rel=1e-12)
     assert float(ds.period) == pytest.approx(DEEP_WELL_PERIOD, rel=1e-10)
+
+
+# --- the whole double range ------------------------------------------------------------------
+def _signed_log(lo: float, hi: float) -> st.SearchStrategy[float]:
+    return st.builds(lambda e, s: s * 10.0**e, st.floats(lo, hi), st.sampled_from([-1.0, 1.0]))
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    alpha=st.floats(1e-3, PI_2 - 1e-3),
+    energy=_signed_log(-150, 150),
+    h=st.one_of(st.just(0.0), _signed_log(-150, 150)),
+    Lz=st.one_of(st.just(0.0), _signed_log(-150, 150)),
+    g=st.sampled_from([0.0, 9.81]),
+)
+def test_no_silent_wrong_values_across_the_double_range(alpha, energy, h, Lz, g):
+    """L_z, h and calE across 1e-150..1e150: a class that promises numbers has them, finite
+    and right (turning points solve calE = V(r), V written here; r_min <= r_circ <= r_max),
+    and what cannot be computed in double precision is out_of_range, never a class with NaN."""
+    ds = engine.evaluate(alpha, energy, h, Lz, scene=engine.Scene(g=g))
+    cls = int(ds.orbit_class)
+    o = {name: float(ds[name]) for name in FLOAT_NAMES}
+    where = dict(alpha=alpha, energy=energy, h=h, Lz=Lz, g=g, cls=cls, **o)
+    if cls == OUT_OF_RANGE:
+        assert all(math.isnan(x) for x in o.values()), where
+        return
+    check_point(cls, o, alpha, energy, h, Lz, 1.0, g, 0.4, None)

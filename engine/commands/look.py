@@ -1,6 +1,7 @@
 """The commands ``conesurvey plot`` and ``conesurvey report`` (README, "Look at the results").
 
-:func:`register` adds both to the ``conesurvey`` parser and :func:`run` carries one out. Exit
+Both are :class:`~engine.commands.Command` objects (:data:`PLOT`, :data:`REPORT`) that
+:mod:`engine.cli` registers. Exit
 status: 0 written; 1 the output could not be written; 2 bad input (no such result, variable or
 axis, an existing output without ``--overwrite``, matplotlib missing); 130 interrupted. On any
 failure nothing is written (figures and pages go through ``OUT.tmp`` and a rename).
@@ -9,19 +10,16 @@ failure nothing is written (figures and pages go through ``OUT.tmp`` and a renam
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
-from .io import OutputError
-from .io.results import Result, open_result
-from .mapspec import LookError, fixed_text, parse_at, plan
-from .plot import FORMATS, map_figure, matplotlib_parts, output_format, save_figure
-from .report import write_report
+from ..io import OutputError
+from ..io.results import Result, open_result
+from ..mapspec import LookError, fixed_text, parse_at, plan
+from ..plot import FORMATS, map_figure, matplotlib_parts, output_format, save_figure
+from ..report import write_report
+from . import Command, error
 
-__all__ = ["COMMANDS", "register", "run"]
-
-COMMANDS = ("plot", "report")
-PROG = "conesurvey"
+__all__ = ["PLOT", "REPORT"]
 
 PLOT_DESCRIPTION = """\
 Draw a map of one variable of a survey result over two of its axes, the other axes fixed at
@@ -47,16 +45,7 @@ integrator statuses), the value range of every variable and a map of every varia
 are embedded; the page needs no network and no JavaScript. Works on unfinished runs too."""
 
 
-def register(sub: argparse._SubParsersAction) -> None:
-    """Add ``plot`` and ``report`` to the subcommands ``sub`` of the ``conesurvey`` parser."""
-    fmt = argparse.RawDescriptionHelpFormatter
-    p = sub.add_parser(
-        "plot",
-        help="draw a map of a variable over two axes (PNG, SVG or PDF)",
-        description=PLOT_DESCRIPTION,
-        epilog=PLOT_EPILOG,
-        formatter_class=fmt,
-    )
+def _plot_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("file", metavar="FILE.nc", help="a conesurvey result (or unfinished run)")
     p.add_argument(
         "variable", nargs="?", default="orbit_class", help="variable to draw (orbit_class)"
@@ -78,12 +67,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--dpi", type=int, default=100, help="resolution of a PNG (default 100)")
     p.add_argument("--overwrite", action="store_true", help="replace the output if it exists")
-    r = sub.add_parser(
-        "report",
-        help="write a self-contained HTML report (definition, provenance, counts, maps)",
-        description=REPORT_DESCRIPTION,
-        formatter_class=fmt,
-    )
+
+
+def _report_arguments(r: argparse.ArgumentParser) -> None:
     r.add_argument("file", metavar="FILE.nc", help="a conesurvey result (or unfinished run)")
     r.add_argument(
         "-o", "--output", metavar="REPORT.html", help="default: FILE's stem_report.html here"
@@ -91,28 +77,24 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--overwrite", action="store_true", help="replace the output if it exists")
 
 
-def run(args: argparse.Namespace) -> int:
+def _run(args: argparse.Namespace, command_line: str = "") -> int:
     """Carry out ``conesurvey plot`` or ``report``; returns the exit status."""
     try:
         if args.command == "plot":
             return _plot(args)
         return _report(args)
     except (LookError, OutputError) as exc:
-        _error(str(exc))
+        error(str(exc))
         return 2
     except FileExistsError as exc:
-        _error(f"output file exists: {exc.filename} (use --overwrite to replace it)")
+        error(f"output file exists: {exc.filename} (use --overwrite to replace it)")
         return 2
     except OSError as exc:
-        _error(f"cannot write {exc.filename or 'the output'}: {exc.strerror or exc}")
+        error(f"cannot write {exc.filename or 'the output'}: {exc.strerror or exc}")
         return 1
     except KeyboardInterrupt:
-        _error("interrupted; nothing written")
+        error("interrupted; nothing written")
         return 130
-
-
-def _error(message: str) -> None:
-    print(f"{PROG}: error: {message}", file=sys.stderr)
 
 
 def _stem(result: Result) -> str:
@@ -160,3 +142,20 @@ def _report(args: argparse.Namespace) -> int:
         note = result.note
     print(f"wrote {out}" + (f" ({note})" if note else ""))
     return 0
+
+
+PLOT = Command(
+    "plot",
+    "draw a map of a variable over two axes (PNG, SVG or PDF)",
+    PLOT_DESCRIPTION,
+    _plot_arguments,
+    _run,
+    PLOT_EPILOG,
+)
+REPORT = Command(
+    "report",
+    "write a self-contained HTML report (definition, provenance, counts, maps)",
+    REPORT_DESCRIPTION,
+    _report_arguments,
+    _run,
+)

@@ -1,0 +1,46 @@
+"""Draw the README's figures of "What a map means for each scene" with the ``conesurvey``
+commands themselves.
+
+    python scripts/fate_figures.py --out docs/figures
+
+- ``fate_map.png``: what happens to a ball with rolling resistance launched at r0 with speed
+  v0 inside a finite cone (``surveys/fate_rolling_resistance.toml``, rk45 fate map);
+- ``fate_time.png``: when it happens (the same run);
+- ``slip_map.png``: where rolling fails for mu = 0.25 (``surveys/slip_map.toml``, exact).
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+from pathlib import Path
+
+from engine import cli
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _cli(*args: str | Path) -> None:
+    status = cli.main([str(a) for a in args])
+    if status != 0:
+        raise SystemExit(f"conesurvey {args[0]} failed with status {status}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "figures")
+    out = parser.parse_args().out
+    with tempfile.TemporaryDirectory() as tmp:
+        fate = Path(tmp) / "fate.nc"
+        slip = Path(tmp) / "slip.nc"
+        _cli("run", ROOT / "surveys" / "fate_rolling_resistance.toml", "-o", fate, "-q")
+        _cli("run", ROOT / "surveys" / "slip_map.toml", "-o", slip, "-q")
+        common = ("--x", "v0", "--y", "r0", "--facet", "alpha", "--overwrite")
+        _cli("plot", fate, "fate", *common, "-o", out / "fate_map.png")
+        _cli("plot", fate, "fate_time", *common, "-o", out / "fate_time.png")
+        _cli("plot", slip, "orbit_class", "--x", "Lz", "--y", "h", "--facet", "alpha",
+             "--overwrite", "-o", out / "slip_map.png")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()

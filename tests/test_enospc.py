@@ -1,0 +1,177 @@
+"""A full disk at any point of a run is a clean, resumable error: exit status 1, one line, the
+stored blocks kept (and still verified), nothing under the output's name; the same command
+then finishes the run, equal to an uninterrupted one.
+
+Two ways: injected faults (a write raising ENOSPC while a block is stored, the netCDF library
+failing mid-merge, the final rename failing), and a real small file system (a tmpfs of a few
+MB in a private mount namespace, ``unshare``), during the compute and during the merge.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+import runs
+
+from engine import cli
+from engine.io import blocks as io_blocks
+from engine.io.blocks import BlockStore
+from engine.runner import run_survey
+from engine.surveyfile import parse_survey
+
+# 4 x 10 x 330 x 10 = 132,000 points in 4 blocks of 33,200 (2.2 MB of block files each)
+SURVEY = runs.gravity_survey("enospc test", energy=10, h=330, lz=10)
+ENOSPC = OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    out = tmp_path_factory.mktemp("ref") / "ref.nc"
+    run_survey(parse_survey(SURVEY), out, block_points=65536)
+    return out
+
+
+@pytest.fixture
+def work(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "s.toml").write_text(SURVEY)
+    return tmp_path
+
+
+ARGS = ["run", "s.toml", "-o", "out.nc", "-q", "--block-points", "65536"]
+
+
+def stopped_cleanly(work, capsys, what: str) -> BlockStore:
+    """Exit 1, one line naming the problem and the resume; blocks kept and verified."""
+    assert cli.main(ARGS) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("conesurvey: error: ") and err.count("\n") == 1, err
+    assert what in err and err.rstrip().endswith(
+        "the run is resumable: run the same command again"
+    ), err
+    assert runs.listing(work) == ["out.nc.parts", "s.toml"]
+    store = BlockStore.open(work / "out.nc.parts")
+    found = store.scan()
+    assert found.bad == {} and found.tmp == [] and found.stray == [], found
+    return store
+
+
+def resumes(work, capsys, reference) -> None:
+    assert cli.main(ARGS) == 0
+    assert runs.listing(work) == ["out.nc", "s.toml"]
+    runs.same_content(work / "out.nc", reference)
+    assert cli.main(["info", "out.nc", "--verify"]) == 0
+    assert "complete, verified" in capsys.readouterr().out
+
+
+def test_disk_full_while_a_block_is_stored(work, capsys, reference, monkeypatch):
+    real = np.savez
+    calls = []
+
+    def savez(file, **arrays):
+        calls.append(1)
+        if len(calls) == 3:  # half of the third block, then the disk is full
+            file.write(b"\0" * 100_000)
+            raise ENOSPC
+        real(file, **arrays)
+
+    monkeypatch.setattr(np, "savez", savez)
+    store = stopped_cleanly(work, capsys, "No space left on device")
+    assert store.scan().good == {0, 1}
+    monkeypatch.setattr(np, "savez", real)
+    resumes(work, capsys, reference)
+
+
+def test_disk_full_during_the_merge(work, capsys, reference, monkeypatch):
+    """netCDF4 reports an HDF5 write error (ENOSPC included) as RuntimeError("NetCDF: HDF
+    error"); here it comes after the first block was written into the file."""
+    real = io_blocks.Summary.add
+    calls = []
+
+    def add(self, block):
+        calls.append(1)
+        if len(calls) == 2:
+            raise RuntimeError("NetCDF: HDF error")
+        real(self, block)
+
+    monkeypatch.setattr(io_blocks.Summary, "add", add)
+    store = stopped_cleanly(work, capsys, "writing out.nc failed (NetCDF: HDF error)")
+    assert store.scan().good == {0, 1, 2, 3}
+    monkeypatch.setattr(io_blocks.Summary, "add", real)
+    resumes(work, capsys, reference)
+
+
+def test_disk_full_at_the_rename(work, capsys, reference, monkeypatch):
+    def no_room(src, dst, **kw):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(dst))
+
+    monkeypatch.setattr(os, "link", no_room)
+    store = stopped_cleanly(work, capsys, "cannot write out.nc: No space left on device")
+    assert store.scan().good == {0, 1, 2, 3}
+    monkeypatch.undo()
+    monkeypatch.chdir(work)
+    resumes(work, capsys, reference)
+
+
+# --- a real small file system ---------------------------------------------------------------------
+
+SCRIPT = """\
+set -u
+mount -t tmpfs -o size={size} tmpfs {mnt} || exit 97
+cd {work}
+{run} > {work}/first.out 2> {work}/first.err; echo $? > {work}/first.rc
+ls {mnt} > {work}/first.ls
+ls {mnt}/out.nc.parts > {work}/first.parts 2>/dev/null
+mount -o remount,size=64m {mnt}
+{run} > {work}/second.out 2> {work}/second.err; echo $? > {work}/second.rc
+ls {mnt} > {work}/second.ls
+cp {mnt}/out.nc {work}/result.nc 2>/dev/null
+umount {mnt}
+"""
+
+
+def _in_small_fs(work, size: str) -> dict[str, str]:
+    """Run the survey on a tmpfs of ``size`` (--force: past the space check), then again
+    after growing it to 64 MB; the file system exists only in a private mount namespace."""
+    mnt = work / "mnt"
+    mnt.mkdir()
+    run = " ".join(runs.cli("run", "s.toml", "-o", f"{mnt}/out.nc", "-q", "--force"))
+    script = SCRIPT.format(size=size, mnt=mnt, work=work, run=f"{run} --block-points 65536")
+    unshare = ["unshare", "--mount"] if os.geteuid() == 0 else ["unshare", "-r", "--mount"]
+    assert shutil.which("unshare"), "needs unshare (util-linux) for a private tmpfs"
+    proc = subprocess.run(
+        [*unshare, "sh", "-c", script], env=runs.env(), capture_output=True, text=True, timeout=600
+    )
+    assert proc.returncode != 97 and proc.returncode == 0, (
+        "cannot mount a tmpfs in a private mount namespace here (root, or unprivileged user "
+        f"namespaces, are needed): {proc.stderr}"
+    )
+    names = ["first.rc", "first.err", "first.ls", "first.parts", "second.rc", "second.err"]
+    return {n: (work / n).read_text() for n in [*names, "second.ls"]}
+
+
+@pytest.mark.parametrize(
+    ("size", "stored"),
+    [("5m", 2), ("10m", 4)],
+    ids=["during the compute", "during the merge"],
+)
+def test_a_real_full_disk(work, reference, size, stored):
+    """5 MB: room for two of the four 2.2 MB block files. 10 MB: all four blocks (8.6 MB), not
+    the output merged beside them."""
+    r = _in_small_fs(work, size)
+    assert r["first.rc"].strip() == "1", r
+    err = r["first.err"]
+    assert err.startswith("conesurvey: error: ") and err.count("\n") == 1, err
+    assert "Traceback" not in err and "the run is resumable: run the same command again" in err
+    assert ("No space left on device" in err) or ("NetCDF: HDF error" in err), err
+    assert r["first.ls"].split() == ["out.nc.parts"]
+    blocks = [n for n in r["first.parts"].split() if n.endswith(".npz")]
+    assert len(blocks) == stored and not [n for n in r["first.parts"].split() if ".tmp" in n]
+    assert r["second.rc"].strip() == "0", r["second.err"]
+    assert r["second.ls"].split() == ["out.nc"]
+    runs.same_content(work / "result.nc", reference)

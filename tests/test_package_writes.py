@@ -1,0 +1,61 @@
+"""The package writes nothing into its own directory (issue 11, item 9): numba's compile cache
+goes to the per-user cache directory (engine/_jit.py), so ``pip uninstall`` leaves nothing
+behind that could shadow a later editable install as a namespace package."""
+
+from __future__ import annotations
+
+import compileall
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import runs
+
+CODE = """
+import engine
+exact = engine.evaluate(0.5, 20.0, 1.0, 0.8)
+sy = engine.evaluate(0.5, 20.0, 1.0, 0.8, method="symplectic", rtol=1e-8)
+assert int(sy.status) == 0
+print(abs(float(sy.period) / float(exact.period) - 1))
+"""
+
+
+def _files(root: Path) -> dict[str, tuple[int, int]]:
+    return {
+        str(p.relative_to(root)): (p.stat().st_size, p.stat().st_mtime_ns) for p in root.rglob("*")
+    }
+
+
+def test_evaluating_writes_only_into_the_user_cache(tmp_path):
+    """A copy of the package, byte-compiled as pip installs it; the exact method and an
+    integrator (symplectic: the cheapest to compile, ~25 s) compiled from a cold cache in a
+    subprocess whose HOME and XDG_CACHE_HOME are temporary: every new file is under the
+    cache, none under the package."""
+    pkg = tmp_path / "site" / "engine"
+    shutil.copytree(runs.ROOT / "engine", pkg, ignore=shutil.ignore_patterns("__pycache__"))
+    assert compileall.compile_dir(pkg, quiet=1)
+    before = _files(pkg)
+    home = tmp_path / "home"
+    home.mkdir()
+    env = {k: v for k, v in os.environ.items() if not k.startswith("CONESURVEY_")}
+    env.update(
+        PYTHONPATH=str(pkg.parent),
+        HOME=str(home),
+        XDG_CACHE_HOME=str(home / ".cache"),
+        NUMBA_NUM_THREADS="1",
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", CODE],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert float(proc.stdout) < 1e-6
+    assert _files(pkg) == before
+    cached = [p for p in (home / ".cache" / "conesurvey").rglob("*") if p.is_file()]
+    assert any(p.suffix == ".nbi" for p in cached) and any(p.suffix == ".nbc" for p in cached)
