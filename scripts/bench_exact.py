@@ -361,7 +361,8 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
 
     print("\n(g) README rows (`python scripts/bench_exact.py`)")
     print(f"| exact path, {n:.0e} random bounded points (`evaluate`) | "
-          f"{rate('flat 1', True):.3g} points/s per core (CPU time; wall {rate('flat 1', False):.3g}); "
+          f"{rate('flat 1', True):.3g} points/s per core "
+          f"(CPU time; wall {rate('flat 1', False):.3g}); "
           f"2 threads {rate('flat 2', False):.3g} wall (speedup {sp_flat:.2f}, load {_load()}) | "
           f"`python scripts/bench_exact.py` |")  # fmt: skip
     print(f"| exact survey grid, block of `{SURVEY.name}` (`evaluate_block`) | "

@@ -274,8 +274,8 @@ def _load(alpha, energy, h, Lz, i0, m, S, oidx):
 
 @kernel
 def profile_batch(alpha, energy, h, Lz, M, g, k, circ_tol, out_cls, out_f, upto):
-    """:func:`orbit_units` on flat points, one thread, stopping after stage ``upto`` of :data:`STAGES` (a
-    benchmark times each prefix: the stages' cost per point)."""
+    """:func:`orbit_units` on flat points, one thread, stopping after stage ``upto`` of
+    :data:`STAGES` (a benchmark times each prefix: the stages' cost per point)."""
     n = alpha.shape[0]
     F = np.empty((NF, LANES))
     S = np.empty((_NS, LANES))

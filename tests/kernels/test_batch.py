@@ -3,6 +3,7 @@ bit for bit, on every class and scene; the grid kernel gives the flat kernel's."
 
 import math
 
+import numba
 import numpy as np
 import pytest
 from numba import njit
@@ -154,3 +155,25 @@ def test_profile_runs_the_real_stages():
     profile_batch(alpha, energy, h, Lz, 1.0, 9.81, 0.4, 1e-12, c1, f1, len(STAGES) - 1)
     orbit_batch(alpha, energy, h, Lz, 1.0, 9.81, 0.4, 0.0, math.inf, math.inf, 1e-12, c2, f2)
     assert _same(c1, c2) and _same(f1, f2)
+
+
+def test_results_do_not_depend_on_the_number_of_threads():
+    """The units of work are split among threads (engine.evaluation): 1 thread and all of them
+    give the same numbers, flat and on a grid."""
+    alpha, energy, h, Lz = _points(3000, 5, 1.0, 9.81, 0.4)
+    axes = (np.array([0.3, 1.1]), np.geomspace(1e-6, 5, 90), np.array([-1.0, 2.0]), Lz[:40])
+    ng = 2 * 90 * 2 * 40
+    runs = []
+    before = numba.get_num_threads()
+    try:
+        for threads in sorted({1, numba.config.NUMBA_NUM_THREADS}):
+            numba.set_num_threads(threads)
+            c1, f1 = empty_outputs(alpha.size)
+            orbit_batch(alpha, energy, h, Lz, *SCENES[0], 1e-12, c1, f1)
+            c2, f2, e2 = *empty_outputs(ng), np.empty(ng)
+            orbit_grid(*axes, True, *SCENES[0], 1e-12, c2, f2, e2)
+            runs.append((c1, f1, c2, f2, e2))
+    finally:
+        numba.set_num_threads(before)
+    assert numba.config.NUMBA_NUM_THREADS == 1 or len(runs) == 2
+    assert all(_same(a, b) for a, b in zip(runs[0], runs[-1], strict=True))
