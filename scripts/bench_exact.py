@@ -2,6 +2,7 @@
 
     python scripts/bench_exact.py                 # 1e6 points, 3 interleaved rounds (~2 minutes)
     python scripts/bench_exact.py -n 200000 -r 5  # quicker
+    python scripts/bench_exact.py --readme        # also rewrite the README's table
 
 Prints, with the machine load before and after:
 
@@ -18,7 +19,7 @@ Prints, with the machine load before and after:
     offers at the moment (the other engineers' load takes from it);
 (e) the goals (issue 10): exact >= 4x the peer per core, 2 threads >= 1.8x one; met or not;
 (f) where the time goes: the lanes' stages, ns per point, measured (``profile_batch``);
-(g) the README's performance rows, in markdown;
+(g) the README's exact-path table, in markdown (``--readme`` writes it into README.md);
 (h) first-call time of the kernels in a fresh interpreter: cold (empty cache) and warm.
 
 Per core means CPU time (``time.process_time``, best of the rounds): on a machine shared with
@@ -33,6 +34,7 @@ import json
 import math
 import os
 import platform
+import re
 import subprocess
 import sys
 import tempfile
@@ -58,22 +60,24 @@ SCENE = engine.Scene(M=M, g=G, k=K)
 TARGET_VS_PEER = 4.0
 TARGET_SPEEDUP = 1.8
 SURVEY = Path(__file__).resolve().parents[1] / "surveys" / "large_1e8.toml"
+README = Path(__file__).resolve().parents[1] / "README.md"
+MARK = ("<!-- bench_exact: start -->", "<!-- bench_exact: end -->")
 
 
 def random_bounded_points(n: int, seed: int = 20240601) -> dict[str, np.ndarray]:
-    """n random bounded orbits under gravity: alpha [rad], energy [J], h [m/s], Lz [kg m^2/s].
-
-    alpha uniform in [10, 80] deg, h uniform in [-3, 3] m/s, L_z log-uniform in [0.05, 3] with
-    random sign, energy offset (calE - V_min)/|V_min| log-uniform in [1e-6, 10].
+    """n random bounded orbits under gravity, the issue's task: alpha [rad] uniform in
+    [0.15, 1.45], L_z [kg m^2/s] uniform in [0.05, 2], h [m/s] uniform in [-2, 2], energy [J]
+    uniform up to 3 C r_c above V_min.
     """
     rng = np.random.default_rng(seed)
     m = int(n * 1.05) + 16
-    alpha = np.radians(rng.uniform(10.0, 80.0, m))
-    h = rng.uniform(-3.0, 3.0, m)
-    Lz = np.exp(rng.uniform(math.log(0.05), math.log(3.0), m)) * rng.choice([-1.0, 1.0], m)
-    offset = np.exp(rng.uniform(math.log(1e-6), math.log(10.0), m))
+    alpha = rng.uniform(0.15, 1.45, m)
+    h = rng.uniform(-2.0, 2.0, m)
+    Lz = rng.uniform(0.05, 2.0, m)
     vmin = engine.minimum_energy(alpha, h, Lz, SCENE)
-    energy = vmin + offset * np.abs(vmin)
+    r_c = evaluate_flat(alpha, vmin, h, Lz, SCENE)["r_circ"]
+    C = M * G * np.cos(alpha) / (1.0 + K)
+    energy = vmin + rng.uniform(0.0, 3.0, m) * C * r_c
     res = evaluate_flat(alpha, energy, h, Lz, SCENE)
     keep = np.flatnonzero(res["orbit_class"] == BOUNDED)[:n]
     if keep.size < n:
@@ -233,6 +237,43 @@ def first_call(cache_dir: str | None) -> dict[str, float]:
     return out
 
 
+def readme_table(n, n_grid, rounds, goals, ceiling, stages, peer_rate) -> str:
+    """The README's exact-path table (from this run's numbers)."""
+    lines = [
+        f"Exact path (`python scripts/bench_exact.py -n {n}`, {time.strftime('%Y-%m-%d')}, load "
+        f"average {_load()}; per core = CPU time of one thread, best of {rounds} interleaved "
+        f"rounds; {n:.0e} random bounded orbits of the issue's task, and a {n_grid}-point block "
+        f"of `{SURVEY.name}`; peer: numpy turning points + scipy Carlson R_F/R_D/R_J):",
+        "",
+        "| goal | engine | peer | ratio | target | |",
+        "|---|---|---|---|---|---|",
+    ]
+    for label, engine_rate, peer_r, ratio, target in goals:
+        threads = peer_r is None
+        extra = f" (a compute-only control loop: {ceiling:.2f})" if threads else ""
+        peer_txt = "-" if threads else f"{peer_r:.3g} points/s"
+        lines.append(
+            f"| {label} | {engine_rate:.3g} points/s{extra} | {peer_txt} | {ratio:.2f} | "
+            f">= {target:g} | {_verdict(ratio, target).lower()} |"
+        )
+    where = ", ".join(f"{name} {t:.0f}" for name, t in stages)
+    lines += [
+        "",
+        f"Where the time goes (ns per point, one thread, the lanes' stages): {where}; total "
+        f"{sum(t for _, t in stages):.0f} (the peer: {1e9 / peer_rate:.0f}).",
+    ]
+    return "\n".join(lines)
+
+
+def update_readme(text: str) -> None:
+    """Replace the README's block between the MARK comments by ``text``."""
+    src = README.read_text()
+    pat = re.compile(re.escape(MARK[0]) + ".*?" + re.escape(MARK[1]), re.S)
+    if not pat.search(src):
+        raise SystemExit(f"README.md has no {MARK[0]} ... {MARK[1]} block")
+    README.write_text(pat.sub(lambda _: f"{MARK[0]}\n{text}\n{MARK[1]}", src))
+
+
 def _load() -> str:
     return ", ".join(f"{x:.2f}" for x in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
 
@@ -247,6 +288,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
     parser.add_argument("-n", type=int, default=1_000_000, help="points (default %(default)s)")
     parser.add_argument("-r", "--rounds", type=int, default=3, help="interleaved rounds (3)")
     parser.add_argument("--no-compile", action="store_true", help="skip the compile-time probe")
+    parser.add_argument("--readme", action="store_true", help="rewrite README.md's table")
     args = parser.parse_args(argv)
     import scipy
 
@@ -359,19 +401,21 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
         print(f"    {name:22s} {t:7.1f}")
     print(f"    {'total':22s} {total:7.1f}   (the peer: {1e9 / rate('peer', True):.0f})")
 
-    print("\n(g) README rows (`python scripts/bench_exact.py`)")
-    print(f"| exact path, {n:.0e} random bounded points (`evaluate`) | "
-          f"{rate('flat 1', True):.3g} points/s per core "
-          f"(CPU time; wall {rate('flat 1', False):.3g}); "
-          f"2 threads {rate('flat 2', False):.3g} wall (speedup {sp_flat:.2f}, load {_load()}) | "
-          f"`python scripts/bench_exact.py` |")  # fmt: skip
-    print(f"| exact survey grid, block of `{SURVEY.name}` (`evaluate_block`) | "
-          f"{rate('grid 1', True):.3g} points/s per core; 2 threads {rate('grid 2', False):.3g} "
-          f"wall (speedup {sp_grid:.2f}) | same |")  # fmt: skip
-    print(f"| peer: numpy turning points + scipy Carlson R_F/R_D/R_J | "
-          f"{rate('peer', True):.3g} points/s per core: engine {per_core:.2f}x (random points), "
-          f"{per_core_grid:.2f}x (grid); Carlson only, given the roots: "
-          f"{rate('carlson', True):.3g} ({per_core_strict:.2f}x) | same |")  # fmt: skip
+    goals = (
+        ("exact path (`evaluate`) vs the peer, per core", rate("flat 1", True), rate("peer", True),
+         per_core, TARGET_VS_PEER),
+        ("exact survey grid (`evaluate_block`) vs the peer, per core", rate("grid 1", True),
+         rate("peer", True), per_core_grid, TARGET_VS_PEER),
+        ("exact path, 2 threads vs 1 (wall)", rate("flat 2", False), None, sp_flat,
+         TARGET_SPEEDUP),
+        ("exact survey grid, 2 threads vs 1 (wall)", rate("grid 2", False), None, sp_grid,
+         TARGET_SPEEDUP),
+    )  # fmt: skip
+    md = readme_table(n, n_grid, args.rounds, goals, ceiling, stages, rate("peer", True))
+    print("\n(g) README table\n" + md)
+    if args.readme:
+        update_readme(md)
+        print(f"\nwrote it into {README}")
 
     if not args.no_compile:
         with tempfile.TemporaryDirectory(prefix="conesurvey-cold-") as tmp:
