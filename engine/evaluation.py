@@ -9,20 +9,22 @@ the in-memory survey, local streamed runs and dask workers compute the very same
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
+import numba
 import numpy as np
 
 from .fates import Horizon, fates, require_horizon
 from .integrated import evaluate_integrated
-from .kernels.geometry import (
+from .kernels.batch import (
     BATCH_ROWS,
-    BOUNDED,
-    CIRCULAR_TOL,
     empty_outputs,
     minimum_energy_batch,
-    orbit_batch,
+    orbit_units,
+    work_units,
 )
+from .kernels.geometry import BOUNDED, CIRCULAR_TOL
 from .kernels.protocol import NOT_BOUNDED
 from .launch import invariants
 from .methods import DEFAULT_RTOL
@@ -102,6 +104,55 @@ def _integrate_bounded(a, e, hh, lz, scene, method, rtol, cls) -> dict[str, np.n
     return upd
 
 
+#: Jobs per thread: units of work are handed out in this many pieces per thread, so a thread
+#: that finishes early (cheap points: forbidden, circular) takes more.
+JOBS_PER_THREAD = 8
+_POOL: dict[int, ThreadPoolExecutor] = {}
+_NO_ENERGY = np.empty(0)
+
+
+def _in_threads(*args) -> None:
+    """:func:`.kernels.batch.orbit_units` over all its units of work, on
+    ``numba.get_num_threads()`` threads (the kernel releases the GIL). Not a ``prange`` kernel:
+    numba compiles a parallel kernel's whole call tree once more (~9 s on a cold cache); a
+    thread pool costs nothing. The results do not depend on the number of threads."""
+    alpha, energy, h, Lz, grid = args[:5]
+    units = work_units(alpha.size, energy.size, h.size * Lz.size, grid)
+    nt = max(1, min(numba.get_num_threads(), units))
+    if nt == 1:
+        orbit_units(0, units, *args)
+        return
+    if nt not in _POOL:
+        _POOL[nt] = ThreadPoolExecutor(max_workers=nt, thread_name_prefix="conesurvey-lanes")
+    nj = min(units, nt * JOBS_PER_THREAD)
+    cuts = [units * i // nj for i in range(nj + 1)]
+    jobs = [_POOL[nt].submit(orbit_units, cuts[i], cuts[i + 1], *args) for i in range(nj)]
+    for job in jobs:
+        job.result()
+
+
+def orbit_batch(alpha: np.ndarray, energy: np.ndarray, h: np.ndarray, Lz: np.ndarray,
+                M: float, g: float, k: float, a: float, rim: float, mu: float, circ_tol: float,
+                out_cls: np.ndarray, out_f: np.ndarray) -> None:  # fmt: skip
+    """:func:`.kernels.geometry.orbit_point` over 1-D float64 arrays, in parallel and in lanes:
+    ``out_cls`` int8[n], ``out_f`` float64[10, n] (rows :data:`.kernels.batch.BATCH_ROWS`)."""
+    _in_threads(alpha, energy, h, Lz, False, False, float(M), float(g), float(k), float(a),
+                float(rim), float(mu), float(circ_tol), out_cls, out_f, _NO_ENERGY)  # fmt: skip
+
+
+def orbit_grid(alpha: np.ndarray, energy: np.ndarray, h: np.ndarray, Lz: np.ndarray,
+               relative: bool, M: float, g: float, k: float, a: float, rim: float, mu: float,
+               circ_tol: float, out_cls: np.ndarray, out_f: np.ndarray,
+               out_energy: np.ndarray) -> None:  # fmt: skip
+    """:func:`orbit_batch` over the grid alpha x energy x h x Lz (1-D float64 axes; outputs
+    flat in that C order), each family computed once per (alpha, h, L_z) for a chunk of
+    energies; ``relative``: the energy axis is an offset (:func:`.kernels.batch.orbit_units`),
+    ``out_energy`` float64[n] receives the absolute energy."""
+    _in_threads(alpha, energy, h, Lz, True, bool(relative), float(M), float(g), float(k),
+                float(a), float(rim), float(mu), float(circ_tol), out_cls, out_f,
+                out_energy)  # fmt: skip
+
+
 def minimum_energy_flat(alpha: np.ndarray, h: np.ndarray, Lz: np.ndarray, scene: Scene):
     """V_min [J] at each (alpha, h, Lz) of 1-D float64 arrays; NaN where V has no minimum."""
     out = np.empty(alpha.size)
@@ -118,13 +169,47 @@ def evaluate_block(spec: dict[str, Any], slices: tuple[slice, ...]) -> dict[str,
     With a relative energy axis the absolute energy (``energy_absolute``) is V_min + offset
     |V_min| from the slab's own V_min; where V has no minimum it is NaN and the point is classed
     forbidden. On a grid of launch states the invariants of each launch are computed
-    (:func:`engine.launch.invariants`) and returned too, and fates start at the launch.
+    (:func:`engine.launch.invariants`) and returned too, and fates start at the launch. A
+    closed-form map on (alpha, energy, h, L_z) runs the grid kernel, which computes what does
+    not depend on the energy once per (alpha, h, L_z); its numbers equal
+    :func:`evaluate_flat`'s on the same points bit for bit.
     """
     dims = spec.get("dims", DIMS)
-    sub = [np.asarray(spec[d])[s] for d, s in zip(dims, slices, strict=True)]
+    sub = [
+        np.ascontiguousarray(np.asarray(spec[d])[s], np.float64)
+        for d, s in zip(dims, slices, strict=True)
+    ]
     shape = tuple(x.size for x in sub)
-    A, X1, X2, X3 = (x.reshape(-1) for x in np.meshgrid(*sub, indexing="ij"))
     scene = spec["scene"]
+    if tuple(dims) == DIMS and map_kind(spec["method"], scene) == "closed form":
+        res = _closed_form_grid(sub, scene, spec)
+    else:
+        res = _flat_block(sub, dims, scene, spec)
+    return {name: col.reshape(shape) for name, col in res.items()}
+
+
+def _closed_form_grid(sub: list[np.ndarray], scene: Scene, spec: dict[str, Any]):
+    """The closed form on the grid of the axes ``sub`` (flat arrays in the grid's C order)."""
+    n = math.prod(x.size for x in sub)
+    relative = bool(spec["energy_relative"])
+    cls, f = empty_outputs(n)
+    e_abs = np.empty(n)
+    orbit_grid(*sub, relative, scene.M, scene.g, scene.k, scene.a, scene.rim_or_inf,
+               scene.mu_or_inf, spec["circular_tol"], cls, f, e_abs)  # fmt: skip
+    wanted = result_variables(spec["method"], scene)
+    out: dict[str, np.ndarray] = {"orbit_class": cls}
+    for i, name in enumerate(BATCH_ROWS):
+        if name in wanted:
+            out[name] = f[i]
+    if relative:
+        out["energy_absolute"] = e_abs
+    return out
+
+
+def _flat_block(sub: list[np.ndarray], dims: tuple[str, ...], scene: Scene,
+                spec: dict[str, Any]):  # fmt: skip
+    """Any map on the grid of the axes ``sub``, through :func:`evaluate_flat` on its points."""
+    A, X1, X2, X3 = (x.reshape(-1) for x in np.meshgrid(*sub, indexing="ij"))
     e_abs = None
     r_start = None
     if dims == LAUNCH_DIMS:
@@ -151,4 +236,4 @@ def evaluate_block(spec: dict[str, Any], slices: tuple[slice, ...]) -> dict[str,
         res["energy_absolute"] = e_abs
     if r_start is not None:
         res.update(energy=E, h=H, Lz=L)
-    return {name: col.reshape(shape) for name, col in res.items()}
+    return res

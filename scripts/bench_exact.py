@@ -1,21 +1,30 @@
-"""Throughput of the exact (closed-form) path, measured side by side in one run.
+"""Throughput of the exact (closed-form) path against its numpy/scipy peer, side by side in one run.
 
-    python scripts/bench_exact.py                 # ~1e6 points, best of 3 (about a minute)
+    python scripts/bench_exact.py                 # 1e6 points, 3 interleaved rounds (~2 minutes)
     python scripts/bench_exact.py -n 200000 -r 5  # quicker
+    python scripts/bench_exact.py --readme        # also rewrite the README's table
 
-Prints, for the same random bounded points under gravity:
+Prints, with the machine load before and after:
 
-(a) ``engine.kernels.geometry.orbit_batch`` (class, turning points, T_r, psi, precession rate and
-    mu_required per point) on 1 and 2 numba threads: points/s and the 2-thread speedup;
-(b) the peer: T_r and psi from Carlson's R_F, R_D, R_J in numpy with
-    ``scipy.special.elliprf/elliprd/elliprj`` (vectorised, one core), given the turning points
-    precomputed by the engine (so the peer skips the root finding the engine does);
-(c) the ratio exact / peer, next to the targets (exact >= 4x the numpy Carlson evaluation on the
-    same core count; 2-thread speedup >= 1.8);
-(d) first-call time of ``orbit_batch`` in a fresh interpreter: cold (empty ``NUMBA_CACHE_DIR``:
-    compile) and warm (default on-disk cache: load).
+(a) the engine on random bounded points under gravity through ``engine.evaluate``'s flat path
+    (``engine.evaluation.evaluate_flat``: class, turning points, r_circ, T_r, psi, precession
+    rate and mu_required per point), on 1 and 2 numba threads;
+(b) the engine on a survey grid through the grid path (``engine.evaluation.evaluate_block`` on
+    the first block of ``surveys/large_1e8.toml``: what ``conesurvey run`` computes), 1 and 2
+    threads;
+(c) the peer, on one core: numpy turning points (the trigonometric cubic formula) and T_r, psi
+    from Carlson's R_F, R_D, R_J with ``scipy.special.elliprf/elliprd/elliprj``; and the same
+    given the engine's turning points (Carlson only: the stricter peer);
+(d) a compute-bound reference kernel on 1 and 2 threads: the 2-thread speedup the machine
+    offers at the moment (the other engineers' load takes from it);
+(e) the goals (issue 10): exact >= 4x the peer per core, 2 threads >= 1.8x one; met or not;
+(f) where the time goes: the lanes' stages, ns per point, measured (``profile_batch``);
+(g) the README's exact-path table, in markdown (``--readme`` writes it into README.md);
+(h) first-call time of the kernels in a fresh interpreter: cold (empty cache) and warm.
 
-scipy is a benchmark extra (``pip install conesurvey[bench]``), imported here only.
+Per core means CPU time (``time.process_time``, best of the rounds): on a machine shared with
+other jobs a process's wall time includes the time it waits for a core, its CPU time does not.
+Wall times are printed too. scipy is a benchmark extra (``pip install conesurvey[bench]``).
 """
 
 from __future__ import annotations
@@ -25,55 +34,73 @@ import json
 import math
 import os
 import platform
+import re
 import subprocess
 import sys
 import tempfile
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import numba
 import numpy as np
+from numba import njit, prange
 
 import engine
-from engine.kernels.geometry import BOUNDED, CIRCULAR_TOL, empty_outputs, orbit_batch
+from engine.backends import block_spec
+from engine.evaluation import evaluate_block, evaluate_flat
+from engine.grid import Tiling
+from engine.kernels.batch import STAGES, empty_outputs, profile_batch
+from engine.kernels.geometry import BOUNDED
+from engine.schema import DIMS
+from engine.surveyfile import load_survey
 
 M, G, K = 1.0, 9.81, 0.4
+SCENE = engine.Scene(M=M, g=G, k=K)
 TARGET_VS_PEER = 4.0
 TARGET_SPEEDUP = 1.8
+SURVEY = Path(__file__).resolve().parents[1] / "surveys" / "large_1e8.toml"
+README = Path(__file__).resolve().parents[1] / "README.md"
+MARK = ("<!-- bench_exact: start -->", "<!-- bench_exact: end -->")
 
 
 def random_bounded_points(n: int, seed: int = 20240601) -> dict[str, np.ndarray]:
-    """n random bounded orbits under gravity: alpha [rad], energy [J], h [m/s], Lz [kg m^2/s].
-
-    alpha uniform in [10, 80] deg, h uniform in [-3, 3] m/s, L_z log-uniform in [0.05, 3] with
-    random sign, energy offset (calE - V_min)/|V_min| log-uniform in [1e-6, 10].
+    """n random bounded orbits under gravity, the issue's task: alpha [rad] uniform in
+    [0.15, 1.45], L_z [kg m^2/s] uniform in [0.05, 2], h [m/s] uniform in [-2, 2], energy [J]
+    uniform up to 3 C r_c above V_min.
     """
     rng = np.random.default_rng(seed)
     m = int(n * 1.05) + 16
-    alpha = np.radians(rng.uniform(10.0, 80.0, m))
-    h = rng.uniform(-3.0, 3.0, m)
-    Lz = np.exp(rng.uniform(math.log(0.05), math.log(3.0), m)) * rng.choice([-1.0, 1.0], m)
-    offset = np.exp(rng.uniform(math.log(1e-6), math.log(10.0), m))
-    scene = engine.Scene(M=M, g=G, k=K)
-    vmin = engine.minimum_energy(alpha, h, Lz, scene)
-    energy = vmin + offset * np.abs(vmin)
-    cls, f = empty_outputs(m)
-    orbit_batch(alpha, energy, h, Lz, M, G, K, math.inf, CIRCULAR_TOL, cls, f)
-    keep = np.flatnonzero(cls == BOUNDED)[:n]
+    alpha = rng.uniform(0.15, 1.45, m)
+    h = rng.uniform(-2.0, 2.0, m)
+    Lz = rng.uniform(0.05, 2.0, m)
+    vmin = engine.minimum_energy(alpha, h, Lz, SCENE)
+    r_c = evaluate_flat(alpha, vmin, h, Lz, SCENE)["r_circ"]
+    C = M * G * np.cos(alpha) / (1.0 + K)
+    energy = vmin + rng.uniform(0.0, 3.0, m) * C * r_c
+    res = evaluate_flat(alpha, energy, h, Lz, SCENE)
+    keep = np.flatnonzero(res["orbit_class"] == BOUNDED)[:n]
     if keep.size < n:
         raise RuntimeError(f"only {keep.size} of {n} random points are bounded")
     pts = {"alpha": alpha, "energy": energy, "h": h, "Lz": Lz}
     out = {k: np.ascontiguousarray(v[keep]) for k, v in pts.items()}
-    out["r1"] = np.ascontiguousarray(f[0, keep])
-    out["r2"] = np.ascontiguousarray(f[1, keep])
-    out["T"] = np.ascontiguousarray(f[3, keep])
-    out["psi"] = np.ascontiguousarray(f[4, keep])
+    for key, var in (("r1", "r_min"), ("r2", "r_max"), ("T", "period"), ("psi", "apsidal_angle")):
+        out[key] = np.ascontiguousarray(res[var][keep])
     return out
 
 
-def carlson_numpy(
-    alpha: np.ndarray, Lz: np.ndarray, r1: np.ndarray, r2: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
+def _coefficients(alpha: np.ndarray, Lz: np.ndarray, h: np.ndarray):
+    s = np.sin(alpha)
+    c = np.cos(alpha)
+    s2 = s * s
+    kk = K / (1.0 + K)
+    A = Lz * Lz / (2.0 * M * s2) * (1.0 + kk * (c * c) / s2)
+    B = kk * h * Lz * c / s2
+    C = M * G * c / (1.0 + K)
+    return s2, A, B, C
+
+
+def carlson_numpy(alpha, Lz, r1, r2, coef=None) -> tuple[np.ndarray, np.ndarray]:
     """(T_r [s], psi [rad]) from Carlson's forms with scipy.special, given r1 < r2 [m].
 
     r3 = -A/(C r1 r2); T_r = 2 sqrt(M/2C) [2 r1 R_F(0, r1-r3, r2-r3)
@@ -82,67 +109,125 @@ def carlson_numpy(
     """
     from scipy.special import elliprd, elliprf, elliprj
 
-    s = np.sin(alpha)
-    c = np.cos(alpha)
-    s2 = s * s
-    kk = K / (1.0 + K)
-    A = Lz * Lz / (2.0 * M * s2) * (1.0 + kk * (c * c) / s2)
-    C = M * G * c / (1.0 + K)
+    s2, A, _, C = coef if coef is not None else _coefficients(alpha, Lz, np.zeros_like(Lz))
     r3 = -A / (C * r1 * r2)
     sc = np.sqrt(M / (2.0 * C))
     d21 = r2 - r1
     d13 = r1 - r3
     d23 = r2 - r3
-    T = (
-        2.0
-        * sc
-        * (2.0 * r1 * elliprf(0.0, d13, d23) + (2.0 / 3.0) * d21 * d13 * elliprd(0.0, d23, d13))
-    )
+    rf = elliprf(0.0, d13, d23)
+    T = 2.0 * sc * (2.0 * r1 * rf + (2.0 / 3.0) * d21 * d13 * elliprd(0.0, d23, d13))
     m1 = d13 / d23  # 1 - m
     n = d21 / r2
     Kang = np.abs(Lz) / (M * s2)
-    psi = (
-        2.0
-        * Kang
-        * sc
-        * (elliprf(0.0, m1, 1.0) + n / 3.0 * elliprj(0.0, m1, 1.0, 1.0 - n))
-        / (r2 * np.sqrt(d23))
-    )
+    rj = elliprj(0.0, m1, 1.0, 1.0 - n)
+    psi = 2.0 * Kang * sc * (elliprf(0.0, m1, 1.0) + n / 3.0 * rj) / (r2 * np.sqrt(d23))
     return T, psi
 
 
-def best_time(fn: Callable[[], object], repeats: int) -> float:
-    """Smallest wall time [s] of ``repeats`` calls of ``fn``."""
-    best = math.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
+def peer(alpha, energy, h, Lz) -> tuple[np.ndarray, np.ndarray]:
+    """The peer of the issue: turning points in numpy (the three real roots of
+    C r^3 - calE r^2 + B r + A by the trigonometric formula), then :func:`carlson_numpy`."""
+    coef = _coefficients(alpha, Lz, h)
+    _, A, B, C = coef
+    a2, a1, a0 = -energy / C, B / C, A / C
+    t = a2 / 3.0
+    p = a1 - a2 * t
+    q = (2.0 * t * t - a1) * t + a0
+    m = 2.0 * np.sqrt(-p / 3.0)
+    th = np.arccos(np.clip(3.0 * q / (p * m), -1.0, 1.0)) / 3.0
+    r2 = m * np.cos(th) - t
+    r1 = m * np.cos(th - 2.0 * np.pi / 3.0) - t
+    return carlson_numpy(alpha, Lz, r1, r2, coef)
+
+
+@njit(parallel=True, cache=False)
+def _reference_kernel(x, out):
+    """Compute-bound and embarrassingly parallel: a chain of square roots per element."""
+    for i in prange(x.size):
+        v = x[i]
+        for _ in range(200):
+            v = math.sqrt(v + 1.0)
+        out[i] = v
+
+
+def measure(fns: dict[str, Callable[[], object]], rounds: int) -> dict[str, tuple[float, float]]:
+    """Best (wall, CPU) seconds of each call over interleaved rounds."""
+    best = {name: (math.inf, math.inf) for name in fns}
+    for _ in range(rounds):
+        for name, fn in fns.items():
+            c0, w0 = time.process_time(), time.perf_counter()
+            fn()
+            w, c = time.perf_counter() - w0, time.process_time() - c0
+            best[name] = (min(best[name][0], w), min(best[name][1], c))
     return best
+
+
+def threaded(nt: int, fn: Callable[[], object]) -> Callable[[], object]:
+    """``fn`` run on ``nt`` numba threads."""
+
+    def call():
+        numba.set_num_threads(nt)
+        try:
+            return fn()
+        finally:
+            numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+
+    return call
+
+
+def survey_block() -> tuple[dict, tuple[slice, ...], int]:
+    """The first block of surveys/large_1e8.toml: its spec, slices and number of points."""
+    survey = load_survey(SURVEY)
+    tiling = Tiling.for_grid(survey.shape)
+    slices = tiling.slices(0)
+    n = math.prod(
+        len(range(*s.indices(size))) for s, size in zip(slices, survey.shape, strict=True)
+    )
+    return block_spec(survey), slices, n
+
+
+def profile(pts: dict[str, np.ndarray], rounds: int) -> list[tuple[str, float]]:
+    """CPU ns per point of each stage of the lanes (random points, one thread)."""
+    a, e, h, lz = pts["alpha"], pts["energy"], pts["h"], pts["Lz"]
+    n = a.size
+    cls, f = empty_outputs(n)
+    fns = {}
+    for upto in range(len(STAGES)):
+        fns[STAGES[upto]] = lambda u=upto: profile_batch(a, e, h, lz, M, G, K, 1e-12, cls, f, u)
+    for fn in fns.values():
+        fn()
+    best = measure(fns, max(rounds, 5))
+    out, prev = [], 0.0
+    for name in STAGES:
+        t = best[name][1] / n * 1e9
+        out.append((name, t - prev))
+        prev = t
+    return out
 
 
 _PROBE = """
 import json, math, time
 t0 = time.perf_counter()
 import numpy as np
-from engine.kernels.geometry import empty_outputs, orbit_batch
+import engine
+from engine.evaluation import evaluate_flat
 t1 = time.perf_counter()
 a = np.full(64, 0.5); e = np.full(64, 10.0); h = np.full(64, 1.0); lz = np.full(64, 1.0)
-cls, f = empty_outputs(64)
-orbit_batch(a, e, h, lz, 1.0, 9.81, 0.4, math.inf, 1e-12, cls, f)
+evaluate_flat(a, e, h, lz, engine.Scene())
 t2 = time.perf_counter()
-orbit_batch(a, e, h, lz, 1.0, 9.81, 0.4, math.inf, 1e-12, cls, f)
+evaluate_flat(a, e, h, lz, engine.Scene())
 t3 = time.perf_counter()
 print(json.dumps({"import": t1 - t0, "first": t2 - t1, "second": t3 - t2}))
 """
 
 
 def first_call(cache_dir: str | None) -> dict[str, float]:
-    """Import and first/second ``orbit_batch`` call times [s] in a fresh interpreter."""
-    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "NUMBA_DISABLE_JIT")}
+    """Import and first/second ``evaluate_flat`` call times [s] in a fresh interpreter."""
+    env = {k: v for k, v in os.environ.items() if k not in ("CONESURVEY_CACHE_DIR",)}
     env.pop("CONESURVEY_NO_CACHE", None)
     if cache_dir is not None:
-        env["NUMBA_CACHE_DIR"] = cache_dir
+        env["CONESURVEY_CACHE_DIR"] = cache_dir
     t0 = time.perf_counter()
     res = subprocess.run(
         [sys.executable, "-c", _PROBE], env=env, capture_output=True, text=True, check=True
@@ -152,100 +237,199 @@ def first_call(cache_dir: str | None) -> dict[str, float]:
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the benchmark and print the table."""
+def readme_table(n, n_grid, rounds, goals, ceiling, stages, peer_rate) -> str:
+    """The README's exact-path table (from this run's numbers)."""
+    lines = [
+        f"Exact path (`python scripts/bench_exact.py -n {n}`, {time.strftime('%Y-%m-%d')}, load "
+        f"average {_load()}; per core = CPU time of one thread, best of {rounds} interleaved "
+        f"rounds; {n:.0e} random bounded orbits of the issue's task, and a {n_grid}-point block "
+        f"of `{SURVEY.name}`; peer: numpy turning points + scipy Carlson R_F/R_D/R_J):",
+        "",
+        "| goal | engine | peer | ratio | target | |",
+        "|---|---|---|---|---|---|",
+    ]
+    for label, engine_rate, peer_r, ratio, target in goals:
+        threads = peer_r is None
+        extra = f" (a compute-only control loop: {ceiling:.2f})" if threads else ""
+        peer_txt = "-" if threads else f"{peer_r:.3g} points/s"
+        lines.append(
+            f"| {label} | {engine_rate:.3g} points/s{extra} | {peer_txt} | {ratio:.2f} | "
+            f">= {target:g} | {_verdict(ratio, target).lower()} |"
+        )
+    where = ", ".join(f"{name} {t:.0f}" for name, t in stages)
+    lines += [
+        "",
+        f"Where the time goes (ns per point, one thread, the lanes' stages): {where}; total "
+        f"{sum(t for _, t in stages):.0f} (the peer: {1e9 / peer_rate:.0f}).",
+    ]
+    return "\n".join(lines)
+
+
+def update_readme(text: str) -> None:
+    """Replace the README's block between the MARK comments by ``text``."""
+    src = README.read_text()
+    pat = re.compile(re.escape(MARK[0]) + ".*?" + re.escape(MARK[1]), re.S)
+    if not pat.search(src):
+        raise SystemExit(f"README.md has no {MARK[0]} ... {MARK[1]} block")
+    README.write_text(pat.sub(lambda _: f"{MARK[0]}\n{text}\n{MARK[1]}", src))
+
+
+def _load() -> str:
+    return ", ".join(f"{x:.2f}" for x in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
+
+
+def _verdict(value: float, target: float) -> str:
+    return "met" if value >= target else "MISSED"
+
+
+def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top to bottom)
+    """Run the benchmark and print the report."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("-n", type=int, default=1_000_000, help="points (default %(default)s)")
-    parser.add_argument("-r", "--repeats", type=int, default=3, help="best of (default 3)")
+    parser.add_argument("-r", "--rounds", type=int, default=3, help="interleaved rounds (3)")
     parser.add_argument("--no-compile", action="store_true", help="skip the compile-time probe")
+    parser.add_argument("--readme", action="store_true", help="rewrite README.md's table")
     args = parser.parse_args(argv)
     import scipy
 
     t_start = time.perf_counter()
-    n = args.n
     ncpu = os.cpu_count() or 1
     print(f"machine: {platform.platform()}, {platform.machine()}, os.cpu_count() = {ncpu}")
     print(
         f"python {platform.python_version()}, numba {numba.__version__}, numpy {np.__version__}, "
         f"scipy {scipy.__version__}, conesurvey {engine.__version__}"
     )
-    if hasattr(os, "getloadavg"):
-        load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
-        print(f"load average before the run (1, 5, 15 min): {load}")
+    print(f"load average before the run (1, 5, 15 min): {_load()}")
 
+    n = args.n
     pts = random_bounded_points(n)
     a, e, h, lz = pts["alpha"], pts["energy"], pts["h"], pts["Lz"]
-    cls, f = empty_outputs(n)
+    spec, slices, n_grid = survey_block()
+    x_ref = np.random.default_rng(1).uniform(0.0, 1.0, 200_000)
+    y_ref = np.empty_like(x_ref)
 
-    def exact() -> None:
-        orbit_batch(a, e, h, lz, M, G, K, math.inf, CIRCULAR_TOL, cls, f)
+    # Agreement first: the peers compute the same numbers; the grid path equals the flat one.
+    T_peer, psi_peer = peer(a, e, h, lz)
+    T_carl, psi_carl = carlson_numpy(a, lz, pts["r1"], pts["r2"])
+    agree = {
+        "peer": (np.max(np.abs(T_peer / pts["T"] - 1)), np.max(np.abs(psi_peer / pts["psi"] - 1))),
+        "carlson": (
+            np.max(np.abs(T_carl / pts["T"] - 1)),
+            np.max(np.abs(psi_carl / pts["psi"] - 1)),
+        ),
+    }
+    block = evaluate_block(spec, slices)
+    sub = [np.asarray(spec[d])[s] for d, s in zip(DIMS, slices, strict=True)]
+    A, E, H, L = (x.reshape(-1) for x in np.meshgrid(*sub, indexing="ij"))
+    flat = evaluate_flat(A, block["energy_absolute"].reshape(-1), H, L, SCENE)
+    same = all(
+        np.array_equal(flat[k], block[k].reshape(-1), equal_nan=True) for k in flat if k in block
+    )
 
-    def peer() -> None:
-        carlson_numpy(a, lz, pts["r1"], pts["r2"])
+    def flat_path():
+        evaluate_flat(a, e, h, lz, SCENE)
 
-    # Agreement first: the two evaluations must compute the same numbers.
-    T_peer, psi_peer = carlson_numpy(a, lz, pts["r1"], pts["r2"])
-    dT = float(np.max(np.abs(T_peer / pts["T"] - 1.0)))
-    dpsi = float(np.max(np.abs(psi_peer / pts["psi"] - 1.0)))
+    def grid_path():
+        evaluate_block(spec, slices)
 
-    threads = [1, 2] if numba.config.NUMBA_NUM_THREADS >= 2 else [1]
-    t_exact = {}
-    for nt in threads:
-        numba.set_num_threads(nt)
-        exact()  # warm the thread pool
-        t_exact[nt] = best_time(exact, args.repeats)
-    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
-    t_peer = best_time(peer, args.repeats)
+    fns = {
+        "flat 1": threaded(1, flat_path),
+        "flat 2": threaded(2, flat_path),
+        "grid 1": threaded(1, grid_path),
+        "grid 2": threaded(2, grid_path),
+        "peer": lambda: peer(a, e, h, lz),
+        "carlson": lambda: carlson_numpy(a, lz, pts["r1"], pts["r2"]),
+        "ref 1": threaded(1, lambda: _reference_kernel(x_ref, y_ref)),
+        "ref 2": threaded(2, lambda: _reference_kernel(x_ref, y_ref)),
+    }
+    for fn in fns.values():  # compile, warm the thread pool
+        fn()
+    best = measure(fns, args.rounds)
     layer = numba.threading_layer()
+    size = {"flat": n, "grid": n_grid, "peer": n, "carlson": n}
+
+    def rate(key: str, cpu: bool) -> float:
+        return size[key.split()[0]] / best[key][1 if cpu else 0]
 
     print(
-        f"\n{n} random bounded points (g = {G}, k = {K}), best of {args.repeats}; "
-        f"threading layer {layer}"
+        f"\n{n} random bounded points (g = {G}, k = {K}) and a {n_grid}-point survey block "
+        f"({SURVEY.name}, block 0); best of {args.rounds} interleaved rounds; threading layer "
+        f"{layer}; load now {_load()}"
     )
-    print(f"peer vs engine on these points: max |rel diff| T_r {dT:.1e}, psi {dpsi:.1e}\n")
-    head = f"{'evaluation':46s} {'threads':>7s} {'best [s]':>9s} {'points/s':>10s} {'vs peer':>8s}"
-    print(head)
-    print("-" * len(head))
-    for nt in threads:
-        rate = n / t_exact[nt]
-        print(
-            f"{'(a) exact: orbit_batch (all outputs)':46s} {nt:7d} {t_exact[nt]:9.3f} "
-            f"{rate:10.3g} {t_peer / t_exact[nt]:7.2f}x"
-        )
     print(
-        f"{'(b) peer: numpy + scipy elliprf/rd/rj (T, psi)':46s} {1:7d} {t_peer:9.3f} "
-        f"{n / t_peer:10.3g} {1.0:7.2f}x"
-    )
-    ratio1 = t_peer / t_exact[1]
-    ok = "meets" if ratio1 >= TARGET_VS_PEER else "MISSES"
-    print(
-        f"\n(c) exact / peer, 1 thread each: {ratio1:.2f}x   (target >= {TARGET_VS_PEER:g}x: {ok})"
-    )
-    if 2 in t_exact:
-        speedup = t_exact[1] / t_exact[2]
-        ok = "meets" if speedup >= TARGET_SPEEDUP else "MISSES"
-        print(
-            f"    exact / peer, 2 threads vs 1 core: {t_peer / t_exact[2]:.2f}x\n"
-            f"    2-thread speedup {speedup:.2f} (parallel efficiency {speedup / 2:.0%}; "
-            f"target speedup >= {TARGET_SPEEDUP:g}: {ok})"
+        "agreement: peer vs engine max |rel diff| T_r {:.1e}, psi {:.1e}; Carlson-only peer "
+        "{:.1e}, {:.1e}; grid path == flat path bit for bit: {}".format(
+            *agree["peer"], *agree["carlson"], same
         )
+    )
+    head = f"{'evaluation':58s} {'thr':>3s} {'wall pts/s':>11s} {'CPU pts/s':>11s}"
+    print("\n" + head + "\n" + "-" * len(head))
+    rows = (
+        ("(a) engine, random points: evaluate_flat", "flat"),
+        ("(b) engine, survey grid: evaluate_block", "grid"),
+    )
+    for label, key in rows:
+        for nt in (1, 2):
+            k = f"{key} {nt}"
+            print(f"{label:58s} {nt:3d} {rate(k, False):11.3g} {rate(k, True):11.3g}")
+    print(f"{'(c) peer: numpy turning points + scipy Carlson':58s} {1:3d} "
+          f"{rate('peer', False):11.3g} {rate('peer', True):11.3g}")  # fmt: skip
+    print(f"{'    peer given the turning points (Carlson only)':58s} {1:3d} "
+          f"{rate('carlson', False):11.3g} {rate('carlson', True):11.3g}")  # fmt: skip
+    ceiling = best["ref 1"][0] / best["ref 2"][0]
+    print(f"(d) reference kernel: 2-thread speedup available now {ceiling:.2f}")
+
+    per_core = rate("flat 1", True) / rate("peer", True)
+    per_core_strict = rate("flat 1", True) / rate("carlson", True)
+    per_core_grid = rate("grid 1", True) / rate("peer", True)
+    wall_1 = rate("flat 1", False) / rate("peer", False)
+    sp_flat = best["flat 1"][0] / best["flat 2"][0]
+    sp_grid = best["grid 1"][0] / best["grid 2"][0]
+    print("\n(e) goals")
+    print(f"exact (random points) / peer, per core (CPU): {per_core:.2f}x "
+          f"(target >= {TARGET_VS_PEER:g}x: {_verdict(per_core, TARGET_VS_PEER)}); "
+          f"wall {wall_1:.2f}x; vs the Carlson-only peer {per_core_strict:.2f}x")  # fmt: skip
+    print(f"survey grid / peer, per core (CPU): {per_core_grid:.2f}x")
+    print(f"2 threads vs 1 (wall): random points {sp_flat:.2f}, survey grid {sp_grid:.2f} "
+          f"(target >= {TARGET_SPEEDUP:g}: {_verdict(min(sp_flat, sp_grid), TARGET_SPEEDUP)}); "
+          f"the reference kernel got {ceiling:.2f} at the same time")  # fmt: skip
+
+    stages = profile(pts, args.rounds)
+    total = sum(t for _, t in stages)
+    print("\n(f) where the time goes: lanes' stages on random points, one thread, CPU ns/point")
+    for name, t in stages:
+        print(f"    {name:22s} {t:7.1f}")
+    print(f"    {'total':22s} {total:7.1f}   (the peer: {1e9 / rate('peer', True):.0f})")
+
+    goals = (
+        ("exact path (`evaluate`) vs the peer, per core", rate("flat 1", True), rate("peer", True),
+         per_core, TARGET_VS_PEER),
+        ("exact survey grid (`evaluate_block`) vs the peer, per core", rate("grid 1", True),
+         rate("peer", True), per_core_grid, TARGET_VS_PEER),
+        ("exact path, 2 threads vs 1 (wall)", rate("flat 2", False), None, sp_flat,
+         TARGET_SPEEDUP),
+        ("exact survey grid, 2 threads vs 1 (wall)", rate("grid 2", False), None, sp_grid,
+         TARGET_SPEEDUP),
+    )  # fmt: skip
+    md = readme_table(n, n_grid, args.rounds, goals, ceiling, stages, rate("peer", True))
+    print("\n(g) README table\n" + md)
+    if args.readme:
+        update_readme(md)
+        print(f"\nwrote it into {README}")
 
     if not args.no_compile:
-        with tempfile.TemporaryDirectory(prefix="numba-cold-") as tmp:
+        with tempfile.TemporaryDirectory(prefix="conesurvey-cold-") as tmp:
             cold = first_call(tmp)
         warm = min((first_call(None) for _ in range(2)), key=lambda d: d["first"])
-        print("\n(d) orbit_batch in a fresh interpreter [s]")
+        print("\n(h) evaluate_flat in a fresh interpreter [s]")
         print(f"{'cache':34s} {'import':>8s} {'1st call':>9s} {'2nd call':>9s} {'process':>8s}")
-        for label, d in (
-            ("cold (empty NUMBA_CACHE_DIR)", cold),
-            ("warm (default on-disk cache)", warm),
-        ):
+        for label, d in (("cold (empty cache directory)", cold), ("warm (on-disk cache)", warm)):
             print(
                 f"{label:34s} {d['import']:8.3f} {d['first']:9.3f} {d['second']:9.5f} "
                 f"{d['process']:8.3f}"
             )
-        print(f"compile / cache load: {cold['first'] / max(warm['first'], 1e-9):.0f}x")
-    print(f"\ntotal benchmark time {time.perf_counter() - t_start:.1f} s")
+    print(f"\nload average after the run: {_load()}; total benchmark time "
+          f"{time.perf_counter() - t_start:.1f} s")  # fmt: skip
     return 0
 
 

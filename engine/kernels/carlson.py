@@ -203,3 +203,93 @@ def cel(kc, p, a, b):
         qc += qc
         e = qc * em
     return 0.5 * math.pi * (b + a * em) / (em * (em + p))
+
+
+@kernel
+def cel_pair(kc, p1, a1, b1, p2, a2, b2):
+    """(cel(kc, p1, a1, b1), cel(kc, p2, a2, b2)) in one loop: the AGM-like sequence of kc is
+    shared, the two recurrences in p, a, b run side by side (bit-identical to two calls of
+    :func:`cel`, at about the cost of one)."""
+    qc = abs(kc)
+    e = qc
+    em = 1.0
+    p1 = math.sqrt(p1)
+    b1 /= p1
+    p2 = math.sqrt(p2)
+    b2 /= p2
+    for _ in range(_MAX_ITER):
+        f1 = a1
+        f2 = a2
+        a1 += b1 / p1
+        a2 += b2 / p2
+        g1 = e / p1
+        g2 = e / p2
+        b1 += f1 * g1
+        b2 += f2 * g2
+        b1 += b1
+        b2 += b2
+        p1 = g1 + p1
+        p2 = g2 + p2
+        g = em
+        em += qc
+        if abs(g - qc) <= g * CEL_TOL:
+            break
+        qc = math.sqrt(e)
+        qc += qc
+        e = qc * em
+    h = 0.5 * math.pi
+    return h * (b1 + a1 * em) / (em * (em + p1)), h * (b2 + a2 * em) / (em * (em + p2))
+
+
+@kernel
+def cel_pair_lanes(m, kc, p1, a1, b1, p2, a2, b2, st, out1, out2):
+    """:func:`cel_pair` for lanes 0..m-1 of the arrays, in lock-step: each step runs over all
+    lanes, a lane that has converged keeps its values (selects, no branch on which has), so
+    the lanes' chains overlap. Bit-identical to :func:`cel_pair` per lane. ``p*``, ``a*``,
+    ``b*`` are overwritten; ``st`` is float64[4, >= m] scratch."""
+    qc, e, em, act = st[0], st[1], st[2], st[3]
+    for j in range(m):
+        qc[j] = abs(kc[j])
+        e[j] = qc[j]
+        em[j] = 1.0
+        act[j] = 1.0
+        p1[j] = math.sqrt(p1[j])
+        b1[j] /= p1[j]
+        p2[j] = math.sqrt(p2[j])
+        b2[j] /= p2[j]
+    for _ in range(_MAX_ITER):
+        left = 0.0
+        for j in range(m):
+            on = act[j] != 0.0
+            f1 = a1[j]
+            f2 = a2[j]
+            na1 = f1 + b1[j] / p1[j]
+            na2 = f2 + b2[j] / p2[j]
+            g1 = e[j] / p1[j]
+            g2 = e[j] / p2[j]
+            nb1 = b1[j] + f1 * g1
+            nb2 = b2[j] + f2 * g2
+            nb1 += nb1
+            nb2 += nb2
+            g = em[j]
+            nem = g + qc[j]
+            a1[j] = na1 if on else f1
+            a2[j] = na2 if on else f2
+            b1[j] = nb1 if on else b1[j]
+            b2[j] = nb2 if on else b2[j]
+            p1[j] = g1 + p1[j] if on else p1[j]
+            p2[j] = g2 + p2[j] if on else p2[j]
+            em[j] = nem if on else g
+            going = on and not abs(g - qc[j]) <= g * CEL_TOL
+            nqc = math.sqrt(e[j])
+            nqc += nqc
+            qc[j] = nqc if going else qc[j]
+            e[j] = nqc * nem if going else e[j]
+            act[j] = 1.0 if going else 0.0
+            left += act[j]
+        if left == 0.0:
+            break
+    h = 0.5 * math.pi
+    for j in range(m):
+        out1[j] = h * (b1[j] + a1[j] * em[j]) / (em[j] * (em[j] + p1[j]))
+        out2[j] = h * (b2[j] + a2[j] * em[j]) / (em[j] * (em[j] + p2[j]))

@@ -21,6 +21,7 @@ import math
 import numpy as np
 
 from .._jit import kernel
+from .roots import cbrt
 
 # Gauss-Kronrod 15-point nodes and weights (QUADPACK qk15) on [-1, 1].
 _XGK = np.array(
@@ -168,8 +169,8 @@ def _ratio(x, p0, p2, p3, q0, q3):
     limit at x = 0 in free fall (q0 = 0)."""
     if x == 0.0 and q0 == 0.0:
         return math.copysign(math.inf, p2 * q3) if p2 != 0.0 else p3 / q3
-    if p0 == 0.0 and q0 == 0.0:  # free fall: divide x^3 out (it underflows for r > 1e103)
-        return (p2 / x + p3) / q3
+    if p0 == 0.0 and q0 == 0.0:  # free fall: divide x^3 out (it underflows for r > 1e103),
+        return (p2 / q3) / x + p3 / q3  # and q3 before x (p2 / x overflows for r > 1e194)
     if x <= 1.0:
         x2 = x * x
         return (p0 + p2 * x2 + p3 * x2 * x) / (q0 + q3 * x2 * x)
@@ -200,22 +201,83 @@ def _level_crossing(a, b, level, p0, p2, p3, q0, q3):
 
 
 @kernel
+def friction_terms(s, c, h, Lz, M, g, k):
+    """(kk, p0, p2, p3, q0, q3) of |F|/N = kk |f(x)|, f = (p0 + p2 x^2 + p3 x^3)/(q0 + q3 x^3),
+    x = 1/r (docs/physics.md "Contact forces"), from s = sin(alpha), c = cos(alpha):
+    kk = k/(1+k), p0 = g cos a, p2 = cot a q h, p3 = cot^2 a q^2, q0 = g sin a, q3 = cot a q^2,
+    q = L_z/(M sin a)."""
+    kk = k / (1.0 + k)
+    cot = c / s
+    q = Lz / (M * s)
+    return kk, g * c, cot * q * h, cot * cot * q * q, g * s, cot * q * q
+
+
+@kernel
+def critical_cube(p0, p2, p3, q0, q3):
+    """r*^3 [m^3] of the only interior critical point of |F|/N, x*^3 = 1/r*^3 = 2 q0/q3; NaN if
+    there is none (q0 = 0 or q3 = 0)."""
+    if q3 <= 0.0 or q0 <= 0.0:
+        return math.nan
+    return q3 / (2.0 * q0)
+
+
+@kernel
+def critical_ratio(p0, p2, p3, q0, q3):
+    """|f| at the interior critical point x* = (2 q0/q3)^(1/3) (q0, q3 > 0). f is stationary
+    there, so x* to ~1e-14 (:func:`.roots.cbrt`, 4x cheaper than ``**``) gives |f| to rounding."""
+    return abs(_ratio(cbrt(2.0 * q0 / q3), p0, p2, p3, q0, q3))
+
+
+@kernel
+def mu_required_of(r1, r2, kk, p0, p2, p3, q0, q3, rs3, fstar):
+    """:func:`mu_required` from :func:`friction_terms`, ``rs3`` = :func:`critical_cube` and
+    ``fstar`` = :func:`critical_ratio` (NaN: computed here if needed)."""
+    if kk == 0.0:
+        return 0.0  # a point particle needs no friction (and 0 * inf would be NaN)
+    # Endpoints, then the interior critical point.
+    if math.isinf(r2):
+        if q0 > 0.0:
+            val = abs(p0) / q0
+        elif p2 == 0.0:
+            val = abs(p3) / q3
+        else:
+            val = math.inf
+    else:
+        val = abs(_ratio(1.0 / r2, p0, p2, p3, q0, q3))
+    best = max(0.0, val)
+    x = 1.0 / r1 if r1 > 0.0 else math.inf
+    if math.isinf(x):  # through the axis (L_z = 0): q = 0, the ratio is constant
+        best = max(best, abs(p0) / q0)
+    else:
+        best = max(best, abs(_ratio(x, p0, p2, p3, q0, q3)))
+    if r1 * r1 * r1 < rs3 and (math.isinf(r2) or rs3 < r2 * r2 * r2):
+        if math.isnan(fstar):
+            fstar = critical_ratio(p0, p2, p3, q0, q3)
+        best = max(best, fstar)
+    return kk * best
+
+
+@kernel
+def mu_required(r1, r2, alpha, h, Lz, M, g, k):
+    """Smallest friction coefficient that keeps rolling on [r1, r2] (r2 may be +inf): max |F|/N.
+
+    With x = 1/r and q = L_z/(M sin a):
+    |F|/N = k/(1+k) |g cos a + cot a q h x^2 + cot^2 a q^2 x^3| / (g sin a + cot a q^2 x^3),
+    whose only interior critical point is x^3 = 2 g sin a / (cot a q^2).
+    """
+    kk, p0, p2, p3, q0, q3 = friction_terms(math.sin(alpha), math.cos(alpha), h, Lz, M, g, k)
+    rs3 = critical_cube(p0, p2, p3, q0, q3)
+    return mu_required_of(r1, r2, kk, p0, p2, p3, q0, q3, rs3, math.nan)
+
+
+@kernel
 def first_slip(r1, r2, alpha, h, Lz, M, g, k, mu):
     """The smallest radius in [r1, r2] (r2 may be inf) where |F|/N > mu, or NaN if rolling
     never fails. |F|/N = k/(1+k) |f(x)|, f = (p0 + p2 x^2 + p3 x^3)/(q0 + q3 x^3), x = 1/r, is
     monotone on either side of x* = (2 q0/q3)^(1/3) (constant = cot(alpha) when p2 = 0)."""
-    kk = k / (1.0 + k)
+    kk, p0, p2, p3, q0, q3 = friction_terms(math.sin(alpha), math.cos(alpha), h, Lz, M, g, k)
     if kk == 0.0 or not mu < math.inf:
         return math.nan
-    s = math.sin(alpha)
-    c = math.cos(alpha)
-    cot = c / s
-    q = Lz / (M * s)
-    p0 = g * c
-    p2 = cot * q * h
-    p3 = cot * cot * q * q
-    q0 = g * s
-    q3 = cot * q * q
     m = mu / kk
     if r1 == 0.0 or q3 == 0.0:  # through the axis, or free of the x terms: a constant ratio
         return r1 if abs(p0 / q0) > m else math.nan

@@ -21,14 +21,18 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-from numba import prange
-
-from .._jit import kernel, parallel_kernel
-from .carlson import cel
-from .ending import _ratio, first_slip, time_and_azimuth
-from .model import coefficients, rim_on_centre_cone
-from .roots import circular_radius, free_fall_r_min, turning_points
+from .._jit import kernel
+from .carlson import cel_pair
+from .ending import (
+    critical_cube,
+    critical_ratio,
+    first_slip,
+    friction_terms,
+    mu_required_of,
+    time_and_azimuth,
+)
+from .model import coefficients, coefficients_sc, rim_on_centre_cone
+from .roots import circular_radius, free_fall_r_min, turning_points, turning_points_in, well
 
 #: Orbit classes, stored as int8 ``orbit_class`` (CF flag_values, names CLASS_NAMES).
 FORBIDDEN = 0
@@ -51,6 +55,8 @@ CLASS_NAMES = (
     "off_cone",
     "out_of_range",
 )
+#: :func:`family` kind of L_z = 0 (orbits through the axis).
+AXIS = 1
 #: Smallest A [J m^2] kept: below it (A underflows towards subnormals) the class is OUT_OF_RANGE.
 A_MIN = 2.2250738585072014e-308 / 2.220446049250313e-16
 
@@ -59,56 +65,148 @@ CIRCULAR_TOL = 1e-12
 NAN = math.nan
 
 
-@kernel
-def mu_required(r1, r2, alpha, h, Lz, M, g, k):
-    """Smallest friction coefficient that keeps rolling on [r1, r2] (r2 may be +inf): max |F|/N.
+#: Fields of a :func:`family` (its tuple, and the rows of the batch kernels' family tables).
+FAMILY_FIELDS = ("kind", "s", "c", "A", "B", "C", "K", "r_c", "a", "V_min", "c3", "igam", "noise",
+                 "kk", "p0", "p2", "p3", "q0", "q3", "rs3", "fstar")  # fmt: skip
 
-    With x = 1/r and q = L_z/(M sin a):
-    |F|/N = k/(1+k) |g cos a + cot a q h x^2 + cot^2 a q^2 x^3| / (g sin a + cot a q^2 x^3),
-    whose only interior critical point is x^3 = 2 g sin a / (cot a q^2).
-    """
+
+@kernel
+def family_head(alpha, h, Lz, M, g, k, eager):
+    """:func:`family` up to r_c: (kind, s, c, A, B, C, K, kk, p0, p2, p3, q0, q3, rs3, fstar)."""
     s = math.sin(alpha)
     c = math.cos(alpha)
-    cot = c / s
-    q = Lz / (M * s)
-    p0 = g * c
-    p2 = cot * q * h
-    p3 = cot * cot * q * q
-    q0 = g * s
-    q3 = cot * q * q
-    kk = k / (1.0 + k)
-    if kk == 0.0:
-        return 0.0  # a point particle needs no friction (and 0 * inf would be NaN)
-    best = 0.0
-    # Endpoints, then the interior critical point.
-    for i in range(3):
-        if i == 0:
-            if math.isinf(r2):
-                if q0 > 0.0:
-                    val = abs(p0) / q0
-                elif p2 == 0.0:
-                    val = abs(p3) / q3
-                else:
-                    val = math.inf
-                best = max(best, val)
-                continue
-            x = 1.0 / r2
-        elif i == 1:
-            x = 1.0 / r1 if r1 > 0.0 else math.inf
-            if math.isinf(x):
-                # Through the axis (L_z = 0): q = 0, the ratio is constant.
-                best = max(best, abs(p0) / q0)
-                continue
-        else:
-            if q3 <= 0.0 or q0 <= 0.0:
-                continue
-            x = (2.0 * q0 / q3) ** (1.0 / 3.0)
-            xlo = 1.0 / r2 if not math.isinf(r2) else 0.0
-            xhi = 1.0 / r1
-            if not (xlo < x < xhi):
-                continue
-        best = max(best, abs(_ratio(x, p0, p2, p3, q0, q3)))
-    return kk * best
+    A, B, C = coefficients_sc(s, c, h, Lz, M, g, k)
+    Kang = abs(Lz) / (M * s * s)  # K: thetadot = K / r^2
+    kk, p0, p2, p3, q0, q3 = friction_terms(s, c, h, Lz, M, g, k)
+    rs3 = critical_cube(p0, p2, p3, q0, q3)
+    fstar = critical_ratio(p0, p2, p3, q0, q3) if eager and not math.isnan(rs3) else NAN
+    kind = 0
+    if Lz == 0.0:
+        kind = AXIS
+    elif not (A >= A_MIN and A < math.inf and abs(B) < math.inf and C < math.inf):
+        kind = OUT_OF_RANGE  # r_c and V_min are still reported (minimum_energy)
+    return kind, s, c, A, B, C, Kang, kk, p0, p2, p3, q0, q3, rs3, fstar
+
+
+@kernel
+def well_or_nan(A, B, C, rc):
+    """:func:`.roots.well`, NaN when there is no r_c."""
+    if math.isnan(rc):
+        return NAN, NAN, NAN, NAN, NAN
+    return well(A, B, C, rc)
+
+
+@kernel
+def family_from(head, rc):
+    """:func:`family` from :func:`family_head` and r_c (NaN: none)."""
+    kind, s, c, A, B, C, Kang, kk, p0, p2, p3, q0, q3, rs3, fstar = head
+    a, vmin, c3, igam, noise = well_or_nan(A, B, C, rc)
+    return (kind, s, c, A, B, C, Kang, rc, a, vmin, c3, igam, noise, kk, p0, p2, p3, q0, q3, rs3,
+            fstar)  # fmt: skip
+
+
+@kernel
+def family(alpha, h, Lz, M, g, k, eager):
+    """Everything of the points (alpha, energy, h, L_z) that does not depend on the energy:
+    sin and cos of alpha, A, B, C, K = |L_z|/(M sin^2 alpha), r_c, the potential's
+    :func:`roots.well` (V_min among it) and the friction terms (:mod:`.ending`). A survey grid
+    computes it once per (alpha, h, L_z) for all its energies (``eager``: with |F|/N at the
+    interior critical point too); :func:`orbit_in` takes it.
+
+    Returns the tuple :data:`FAMILY_FIELDS`; kind is AXIS (L_z = 0), OUT_OF_RANGE or 0; NaN
+    where undefined.
+    """
+    head = family_head(alpha, h, Lz, M, g, k, eager)
+    rc = NAN if Lz == 0.0 else circular_radius(head[3], head[4], head[5])
+    return family_from(head, rc)
+
+
+@kernel
+def _mu(fam, r1, r2):
+    """mu_required on [r1, r2] from the family's friction terms."""
+    return mu_required_of(r1, r2, fam[13], fam[14], fam[15], fam[16], fam[17], fam[18], fam[19],
+                          fam[20])  # fmt: skip
+
+
+@kernel
+def _turning(fam, energy):
+    """Turning points from the family's well (the closed form when C = 0)."""
+    A, B, C, rc = fam[3], fam[4], fam[5], fam[7]
+    if C == 0.0:
+        return turning_points(energy, A, B, C, rc)
+    return turning_points_in(energy, A, B, C, rc, fam[8], fam[9], fam[10], fam[11], fam[12])
+
+
+@kernel
+def orbit_in(fam, energy, M, g, k, circ_tol):
+    """:func:`ideal_orbit` at one energy of a :func:`family`."""
+    kind, s, A, B, C, Kang, rc = fam[0], fam[1], fam[3], fam[4], fam[5], fam[6], fam[7]
+    cls = FORBIDDEN
+    r1 = r2 = T = psi = prec = mu = NAN
+    if kind == AXIS:
+        if g > 0.0 and energy > 0.0:
+            cls = RADIAL
+            r1 = 0.0
+            r2 = energy / C
+            T = 2.0 * math.sqrt(2.0 * M * r2 / C)
+            mu = _mu(fam, 0.0, r2)
+        return cls, r1, r2, NAN, T, psi, prec, mu
+    if kind == OUT_OF_RANGE:
+        return OUT_OF_RANGE, r1, r2, NAN, T, psi, prec, mu
+    has_min = not math.isnan(rc)
+    if has_min:
+        Vmin = fam[9]
+        if abs(energy - Vmin) <= circ_tol * abs(Vmin):
+            omega_r = math.sqrt(2.0 * (A + C * rc * rc * rc) / (M * rc * rc * rc * rc))
+            T = 2.0 * math.pi / omega_r
+            psi = math.pi * Kang / (rc * rc * omega_r)
+            mu = _mu(fam, rc, rc)
+            return CIRCULAR, rc, rc, rc, T, psi, precession(psi, T), mu
+        if energy < Vmin:
+            return FORBIDDEN, r1, r2, rc, T, psi, prec, mu
+    if g == 0.0:
+        Om = math.sqrt((s * s + k) / (1.0 + k))  # Omega^2 = 1 - cos^2(a)/(1+k)
+        if energy >= 0.0 and (B < 0.0 or energy > 0.0):
+            cls = HYPERBOLIC
+            r1 = free_fall_r_min(energy, A, B)
+            r2 = math.inf
+            psi = math.atan2(2.0 * math.sqrt(A) * math.sqrt(energy), B) / Om
+        elif has_min:
+            cls = BOUNDED
+            r1, r2 = _turning(fam, energy)
+            T = math.pi * (r1 + r2) * math.sqrt(M / (-2.0 * energy))
+            psi = math.pi / Om
+    else:
+        cls = BOUNDED
+        r1, r2 = _turning(fam, energy)
+        kc, sc = cel_args(A, C, M, r1, r2)
+        c1, c2 = cel_pair(kc, 1.0, r1, r2, r2 / r1, 1.0, 1.0)
+        T, psi = period_and_angle(sc, c1, c2, Kang, r1)
+    if cls != FORBIDDEN:
+        mu = _mu(fam, r1, r2)
+    if cls == BOUNDED:
+        prec = precession(psi, T)
+    return cls, r1, r2, rc, T, psi, prec, mu
+
+
+@kernel
+def cel_args(A, C, M, r1, r2):
+    """(kc, sqrt(M/(2C)) / sqrt(r1 - r3)) of a bounded orbit under gravity (module docstring)."""
+    r3 = -A / (C * r1 * r2)
+    d13 = r1 - r3
+    return math.sqrt((r2 - r3) / d13), math.sqrt(M / (2.0 * C)) / math.sqrt(d13)
+
+
+@kernel
+def period_and_angle(sc, c1, c2, Kang, r1):
+    """(T_r, psi) from :func:`cel_args`'s sc and cel(kc, 1, r1, r2), cel(kc, r2/r1, 1, 1)."""
+    return 4.0 * sc * c1, 2.0 * Kang * sc * c2 / r1
+
+
+@kernel
+def precession(psi, T):
+    """Apsidal precession rate [rad/s] (2 psi - 2 pi) / T."""
+    return (2.0 * psi - 2.0 * math.pi) / T
 
 
 @kernel
@@ -118,69 +216,11 @@ def ideal_orbit(alpha, energy, h, Lz, M, g, k, circ_tol):
     Returns (orbit_class, r_min [m], r_max [m], r_circ [m], period [s], apsidal_angle [rad],
     precession_rate [rad/s], mu_required [1]); NaN where a quantity is undefined.
     """
-    A, B, C = coefficients(alpha, h, Lz, M, g, k)
-    cls = FORBIDDEN
-    r1 = NAN
-    r2 = NAN
-    rc = NAN
-    T = NAN
-    psi = NAN
-    prec = NAN
-    mu = NAN
-    s = math.sin(alpha)
-    Kang = abs(Lz) / (M * s * s)  # K: thetadot = K / r^2
-    if Lz == 0.0:
-        if g > 0.0 and energy > 0.0:
-            cls = RADIAL
-            r1 = 0.0
-            r2 = energy / C
-            T = 2.0 * math.sqrt(2.0 * M * r2 / C)
-            mu = mu_required(0.0, r2, alpha, h, Lz, M, g, k)
-        return cls, r1, r2, rc, T, psi, prec, mu
-    if not (A >= A_MIN and A < math.inf and abs(B) < math.inf and C < math.inf):
-        return OUT_OF_RANGE, r1, r2, rc, T, psi, prec, mu
-    rc = circular_radius(A, B, C)
-    has_min = not math.isnan(rc)
-    if has_min:
-        Vmin = A / (rc * rc) + B / rc + C * rc
-        if abs(energy - Vmin) <= circ_tol * abs(Vmin):
-            omega_r = math.sqrt(2.0 * (A + C * rc * rc * rc) / (M * rc * rc * rc * rc))
-            T = 2.0 * math.pi / omega_r
-            psi = math.pi * Kang / (rc * rc * omega_r)
-            mu = mu_required(rc, rc, alpha, h, Lz, M, g, k)
-            return CIRCULAR, rc, rc, rc, T, psi, (2.0 * psi - 2.0 * math.pi) / T, mu
-        if energy < Vmin:
-            return FORBIDDEN, r1, r2, rc, T, psi, prec, mu
-    Om = math.sqrt((s * s + k) / (1.0 + k))  # Omega^2 = 1 - cos^2(a)/(1+k)
-    if g == 0.0:
-        if energy >= 0.0 and (B < 0.0 or energy > 0.0):
-            cls = HYPERBOLIC
-            r1 = free_fall_r_min(energy, A, B)
-            r2 = math.inf
-            psi = math.atan2(2.0 * math.sqrt(A) * math.sqrt(energy), B) / Om
-        elif has_min:
-            cls = BOUNDED
-            r1, r2 = turning_points(energy, A, B, C, rc)
-            T = math.pi * (r1 + r2) * math.sqrt(M / (-2.0 * energy))
-            psi = math.pi / Om
-    else:
-        cls = BOUNDED
-        r1, r2 = turning_points(energy, A, B, C, rc)
-        r3 = -A / (C * r1 * r2)
-        d13 = r1 - r3
-        kc = math.sqrt((r2 - r3) / d13)
-        sc = math.sqrt(M / (2.0 * C)) / math.sqrt(d13)
-        T = 4.0 * sc * cel(kc, 1.0, r1, r2)
-        psi = 2.0 * Kang * sc * cel(kc, r2 / r1, 1.0, 1.0) / r1
-    if cls != FORBIDDEN:
-        mu = mu_required(r1, r2, alpha, h, Lz, M, g, k)
-    if cls == BOUNDED:
-        prec = (2.0 * psi - 2.0 * math.pi) / T
-    return cls, r1, r2, rc, T, psi, prec, mu
+    return orbit_in(family(alpha, h, Lz, M, g, k, False), energy, M, g, k, circ_tol)
 
 
 @kernel
-def _representable(cls, r1, r2, T, psi, prec):
+def representable(cls, r1, r2, T, psi, prec):
     """Whether the numbers the class promises (README class table) came out finite: otherwise
     an intermediate under- or overflowed and the point is OUT_OF_RANGE, never a class with NaN."""
     if cls == BOUNDED or cls == CIRCULAR:
@@ -233,7 +273,15 @@ def orbit_point(alpha, energy, h, Lz, M, g, k, a, rim, mu, circ_tol):
     friction limit (:func:`scene_end`). NaN where a quantity is undefined.
     """
     cls, r1, r2, rc, T, psi, prec, mur = ideal_orbit(alpha, energy, h, Lz, M, g, k, circ_tol)
-    if not _representable(cls, r1, r2, T, psi, prec):
+    return scene_point(cls, r1, r2, rc, T, psi, prec, mur, alpha, energy, h, Lz, M, g, k, a, rim,
+                       mu)  # fmt: skip
+
+
+@kernel
+def scene_point(cls, r1, r2, rc, T, psi, prec, mur, alpha, energy, h, Lz, M, g, k, a, rim, mu):
+    """:func:`orbit_point` from the ideal orbit: OUT_OF_RANGE where its numbers did not come
+    out finite, then the scene's rules (:func:`scene_end`) when a rim or mu is given."""
+    if not representable(cls, r1, r2, T, psi, prec):
         nan = math.nan
         return OUT_OF_RANGE, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan
     end_r = math.nan
@@ -243,58 +291,3 @@ def orbit_point(alpha, energy, h, Lz, M, g, k, a, rim, mu, circ_tol):
         cls, end_r, end_t, end_th = scene_end(cls, r1, r2, alpha, energy, h, Lz, M, g, k, a, rim,
                                               mu)  # fmt: skip
     return cls, r1, r2, rc, T, psi, prec, mur, end_r, end_t, end_th
-
-
-#: Rows of the float output of :func:`orbit_batch`.
-BATCH_ROWS = (
-    "r_min",
-    "r_max",
-    "r_circ",
-    "period",
-    "apsidal_angle",
-    "precession_rate",
-    "mu_required",
-    "end_r",
-    "end_time",
-    "end_theta",
-)
-
-
-@parallel_kernel
-def orbit_batch(alpha, energy, h, Lz, M, g, k, a, rim, mu, circ_tol, out_cls, out_f):
-    """:func:`orbit_point` over 1-D arrays in parallel: ``out_cls`` int8[n], ``out_f``
-    float64[10, n] (rows :data:`BATCH_ROWS`)."""
-    n = alpha.shape[0]
-    for i in prange(n):
-        c, r1, r2, rc, T, psi, prec, mur, er, et, eth = orbit_point(
-            alpha[i], energy[i], h[i], Lz[i], M, g, k, a, rim, mu, circ_tol
-        )
-        out_cls[i] = c
-        out_f[0, i] = r1
-        out_f[1, i] = r2
-        out_f[2, i] = rc
-        out_f[3, i] = T
-        out_f[4, i] = psi
-        out_f[5, i] = prec
-        out_f[6, i] = mur
-        out_f[7, i] = er
-        out_f[8, i] = et
-        out_f[9, i] = eth
-
-
-@parallel_kernel
-def minimum_energy_batch(alpha, h, Lz, M, g, k, out):
-    """V_min [J] for each (alpha, h, Lz); NaN where V has no minimum."""
-    n = alpha.shape[0]
-    for i in prange(n):
-        A, B, C = coefficients(alpha[i], h[i], Lz[i], M, g, k)
-        if Lz[i] == 0.0:
-            out[i] = NAN
-            continue
-        rc = circular_radius(A, B, C)
-        out[i] = A / (rc * rc) + B / rc + C * rc
-
-
-def empty_outputs(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Output buffers for :func:`orbit_batch`."""
-    return np.empty(n, np.int8), np.empty((len(BATCH_ROWS), n), np.float64)

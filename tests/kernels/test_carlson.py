@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from engine.kernels.carlson import cel, rc, rd, rf, rj
+from engine.kernels.carlson import cel, cel_pair, cel_pair_lanes, rc, rd, rf, rj
 
 # The duplication algorithm with TOL = 2^-53 promises ~1e-16 truncation plus the rounding of
 # a few dozen operations: 1e-14 relative is a generous but meaningful bound (errors of a wrong
@@ -95,3 +95,26 @@ def test_cel_period_and_angle_agree_with_carlson_forms(r1, gap, r3abs):
     p_cel = cel(math.sqrt(d23 / d13), r2 / r1, 1.0, 1.0) / (r1 * math.sqrt(d13))
     p_carlson = (rf(0.0, m1, 1.0) + n / 3 * rj(0.0, m1, 1.0, r1 / r2)) / (r2 * math.sqrt(d23))
     assert p_cel == pytest.approx(p_carlson, rel=TOL)
+
+
+@given(
+    st.lists(
+        st.tuples(
+            st.floats(1e-3, 1e4), st.floats(1e-3, 1e3), st.floats(0.01, 10.0), st.floats(0.01, 10.0)
+        ),
+        min_size=1,
+        max_size=40,
+    )
+)
+def test_cel_pair_and_its_lanes_are_two_cel_calls_bit_for_bit(args):
+    """The hot path's cel forms, (kc, 1, r1, r2) and (kc, p, 1, 1), in one loop and over lanes in
+    lock-step: the very numbers of cel."""
+    m = len(args)
+    kc, p, a, b = (np.array(x) for x in zip(*args, strict=True))
+    want = [(cel(kc[j], 1.0, a[j], b[j]), cel(kc[j], p[j], 1.0, 1.0)) for j in range(m)]
+    assert [cel_pair(kc[j], 1.0, a[j], b[j], p[j], 1.0, 1.0) for j in range(m)] == want
+    one = np.ones(m)
+    o1, o2 = np.empty(m), np.empty(m)
+    cel_pair_lanes(m, kc, one.copy(), a.copy(), b.copy(), p.copy(), one.copy(), one.copy(),
+                   np.empty((4, m)), o1, o2)  # fmt: skip
+    assert list(zip(o1, o2, strict=True)) == want

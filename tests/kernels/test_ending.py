@@ -212,3 +212,14 @@ def test_tiny_Lz_is_right_or_out_of_range():
     assert int(big.orbit_class) == OUT_OF_RANGE
     thin = engine.evaluate(1e-78, 5.0, 0.0, 0.8)
     assert int(thin.orbit_class) == OUT_OF_RANGE
+
+
+def test_free_fall_mu_required_far_out_is_finite():
+    """Free fall: |F|/N = k/(1+k) |h M sin(a) r / L_z + cot(a)| is linear in r, so
+    mu_required is its larger end value; an orbit reaching r ~ 2e194 (where p2 / x overflowed)
+    has a finite one."""
+    alpha, energy, h, Lz = 1.0, -1e-80, -1.0, 1e115
+    cls, r1, r2, *_, mur = ideal_orbit(alpha, energy, h, Lz, M, 0.0, K, 1e-12)
+    assert cls == BOUNDED and r2 > 1e194
+    f = [h * M * math.sin(alpha) / Lz * r + 1.0 / math.tan(alpha) for r in (r1, r2)]
+    assert mur == pytest.approx(K / (1 + K) * max(abs(x) for x in f), rel=1e-14)

@@ -11,6 +11,7 @@ from model_oracle import contact_forces, state_from_invariants
 from oracle import reference, tolerance
 
 import engine
+from engine.kernels.ending import mu_required
 from engine.kernels.geometry import (
     BOUNDED,
     CIRCULAR,
@@ -18,12 +19,12 @@ from engine.kernels.geometry import (
     HYPERBOLIC,
     RADIAL,
     SPILLS,
+    family,
     ideal_orbit,
-    mu_required,
     orbit_point,
 )
 from engine.kernels.model import coefficients, potential, potential_d1
-from engine.kernels.roots import circular_radius
+from engine.kernels.roots import TP_STEPS, cbrt, circular_radius, tp_accept, tp_starts, tp_step
 
 EPS = 2.220446049250313e-16
 NAMES = {"r1": 1, "r2": 2, "r_c": 3, "T_r": 4, "psi": 5, "precession_rate": 6}
@@ -277,4 +278,64 @@ def test_mu_required_free_fall_escape_is_infinite_with_spin():
     assert mu_required(1.0, math.inf, 0.5, 1.0, 1.0, 1.0, 0.0, 0.4) == math.inf
     assert mu_required(1.0, math.inf, 0.5, 0.0, 1.0, 1.0, 0.0, 0.4) == pytest.approx(
         0.4 / 1.4 / math.tan(0.5), rel=4 * EPS
+    )
+
+
+# --- roots: the fast paths and their fallbacks -------------------------------------------------
+
+
+def test_circular_radius_over_all_scales_against_mpmath():
+    # b = B/(C q^2) over 20 decades of both signs, and 2A/C outside the bit estimate's range
+    # (the monotone Newton path); the root to a few ulps of the 50-digit one.
+    cases = [(1.0, b * 3.0, 2.0) for b in (-1e10, -1e3, -3.0, -0.46, -1e-8, 0.0, 1e-8, 0.58, 1.07,
+                                           40.0, 1e6, 1e10)]  # fmt: skip
+    cases += [(1e-160, -1e-100, 1e150), (1e150, 1e100, 1e-151), (3e-300, 0.0, 1.0)]
+    for A, B, C in cases:
+        with mp.workdps(50):  # in units of q = (2A/C)^(1/3): t^3 - b t - 1 = 0
+            q = mp.cbrt(2 * mp.mpf(A) / mp.mpf(C))
+            b = mp.mpf(B) / (mp.mpf(C) * q * q)
+            roots = mp.polyroots([1, 0, -b, -1], maxsteps=400, extraprec=400)
+            ref = q * max(mp.re(t) for t in roots if abs(mp.im(t)) < mp.mpf(10) ** -30)
+        got = circular_radius(A, B, C)
+        assert got == pytest.approx(float(ref), rel=4 * EPS, abs=0), (A, B, C)
+
+
+def test_cube_root_estimate_and_halley_steps():
+    x = 10.0 ** np.linspace(-299, 299, 2001)
+    got = np.array([cbrt(v) for v in x])
+    with mp.workdps(30):
+        ref = np.array([float(mp.cbrt(mp.mpf(v))) for v in x])
+    assert np.max(np.abs(got / ref - 1)) < 1e-14
+    assert cbrt(1e-310) == pytest.approx(1e-310 ** (1 / 3), rel=1e-14)  # outside: x ** (1/3)
+
+
+def test_outer_root_that_plain_halley_steps_miss_takes_the_safe_path():
+    # c3 = C r_c / (C r_c + A/r_c^2) ~ 4e-22 (nearly free fall) and energy - V_min ~ the well's
+    # depth: the plain steps from the start of r2 converge to r1; the bracketed path finds r2.
+    alpha, energy, h, Lz = (
+        0.312333948390878,
+        -0.013947063978987541,
+        -673061.7799951712,
+        5.818775364816308e-05,
+    )
+    M, g, k = 1e3, 50.0, 2.0 / 3.0
+    fam = family(alpha, h, Lz, M, g, k, False)
+    rc, a, vmin, c3, igam = fam[7], fam[8], fam[9], fam[10], fam[11]
+    delta = energy - vmin
+    r1, r2 = tp_starts(rc, a, delta, c3, igam)
+    for _ in range(TP_STEPS):
+        r1, d1 = tp_step(r1, rc, fam[5], a, delta)
+        r2, d2 = tp_step(r2, rc, fam[5], a, delta)
+    assert tp_accept(r1, d1, rc, True) and not tp_accept(r2, d2, rc, False)
+    got, vals, _ = _check_against_oracle(alpha, energy, h, Lz, M=M, g=g, k=k)
+    assert got[2] / got[1] > 1e10
+
+
+def test_hard_near_circular_turning_point_not_polished_on_a_flat_function():
+    # Near the minimum energy - V(r) is flat at the turning points; a Newton polish on it (taken
+    # where V there is evaluated with about the same rounding as V_min) left r_min and r_max
+    # ~1e-10 off (inside their conditioning, 5e-8) but T_r, psi and the precession rate too
+    # (condition numbers ~3: tolerance 1e-12).
+    _check_against_oracle(
+        1.039111649458888, 80.3900030086475, -128.52878923409097, 1728.5256646277282
     )

@@ -1,0 +1,413 @@
+"""The closed form over arrays of points, in lanes: flat points and survey grids.
+
+Each thread takes chunks of points and evaluates LANES of them at a time, stage by stage:
+the energy-independent :func:`.geometry.family` (A, B, C, r_c, V_min, ...), the turning points,
+the two complete elliptic integrals, the period, apsidal angle and mu_required. Every stage is a
+short loop over the lanes without a data-dependent exit, so the CPU overlaps the lanes'
+dependency chains (divisions and square roots, ~15 cycles each) and vectorises what it can. A
+lane a stage does not settle (a root not converged after the fixed steps, an orbit that is not
+bounded under gravity, a friction maximum inside the orbit, a scene rule) takes the scalar
+path of :mod:`.geometry`, which computes the same numbers bit for bit: every number a lane
+computes comes from the same scalar helpers, in the same order (tests/kernels/test_batch.py).
+
+On a survey grid the family is the same for every energy of an (alpha, h, L_z) triple:
+:func:`orbit_units` computes it once per triple and runs the energies through the lanes. The
+callers (:mod:`engine.evaluation`) split the units of work among threads.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import prange
+
+from .._jit import kernel, parallel_kernel
+from .carlson import cel_pair_lanes
+from .ending import mu_required_of
+from .geometry import (
+    BOUNDED,
+    FAMILY_FIELDS,
+    FORBIDDEN,
+    cel_args,
+    family,
+    family_head,
+    orbit_in,
+    period_and_angle,
+    precession,
+    representable,
+    scene_point,
+    well_or_nan,
+)
+from .roots import (
+    RC_STEPS,
+    TP_STEPS,
+    circular_radius,
+    rc_eligible,
+    rc_finish,
+    rc_start,
+    rc_step,
+    tp_accept,
+    tp_final,
+    tp_safe,
+    tp_starts,
+    tp_step,
+)
+
+#: Points evaluated side by side, and blocks of them per unit of parallel work.
+LANES = 32
+BLOCKS_PER_CHUNK = 16
+#: Energies per unit of parallel work on a grid (each unit computes its triples' families).
+GRID_ENERGY_CHUNK = 64
+NF = len(FAMILY_FIELDS)
+
+#: Rows of the float output of :func:`orbit_units`.
+BATCH_ROWS = ("r_min", "r_max", "r_circ", "period", "apsidal_angle", "precession_rate",
+              "mu_required", "end_r", "end_time", "end_theta")  # fmt: skip
+
+# Rows of the lanes' scratch table.
+(_E, _AL, _H, _LZ, _REG, _RC, _CC, _AA, _DEL, _G1, _G2, _R1, _R2, _D1, _D2, _KC, _P1, _A1, _B1,
+ _P2, _A2, _B2, _C1, _C2, _CLS, _T, _PSI, _PREC, _MU, _RCOUT, _ST) = range(31)  # fmt: skip
+_NS = _ST + 4  # the last takes four rows (cel_pair_lanes' state)
+#: Rows of the lanes' table holding the first seven outputs (BATCH_ROWS).
+_OUTROWS = np.array([_R1, _R2, _RCOUT, _T, _PSI, _PREC, _MU])
+
+
+@kernel
+def family_at(F, col):
+    """The :func:`.geometry.family` tuple stored in column ``col`` of a family table."""
+    f = F[:, col]
+    return (int(f[0]), f[1], f[2], f[3], f[4], f[5], f[6], f[7], f[8], f[9], f[10], f[11], f[12],
+            f[13], f[14], f[15], f[16], f[17], f[18], f[19], f[20])  # fmt: skip
+
+
+@kernel
+def _store(F, col, row, values):
+    """F[row + i, col] = values[i] for a homogeneous tuple of floats."""
+    for i in range(len(values)):
+        F[row + i, col] = values[i]
+
+
+@kernel
+def _store_family(F, col, fam):
+    """Store a :func:`.geometry.family` tuple in column ``col`` of F."""
+    F[0, col] = fam[0]
+    _store(F, col, 1, fam[1:])
+
+
+@kernel
+def families(AL, HH, LZ, m, M, g, k, eager, F, R):
+    """:func:`.geometry.family` of (AL[j], HH[j], LZ[j]) into column j of F, j < m, with r_c
+    over the lanes (RC_STEPS Halley steps side by side). ``R``: float64[3, >= m] scratch."""
+    r, dr, ok = R[0], R[1], R[2]
+    for j in range(m):
+        head = family_head(AL[j], HH[j], LZ[j], M, g, k, eager)
+        A, B, C = head[3], head[4], head[5]
+        F[0, j] = head[0]
+        _store(F, j, 1, head[1:7])
+        _store(F, j, 13, head[7:])
+        ok[j] = 1.0 if LZ[j] != 0.0 and rc_eligible(A, C) else 0.0
+        r[j] = rc_start(A, B, C) if ok[j] != 0.0 else 1.0
+        dr[j] = math.inf
+    for _ in range(RC_STEPS):
+        for j in range(m):
+            r[j], dr[j] = rc_step(r[j], F[3, j], F[4, j], F[5, j])
+    for j in range(m):
+        A, B, C = F[3, j], F[4, j], F[5, j]
+        if ok[j] != 0.0:
+            rc = rc_finish(r[j], dr[j], A, B, C)
+        else:
+            rc = math.nan if LZ[j] == 0.0 else circular_radius(A, B, C)
+        F[7, j] = rc
+        _store(F, j, 8, well_or_nan(A, B, C, rc))
+
+
+@kernel
+def select_lanes(F, m, g, circ_tol, S):
+    """Which lanes are bounded under gravity (the lanes' path), and the scalar orbit of the
+    others."""
+    for j in range(m):
+        e = S[_E, j]
+        vmin = F[9, j]
+        delta = e - vmin
+        reg = (F[0, j] == 0.0 and F[5, j] > 0.0 and g != 0.0 and delta >= 0.0
+               and not abs(e - vmin) <= circ_tol * abs(vmin))  # fmt: skip
+        S[_REG, j] = 1.0 if reg else 0.0
+        S[_RC, j] = F[7, j]
+        S[_CC, j] = F[5, j]
+        S[_AA, j] = F[8, j]
+        S[_DEL, j] = delta if reg else 1.0
+        if not reg:
+            S[_RC, j] = 1.0
+            S[_CC, j] = 1.0
+            S[_AA, j] = 1.0
+
+
+@kernel
+def turning_lanes(F, m, S):
+    """Turning points of the lanes (roots.turning_points_in, side by side)."""
+    for j in range(m):
+        reg = S[_REG, j] != 0.0
+        g1, g2 = tp_starts(S[_RC, j], S[_AA, j], S[_DEL, j], F[10, j], F[11, j])
+        S[_G1, j] = g1 if reg else 0.5
+        S[_G2, j] = g2 if reg else 2.0
+        S[_R1, j] = S[_G1, j]
+        S[_R2, j] = S[_G2, j]
+    for _ in range(TP_STEPS):
+        for j in range(m):
+            rc, C, a, delta = S[_RC, j], S[_CC, j], S[_AA, j], S[_DEL, j]
+            r1, d1 = tp_step(S[_R1, j], rc, C, a, delta)
+            r2, d2 = tp_step(S[_R2, j], rc, C, a, delta)
+            S[_R1, j] = r1
+            S[_R2, j] = r2
+            S[_D1, j] = 1.0 if d1 else 0.0
+            S[_D2, j] = 1.0 if d2 else 0.0
+    for j in range(m):
+        if S[_REG, j] == 0.0:
+            continue
+        rc, C, a, delta = S[_RC, j], S[_CC, j], S[_AA, j], S[_DEL, j]
+        r1, r2 = S[_R1, j], S[_R2, j]
+        if not tp_accept(r1, S[_D1, j] != 0.0, rc, True):
+            r1 = tp_safe(S[_G1, j], rc, C, a, delta, True)
+        if not tp_accept(r2, S[_D2, j] != 0.0, rc, False):
+            r2 = tp_safe(S[_G2, j], rc, C, a, delta, False)
+        e = S[_E, j]
+        S[_R1, j], S[_R2, j] = tp_final(r1, r2, e, F[3, j], F[4, j], C, rc, abs(e) + F[12, j])
+
+
+@kernel
+def elliptic_lanes(F, m, M, S):
+    """Period, apsidal angle and precession rate of the bounded lanes (.geometry.orbit_in):
+    the two complete elliptic integrals of every lane in one lock-step loop."""
+    for j in range(m):
+        r1, r2 = S[_R1, j], S[_R2, j]
+        reg = S[_REG, j] != 0.0
+        kc, sc = cel_args(F[3, j], F[5, j], M, r1, r2)
+        S[_KC, j] = kc if reg else 1.0
+        S[_P2, j] = r2 / r1 if reg else 1.0
+        S[_A1, j] = r1 if reg else 1.0
+        S[_B1, j] = r2 if reg else 1.0
+        S[_T, j] = sc
+        S[_P1, j] = 1.0
+        S[_A2, j] = 1.0
+        S[_B2, j] = 1.0
+    cel_pair_lanes(m, S[_KC], S[_P1], S[_A1], S[_B1], S[_P2], S[_A2], S[_B2], S[_ST:_ST + 4],
+                   S[_C1], S[_C2])  # fmt: skip
+    for j in range(m):
+        T, psi = period_and_angle(S[_T, j], S[_C1, j], S[_C2, j], F[6, j], S[_R1, j])
+        S[_T, j] = T
+        S[_PSI, j] = psi
+        S[_PREC, j] = precession(psi, T)
+        S[_CLS, j] = BOUNDED
+        S[_RCOUT, j] = F[7, j]
+
+
+@kernel
+def friction_lanes(F, m, S):
+    """mu_required of the bounded lanes."""
+    for j in range(m):
+        S[_MU, j] = mu_required_of(S[_R1, j], S[_R2, j], F[13, j], F[14, j], F[15, j], F[16, j],
+                                   F[17, j], F[18, j], F[19, j], F[20, j])  # fmt: skip
+
+
+@kernel
+def scalar_lanes(F, m, M, g, k, circ_tol, S):
+    """The lanes that are not bounded under gravity, one by one (.geometry.orbit_in)."""
+    for j in range(m):
+        if S[_REG, j] == 0.0:
+            cls, r1, r2, rc, T, psi, prec, mu = orbit_in(family_at(F, j), S[_E, j], M, g, k,
+                                                         circ_tol)  # fmt: skip
+            S[_CLS, j], S[_R1, j], S[_R2, j], S[_RCOUT, j] = cls, r1, r2, rc
+            S[_T, j], S[_PSI, j], S[_PREC, j], S[_MU, j] = T, psi, prec, mu
+
+
+@kernel
+def store_lanes(m, M, g, k, a, rim, mu, S, out_cls, out_f, oidx):
+    """The scene's rules (.geometry.scene_point) and the outputs of every lane, to column
+    oidx[j]."""
+    plain = not (rim < math.inf or mu < math.inf)
+    for j in range(m):
+        o = oidx[j]
+        if plain and S[_REG, j] != 0.0 and representable(BOUNDED, S[_R1, j], S[_R2, j], S[_T, j],
+                                                          S[_PSI, j], S[_PREC, j]):  # fmt: skip
+            out_cls[o] = BOUNDED
+            for i in range(7):
+                out_f[i, o] = S[_OUTROWS[i], j]
+            for i in range(7, 10):
+                out_f[i, o] = math.nan
+            continue
+        res = scene_point(int(S[_CLS, j]), S[_R1, j], S[_R2, j], S[_RCOUT, j], S[_T, j],
+                          S[_PSI, j], S[_PREC, j], S[_MU, j], S[_AL, j], S[_E, j], S[_H, j],
+                          S[_LZ, j], M, g, k, a, rim, mu)  # fmt: skip
+        out_cls[o] = res[0]
+        _store(out_f, o, 0, res[1:])
+
+
+#: The stages of :func:`lanes`, as :func:`profile_batch` names them (after ``families``).
+STAGES = ("load", "families", "select", "turning points", "elliptic integrals", "mu_required",
+          "other classes", "scene and store")  # fmt: skip
+
+
+@kernel
+def lanes(F, m, M, g, k, a, rim, mu, circ_tol, S, out_cls, out_f, oidx):
+    """Lanes 0..m-1: lane j is the orbit of family column j of F at energy S[_E, j]
+    (alpha S[_AL, j], h S[_H, j], L_z S[_LZ, j] for the scene's rules), written to column
+    oidx[j] of the outputs: :func:`.geometry.orbit_point`, bit for bit."""
+    select_lanes(F, m, g, circ_tol, S)
+    turning_lanes(F, m, S)
+    elliptic_lanes(F, m, M, S)
+    friction_lanes(F, m, S)
+    scalar_lanes(F, m, M, g, k, circ_tol, S)
+    store_lanes(m, M, g, k, a, rim, mu, S, out_cls, out_f, oidx)
+
+
+@kernel
+def _load(alpha, energy, h, Lz, i0, m, S, oidx):
+    """Points i0..i0+m-1 of the flat arrays into the lanes' table."""
+    for j in range(m):
+        S[_E, j] = energy[i0 + j]
+        S[_AL, j] = alpha[i0 + j]
+        S[_H, j] = h[i0 + j]
+        S[_LZ, j] = Lz[i0 + j]
+        oidx[j] = i0 + j
+
+
+@kernel
+def profile_batch(alpha, energy, h, Lz, M, g, k, circ_tol, out_cls, out_f, upto):
+    """:func:`orbit_units` on flat points, one thread, stopping after stage ``upto`` of
+    :data:`STAGES` (a benchmark times each prefix: the stages' cost per point)."""
+    n = alpha.shape[0]
+    F = np.empty((NF, LANES))
+    S = np.empty((_NS, LANES))
+    R = np.empty((3, LANES))
+    oidx = np.empty(LANES, np.int64)
+    for i0 in range(0, n, LANES):
+        m = min(LANES, n - i0)
+        _load(alpha, energy, h, Lz, i0, m, S, oidx)
+        if upto >= 1:
+            families(S[_AL], S[_H], S[_LZ], m, M, g, k, False, F, R)
+        if upto >= 2:
+            select_lanes(F, m, g, circ_tol, S)
+        if upto >= 3:
+            turning_lanes(F, m, S)
+        if upto >= 4:
+            elliptic_lanes(F, m, M, S)
+        if upto >= 5:
+            friction_lanes(F, m, S)
+        if upto >= 6:
+            scalar_lanes(F, m, M, g, k, circ_tol, S)
+        if upto >= 7:
+            store_lanes(m, M, g, k, 0.0, math.inf, math.inf, S, out_cls, out_f, oidx)
+        else:  # keep the stages' results live
+            for j in range(m):
+                out_f[0, i0 + j] = S[_R1, j] + S[_T, j] + S[_MU, j] + F[9, j]
+
+
+@kernel
+def _grid_triples(alpha, h, Lz, ne, t0, m, S, base):
+    """Triples t0..t0+m-1 of the grid (alpha x h x Lz, Lz fastest) into the lanes' table, and
+    the flat index of each at energy 0."""
+    nh, nl = h.size, Lz.size
+    for j in range(m):
+        t = t0 + j
+        ia, ih, il = t // (nh * nl), (t // nl) % nh, t % nl
+        S[_AL, j] = alpha[ia]
+        S[_H, j] = h[ih]
+        S[_LZ, j] = Lz[il]
+        base[j] = (ia * ne * nh + ih) * nl + il
+
+
+@kernel
+def _grid_energy(energy, ie, relative, nhl, m, F, S, base, oidx, out_energy):
+    """Energy ie of the grid for every lane (V_min + offset |V_min| when ``relative``)."""
+    for j in range(m):
+        e = energy[ie]
+        if relative:
+            vmin = F[9, j]
+            e = vmin + e * abs(vmin)
+        S[_E, j] = e
+        o = base[j] + ie * nhl
+        oidx[j] = o
+        out_energy[o] = e
+
+
+@kernel
+def _no_minimum(m, S, out_cls, out_f, oidx):
+    """Lanes whose relative energy is undefined (no V_min): FORBIDDEN, NaN but r_circ."""
+    for j in range(m):
+        if math.isnan(S[_E, j]):
+            o = oidx[j]
+            out_cls[o] = FORBIDDEN
+            for i in range(10):
+                if i != 2:
+                    out_f[i, o] = math.nan
+
+
+@kernel
+def work_units(n, ne, nhl, grid):
+    """Units of work of :func:`orbit_units`: chunks of BLOCKS_PER_CHUNK blocks of n points, or
+    on a grid (``grid``: n alphas, ne energies, nhl (h, L_z) pairs) a block of LANES triples
+    times a chunk of GRID_ENERGY_CHUNK energies."""
+    if grid:
+        return (n * nhl + LANES - 1) // LANES * ((ne + GRID_ENERGY_CHUNK - 1) // GRID_ENERGY_CHUNK)
+    return ((n + LANES - 1) // LANES + BLOCKS_PER_CHUNK - 1) // BLOCKS_PER_CHUNK
+
+
+@kernel
+def orbit_units(u0, u1, alpha, energy, h, Lz, grid, relative, M, g, k, a, rim, mu, circ_tol,
+                out_cls, out_f, out_energy):  # fmt: skip
+    """Units u0..u1-1 (:func:`work_units`) of :func:`.geometry.orbit_point` in lanes.
+
+    Flat (``grid`` False): over 1-D arrays of points, outputs ``out_cls`` int8[n], ``out_f``
+    float64[10, n] (rows :data:`BATCH_ROWS`), ``out_energy`` unused. On the grid alpha x
+    energy x h x Lz (1-D axes; outputs flat in that C order), each family is computed once per
+    (alpha, h, L_z) and a chunk of energies; with ``relative`` the energy axis is an offset:
+    the energy is V_min + offset |V_min| and a point whose V_min is undefined is FORBIDDEN with
+    NaN outputs (but r_circ); ``out_energy`` float64[n] receives the absolute energy. Every
+    unit's numbers are independent of the others' (callers run units on several threads; the
+    kernel releases the GIL)."""
+    n, nhl = alpha.size, h.size * Lz.size
+    ntri = alpha.size * nhl
+    nec = (energy.size + GRID_ENERGY_CHUNK - 1) // GRID_ENERGY_CHUNK
+    nblk = (n + LANES - 1) // LANES
+    F = np.empty((NF, LANES))
+    S = np.empty((_NS, LANES))
+    R = np.empty((3, LANES))
+    oidx = np.empty(LANES, np.int64)
+    base = np.empty(LANES, np.int64)
+    for unit in range(u0, u1):
+        m = 0
+        if grid:
+            t0 = (unit // nec) * LANES
+            m = min(LANES, ntri - t0)
+            first = (unit % nec) * GRID_ENERGY_CHUNK
+            last = min(energy.size, first + GRID_ENERGY_CHUNK)
+            _grid_triples(alpha, h, Lz, energy.size, t0, m, S, base)
+        else:
+            first = unit * BLOCKS_PER_CHUNK
+            last = min(nblk, first + BLOCKS_PER_CHUNK)
+        for b in range(first, last):
+            if grid:
+                if b == first:
+                    families(S[_AL], S[_H], S[_LZ], m, M, g, k, grid, F, R)
+                _grid_energy(energy, b, relative, nhl, m, F, S, base, oidx, out_energy)
+            else:
+                m = min(LANES, n - b * LANES)
+                _load(alpha, energy, h, Lz, b * LANES, m, S, oidx)
+                families(S[_AL], S[_H], S[_LZ], m, M, g, k, grid, F, R)
+            lanes(F, m, M, g, k, a, rim, mu, circ_tol, S, out_cls, out_f, oidx)
+            if grid and relative:
+                _no_minimum(m, S, out_cls, out_f, oidx)
+
+
+@parallel_kernel
+def minimum_energy_batch(alpha, h, Lz, M, g, k, out):
+    """V_min [J] for each (alpha, h, Lz); NaN where V has no minimum."""
+    n = alpha.shape[0]
+    for i in prange(n):
+        out[i] = math.nan if Lz[i] == 0.0 else family(alpha[i], h[i], Lz[i], M, g, k, False)[9]
+
+
+def empty_outputs(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Output buffers (out_cls, out_f) of :func:`orbit_units`."""
+    return np.empty(n, np.int8), np.empty((len(BATCH_ROWS), n), np.float64)
