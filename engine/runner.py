@@ -16,8 +16,10 @@ tells the user's side). Every refusal comes before anything is written:
 4. write: remove debris, the discarded run or the bad blocks; create the store; compute the
    missing blocks (:mod:`engine.backends`) and commit each one as it arrives; a run killed at
    any moment (SIGKILL included) loses at most the blocks in flight;
-5. merge the verified blocks into a temporary file inside the store, fsync, rename to ``OUT``
-   (:func:`engine.io.netcdf.merge`); only then remove the store (manifest first).
+5. meanwhile, merge the blocks in order into a temporary file inside the store, each block as
+   soon as it and every block before it are stored (:func:`engine.io.netcdf.merge`, on a writer
+   thread: :mod:`engine.io.feed`); once the last is written, fsync and rename to ``OUT``; only
+   then remove the store (manifest first).
 
 A failure after step 3 (a full disk, a lost dask cluster, a block that changed on disk) raises
 :class:`RunFailed`: the blocks stored so far are kept and the same call resumes.
@@ -31,10 +33,10 @@ import os
 import shutil
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -43,23 +45,10 @@ from .evaluation import evaluate_block
 from .grid import BLOCK_POINTS, Tiling
 from .io import OutputError, netcdf
 from .io.atomic import not_regular
-from .io.blocks import (
-    BlockStore,
-    Scan,
-    Summary,
-    block_file_bytes,
-    check_parts_dir,
-    remove_store,
-)
+from .io.blocks import BlockStore, Scan, Summary, block_file_bytes, check_parts_dir, remove_store
+from .io.codecs import DEFAULT_COMPRESSION, compression_keywords
 from .io.lock import Locked, LockError, OutputLock, describe_holder
-from .io.manifest import (
-    MANIFEST,
-    Manifest,
-    fingerprint,
-    parts_dir,
-    read_manifest,
-    survey_variables,
-)
+from .io.manifest import MANIFEST, Manifest, fingerprint, parts_dir, read_manifest, survey_variables
 from .progress import format_bytes
 from .schema import DIMS
 
@@ -74,6 +63,9 @@ __all__ = [
     "remove_leftovers",
     "run_survey",
 ]
+
+
+_Block = tuple[int, dict[str, np.ndarray]]
 
 
 class RunError(Exception):
@@ -240,7 +232,8 @@ def run_survey(
     command: str = "conesurvey",
     warn: Callable[[str], None] | None = None,
     on_block: Callable[[int], None] | None = None,
-    complevel: int = netcdf.ZLIB_LEVEL,
+    compression: str = DEFAULT_COMPRESSION,
+    complevel: int | None = None,
     check_space: bool = True,
 ) -> RunStats:
     """Run ``survey`` into the netCDF file ``out``, streaming blocks and resuming a killed run.
@@ -251,10 +244,13 @@ def run_survey(
     output do not fit on the disk. Raises :class:`RunError` when the run cannot start or
     resume (nothing written), :class:`RunFailed` when it stopped after writing (resumable).
     ``on_block(index)`` is called after each block is safely stored (for tests and hooks).
-    ``complevel``: zlib level of the netCDF variables, 0 = uncompressed.
+    ``compression`` / ``complevel``: how the output's variables are compressed
+    (:mod:`engine.io.codecs`; README, "Output and compression").
     """
-    if not (isinstance(complevel, int) and not isinstance(complevel, bool) and 0 <= complevel <= 9):
-        raise RunError(f"complevel must be an integer 0..9; got {complevel!r}")
+    try:
+        compression_keywords(compression, complevel)
+    except ValueError as exc:
+        raise RunError(str(exc)) from None
     if scheduler is not None:
         try:
             check_address(scheduler)
@@ -288,9 +284,22 @@ def run_survey(
             raise RunFailed(f"{exc}; nothing was written") from None
         try:
             store = _prepare(out, survey, plan, tiling, warn)
-            _compute(store, backend, spec, pending, len(done), progress, on_block)
-            t1 = time.perf_counter()
-            summary = _merge(store, survey, out, plan.fp, command, overwrite, complevel)
+            ended: list[float] = []  # when the last block was stored
+            blocks = _compute(store, backend, spec, pending, len(done), progress, on_block)
+            summary = _merge(
+                store,
+                survey,
+                out,
+                fingerprint=plan.fp,
+                command=command,
+                overwrite=overwrite,
+                compression=compression,
+                complevel=complevel,
+                pending=pending,
+                incoming=_timed(blocks, ended),
+                warn=warn,
+            )
+            t1 = ended[0] if ended else t0
         finally:
             backend.close()
         try:
@@ -335,9 +344,9 @@ def _compute(
     reused: int,
     progress: Callable[[int, int], None] | None,
     on_block: Callable[[int], None] | None,
-) -> None:
-    """Compute and commit the pending blocks (RunFailed if a block cannot be stored or the
-    backend fails)."""
+) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
+    """Compute and commit the pending blocks, yielding each (as stored) once it is committed
+    (RunFailed if a block cannot be stored or the backend fails)."""
     tiling = store.tiling
     points = tiling.size - sum(tiling.points(i) for i in pending)
     if progress is not None:
@@ -346,7 +355,7 @@ def _compute(
     try:
         for i, res in backend.blocks(spec, tiling, pending):  # type: ignore[attr-defined]
             try:
-                store.commit(i, res)
+                clean = store.commit(i, res)
             except OSError as exc:
                 raise RunFailed(
                     f"{_cannot_write(exc, store.path(i))}; {stored} of {tiling.nblocks} "
@@ -358,35 +367,27 @@ def _compute(
                 progress(points, tiling.size)
             if on_block is not None:
                 on_block(i)
+            yield i, clean
     except BackendError as exc:
         raise RunFailed(f"{exc}; {stored} of {tiling.nblocks} blocks are stored") from None
+
+
+def _timed(blocks: Iterator[_Block], ended: list[float]) -> Iterator[_Block]:
+    """``blocks``, noting in ``ended`` when the last one has come."""
+    yield from blocks
+    ended.append(time.perf_counter())
 
 
 def _cannot_write(exc: OSError, where: Path) -> str:
     return f"cannot write {exc.filename or where}: {exc.strerror or exc}"
 
 
-def _merge(
-    store: BlockStore,
-    survey: Survey,
-    out: Path,
-    fp: str,
-    command: str,
-    overwrite: bool,
-    complevel: int,
-) -> Summary:
-    """The blocks merged into the output file (RunError if it appeared meanwhile, RunFailed if
-    it cannot be written or a block changed)."""
+def _merge(store: BlockStore, survey: Survey, out: Path, **options: Any) -> Summary:
+    """The blocks merged into the output file while they are computed
+    (:func:`engine.io.netcdf.merge`): RunError if the output appeared meanwhile, RunFailed if
+    it cannot be written or a block changed, and what the compute raised."""
     try:
-        return netcdf.merge(
-            store,
-            survey,
-            out,
-            fingerprint=fp,
-            command=command,
-            overwrite=overwrite,
-            complevel=complevel,
-        )
+        return netcdf.merge(store, survey, out, **options)
     except FileExistsError:
         raise RunError(
             f"output file exists: {out} (created while this run computed; use --overwrite)"

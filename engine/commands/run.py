@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import TextIO
 
 from ..grid import BLOCK_POINTS
-from ..io.netcdf import ZLIB_LEVEL
+from ..io.codecs import COMPRESSIONS, DEFAULT_COMPRESSION, DEFAULT_LEVELS
 from ..kernels.fate import FATE_NAMES
 from ..kernels.geometry import CLASS_NAMES
 from ..progress import Progress
@@ -76,13 +76,23 @@ def add_arguments(run: argparse.ArgumentParser) -> None:
         "--chunk-points", dest="block_points", type=_positive_int, help=argparse.SUPPRESS
     )
     run.add_argument(
+        "--compression",
+        choices=COMPRESSIONS,
+        default=DEFAULT_COMPRESSION,
+        help=f"how the output's variables are compressed (default {DEFAULT_COMPRESSION}: "
+        "fast, read by the netCDF4 Python package and netCDF-C >= 4.9 with its filter "
+        "plugins; zlib: readable by every netCDF-4/HDF5 tool, several times slower to write; "
+        "README, 'Output and compression')",
+    )
+    run.add_argument(
         "--complevel",
         type=int,
         choices=range(10),
-        default=ZLIB_LEVEL,
+        default=None,
         metavar="0-9",
-        help=f"zlib level of the output (default {ZLIB_LEVEL}; 0 = uncompressed, several "
-        "times faster to write, ~1.7x larger)",
+        help="compression level (default: "
+        + ", ".join(f"{n} {lvl}" for n, lvl in DEFAULT_LEVELS.items() if lvl)
+        + "; 0 = uncompressed)",
     )
     run.add_argument(
         "--force",
@@ -148,6 +158,7 @@ def _run(args: argparse.Namespace, command: str) -> int:
             scheduler=args.scheduler,
             workers=args.workers,
             command=command,
+            compression=args.compression,
             complevel=args.complevel,
             check_space=not args.force,
         )
