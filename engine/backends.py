@@ -161,16 +161,21 @@ class DaskBackend:
             n = int(workers or 1)
             threads = max(1, (os.cpu_count() or 1) // n)
             env = {"NUMBA_NUM_THREADS": str(threads), "OMP_NUM_THREADS": str(threads)}
-            with dask.config.set({"distributed.nanny.pre-spawn-environ": env}):
-                self.cluster = LocalCluster(
-                    n_workers=n,
-                    threads_per_worker=1,
-                    processes=True,
-                    dashboard_address=None,
-                    host="127.0.0.1",
-                    silence_logs=logging.CRITICAL,
-                )
-            self.client = Client(self.cluster, set_as_default=False)
+            try:
+                with dask.config.set({"distributed.nanny.pre-spawn-environ": env}):
+                    self.cluster = LocalCluster(
+                        n_workers=n,
+                        threads_per_worker=1,
+                        processes=True,
+                        dashboard_address=None,
+                        host="127.0.0.1",
+                        silence_logs=logging.CRITICAL,
+                    )
+                self.client = Client(self.cluster, set_as_default=False)
+            except Exception as exc:
+                self.close()
+                why = _one_line(exc)
+                raise BackendError(f"cannot start a local dask cluster ({why})") from None
             return
         timeout = _config("connect-timeout", CONNECT_TIMEOUT)
         try:
@@ -245,7 +250,8 @@ class DaskBackend:
     def close(self) -> None:
         """Close the client (and the local cluster); restore the environment."""
         try:
-            self.client.close(timeout=2)
+            if hasattr(self, "client"):
+                self.client.close(timeout=2)
             if self.cluster is not None:
                 self.cluster.close(timeout=5)
         except Exception:  # closing a lost cluster may fail: nothing is left to release

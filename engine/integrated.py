@@ -11,9 +11,11 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from ._jit import call_specialized
+from .kernels.lanes import integrate_points_lanes as _lanes_kernel
 from .kernels.orbit import PERIOD_ROWS
 from .kernels.orbit import integrate_points as _integrate_points_kernel
 from .kernels.protocol import STATUS_MESSAGES, UNSUPPORTED
@@ -58,6 +60,11 @@ def integrate_points(
         out_f[:] = math.nan
         out_n[:] = 0
         out_status[:] = UNSUPPORTED
+        return
+    if by_id[method].family == "runge-kutta":  # several orbits at once on the SIMD lanes
+        args = (alpha, energy, h, Lz, params, method, effects, rtol, max_steps, 2,
+                numba.get_num_threads(), out_f, out_n, out_status)  # fmt: skip
+        call_specialized(_lanes_kernel, args, (5, 6))
         return
     args = (alpha, energy, h, Lz, params, method, effects, rtol, max_steps, out_f, out_n,
             out_status)  # fmt: skip

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -12,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 import xarray as xr
+
+from engine import cli as engine_cli
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -93,6 +96,16 @@ def run(cwd: Path, *args: str, timeout: float = 600, **extra: str) -> subprocess
     return subprocess.run(
         cli(*args), cwd=cwd, env=env(**extra), capture_output=True, text=True, timeout=timeout
     )
+
+
+def here(cwd: Path, capsys, *args: str) -> subprocess.CompletedProcess:
+    """``conesurvey ARGS`` run in this process, in ``cwd`` (no interpreter start: for the
+    checks around an attack, and for inputs that cannot hang)."""
+    capsys.readouterr()
+    with contextlib.chdir(cwd):
+        status = engine_cli.main(list(args))
+    out, err = capsys.readouterr()
+    return subprocess.CompletedProcess(args, status, out, err)
 
 
 def listing(directory: Path) -> list[str]:

@@ -9,7 +9,11 @@
 - :mod:`.tableaux`   Runge-Kutta pairs (:data:`~.tableaux.RK_TABLEAUX`) and composition weights;
 - :mod:`.protocol`   the run protocol: statuses, event kinds, buffers, shared event helpers, Brent;
 - :mod:`.rk_codegen` Runge-Kutta steps generated from tableau data;
-- :mod:`.rk`         the adaptive Runge-Kutta run kernel (dense output, event location);
+- :mod:`.rk_events`  a step's dense output, event location, apsides polished to step accuracy;
+- :mod:`.rk`         the adaptive Runge-Kutta run kernel and its step-size control;
+- :mod:`.lanes_step` the vectorised step and step-size control of several orbits at once;
+- :mod:`.lanes`      the batch of the Runge-Kutta methods on the SIMD lanes (bit for bit the run
+                     kernel's results);
 - :mod:`.symplectic` time-transformed leapfrog with Yoshida compositions, on the same protocol;
 - :mod:`.orbit`      start state, tolerances, one radial period, the parallel batch over points.
 """

@@ -168,6 +168,8 @@ def _ratio(x, p0, p2, p3, q0, q3):
     limit at x = 0 in free fall (q0 = 0)."""
     if x == 0.0 and q0 == 0.0:
         return math.copysign(math.inf, p2 * q3) if p2 != 0.0 else p3 / q3
+    if p0 == 0.0 and q0 == 0.0:  # free fall: divide x^3 out (it underflows for r > 1e103)
+        return (p2 / x + p3) / q3
     if x <= 1.0:
         x2 = x * x
         return (p0 + p2 * x2 + p3 * x2 * x) / (q0 + q3 * x2 * x)

@@ -226,13 +226,19 @@ def integrate_points(alpha, energy, h, Lz, params, method, effects, rtol, max_st
     for i in prange(n):
         p = params.copy()
         set_alpha(p, alpha[i])
-        st, T, psi, prec, nst, drift, loss = one_period(
-            method, effects, p, energy[i], h[i], Lz[i], rtol, max_steps
-        )
-        out_status[i] = st
-        out_f[0, i] = T
-        out_f[1, i] = psi
-        out_f[2, i] = prec
-        out_f[3, i] = drift
-        out_f[4, i] = loss
-        out_n[i] = nst
+        res = one_period(method, effects, p, energy[i], h[i], Lz[i], rtol, max_steps)
+        store_period(out_f, out_n, out_status, i, res)
+
+
+@kernel
+def store_period(out_f, out_n, out_status, i, res):
+    """Write :func:`one_period`'s result tuple for point i: ``out_f`` rows :data:`PERIOD_ROWS`,
+    ``out_n`` the accepted steps, ``out_status`` the status."""
+    st, T, psi, prec, nst, drift, loss = res
+    out_status[i] = st
+    out_f[0, i] = T
+    out_f[1, i] = psi
+    out_f[2, i] = prec
+    out_f[3, i] = drift
+    out_f[4, i] = loss
+    out_n[i] = nst

@@ -1,15 +1,16 @@
 """Adaptive explicit Runge-Kutta integration of a scene, on the run protocol of :mod:`.protocol`.
 
-- :func:`rk_dense` / :func:`rk_dense_rate` the continuous extension of a step and its derivative
-  (the polynomial weights ``P`` of the tableau);
+- :func:`step_error`, :func:`step_decide`, :func:`step_allowed` the PI step-size control
+  (:data:`SAFETY`, :data:`MIN_FACTOR`, per-tableau exponents and largest growth) and the step
+  budget;
 - :func:`initial_step` the starting step of Hairer, Norsett & Wanner I, section II.4;
-- :func:`rk_locate` event location on the dense output by Brent's method (xtol 4 eps);
-- :func:`rk_run` the adaptive loop: PI step-size control (:data:`SAFETY`, :data:`MIN_FACTOR`,
-  :data:`MAX_FACTOR`, per-tableau exponents), events (apsides u = 0, the rim, slip onset),
-  optional recording of the trajectory, status codes instead of exceptions.
+- :func:`rk_run` the adaptive loop: events (apsides u = 0, the rim, slip onset, located on
+  the dense output by :mod:`.rk_events`; apsides polished to the accuracy of a step), optional
+  recording of the trajectory, status codes instead of exceptions.
 
 The step itself, the extra dense stages and the tableau constants are generated from the
-tableau data for the literal ``method`` id (:mod:`.rk_codegen`).
+tableau data for the literal ``method`` id (:mod:`.rk_codegen`); :mod:`.lanes` runs the same
+steps on several orbits at once.
 
 Error control: a step is accepted when the RMS over components of err_i / (atol_i + rtol
 max(|y_i|, |y_new_i|)) is <= 1 (with a 3rd-order companion estimate: Hairer's stretched
@@ -30,99 +31,96 @@ import numpy as np
 from numba import literally
 
 from .._jit import kernel
-from .model import ATTITUDE, P_RIM, param_tuple, rhs, state_size
+from .model import ATTITUDE, param_tuple, rhs, state_size
 from .protocol import (
     BUFFER_FULL,
     EPS,
-    FIRST_TERMINAL,
-    LAST_TERMINAL,
     MAX_STEPS,
     OK,
-    PERICENTRE,
     RECORD_EVERY_DT,
     RECORD_STEPS,
-    SPILL,
     STEP_TOO_SMALL,
     TERMINAL_EFFECTS,
-    brent_next,
-    brent_start,
-    brent_update,
     copy_into,
     copy_row,
-    event_value,
-    kind_enabled,
-    push_event,
     push_state,
-    record_apsis,
     start_protocol,
-    status_of,
     terminal_between,
-    terminal_crossed,
 )
-from .rk_codegen import rk_attempt, rk_dense_component, rk_dense_stages, tableau
+from .rk_codegen import controller, rk_attempt, rk_dense_stages, tableau
+from .rk_events import apsis_crossed, rk_dense, rk_dense_rate, step_events
 
 # Step-size control.
 SAFETY = 0.9
 MIN_FACTOR = 0.2
-MAX_FACTOR = 10.0
 #: Floor of the previous error in the PI controller.
 ERR_FLOOR = 1e-4
 
 
 @kernel
-def _shrink(err, k_rej):
-    """Step factor after a rejected step with error err (> 1, or not finite)."""
-    if math.isnan(err) or math.isinf(err):
-        return MIN_FACTOR
-    return max(MIN_FACTOR, SAFETY * err ** (-k_rej))
+def _root(x, k):
+    """x ** -k for x > 0; three square roots for k = 1/8 (DOP853: a library pow costs as much
+    as a fifth of a vectorised step)."""
+    if k == 0.125:
+        return 1.0 / math.sqrt(math.sqrt(math.sqrt(x)))
+    return x ** (-k)
 
 
 @kernel
-def _grow(err, err_old, k1, beta, rejected):
-    """PI controller: factor of the next step after an accepted one (never growing right after
-    a rejection)."""
+def _shrink(err, root):
+    """Step factor after a rejected step with error err (> 1, or not finite); root =
+    err ** -k_rej."""
+    if math.isnan(err) or math.isinf(err):
+        return MIN_FACTOR
+    return max(MIN_FACTOR, SAFETY * root)
+
+
+@kernel
+def _grow(err, root, err_old, beta, rejected, fmax):
+    """PI controller: factor of the next step after an accepted one with error err, root =
+    err ** -k1 (at most fmax; never growing right after a rejection)."""
     if err == 0.0:
-        fac = MAX_FACTOR
+        fac = fmax
     else:
-        fac = min(MAX_FACTOR, max(MIN_FACTOR, SAFETY * err ** (-k1) * err_old**beta))
+        fac = min(fmax, max(MIN_FACTOR, SAFETY * root * err_old**beta))
     if rejected:
         fac = min(fac, 1.0)
     return fac
 
 
 @kernel
-def rk_dense(method, y, K, h, theta, out):
-    """Dense output y(t + theta h), theta in [0, 1], into ``out``."""
-    A, C, E, E3, P, ns, S, q, beta, bw = tableau(method)
-    n = y.shape[0]
-    deg = P.shape[1]
-    for j in range(n):
-        out[j] = y[j]
-    for i in range(S):
-        wi = 0.0
-        for m in range(deg - 1, -1, -1):
-            wi = (wi + P[i, m]) * theta
-        if wi != 0.0:
-            wi *= h
-            for j in range(n):
-                out[j] += wi * K[i, j]
+def step_error(err, r_new, ctl):
+    """(error the controller sees, its root: e ** -k1 if the step is accepted (e <= 1), else
+    e ** -k_rej) after an attempt with scaled error err and new radius r_new; a step that
+    leaves r > 0 has an infinite error. Pure arithmetic, so the lanes compute it for all lanes
+    at once (:mod:`.lanes`)."""
+    k1, k_rej, beta, fmax = ctl
+    e = err if r_new > 0.0 else math.inf
+    return e, _root(e, k1 if e <= 1.0 else k_rej)
 
 
 @kernel
-def rk_dense_rate(method, K, theta, out):
-    """Time derivative [per s] of the dense output at theta, into ``out``."""
-    A, C, E, E3, P, ns, S, q, beta, bw = tableau(method)
-    n = K.shape[1]
-    deg = P.shape[1]
-    for j in range(n):
-        out[j] = 0.0
-    for i in range(S):
-        wi = 0.0
-        for m in range(deg - 1, -1, -1):
-            wi = wi * theta + (m + 1) * P[i, m]
-        if wi != 0.0:
-            for j in range(n):
-                out[j] += wi * K[i, j]
+def step_decide(e, h, err_old, rejected, ctl):
+    """The step-size decision after an attempt of size h [s] (``e``: :func:`step_error`,
+    ``ctl``: :func:`.rk_codegen.controller`): (accepted, h [s] to retry with or taken, h_next [s],
+    err_old, rejected)."""
+    k1, k_rej, beta, fmax = ctl
+    err, root = e
+    if not err <= 1.0:
+        return False, h * _shrink(err, root), h, err_old, True
+    h_next = h * _grow(err, root, err_old, beta, rejected, fmax)
+    return True, h, h_next, max(err, ERR_FLOOR), False
+
+
+@kernel
+def step_allowed(n_steps, max_steps, h, t):
+    """OK if another attempt of size h [s] at t [s] may be taken after n_steps attempts, else
+    MAX_STEPS or STEP_TOO_SMALL."""
+    if n_steps >= max_steps:
+        return MAX_STEPS
+    if not h >= 16.0 * EPS * abs(t) or not h > 0.0:
+        return STEP_TOO_SMALL
+    return OK
 
 
 @kernel
@@ -131,7 +129,7 @@ def initial_step(method, effects, y0, K, p, rtol, atol, ytmp):
 
     Needs f(y0) in K[0]; uses K[1] as scratch.
     """
-    A, C, E, E3, P, ns, S, q, beta, bw = tableau(method)
+    A, C, E, E3, P, ns, S, q, beta, bw, fmax = tableau(method)
     n = y0.shape[0]
     d0 = 0.0
     d1 = 0.0
@@ -168,7 +166,7 @@ def rk_fixed(method, effects, y0, p, h, n_steps):
     """y after ``n_steps`` steps of constant size h [s] (no error control; for order tests)."""
     literally(method)
     literally(effects)
-    A, C, E, E3, P, ns, S, q, beta, bw = tableau(method)
+    A, C, E, E3, P, ns, S, q, beta, bw, fmax = tableau(method)
     n = y0.shape[0]
     K = np.empty((S, n))
     y = y0.copy()
@@ -183,70 +181,6 @@ def rk_fixed(method, effects, y0, p, h, n_steps):
         for j in range(n):
             K[0, j] = K[ns, j]
     return y
-
-
-@kernel
-def rk_locate(method, effects, kind, y, K, h, p, g0, g1, buf, st):
-    """theta in [0, 1] where the event function crosses 0 on the step's dense output (Brent,
-    xtol 4 eps)."""
-    brent_start(st, 0.0, 1.0, g0, g1)
-    theta = 1.0
-    for _ in range(100):
-        done, theta = brent_next(st, 4.0 * EPS)
-        if done:
-            break
-        if kind == SPILL:
-            g = rk_dense_component(method, y, K, h, theta, 0) - p[P_RIM]
-        elif kind == PERICENTRE:
-            g = rk_dense_component(method, y, K, h, theta, 2)
-        else:
-            rk_dense(method, y, K, h, theta, buf)
-            g = event_value(kind, buf, p, effects)
-        brent_update(st, g)
-    return min(max(theta, 0.0), 1.0)
-
-
-@kernel
-def _step_events(method, effects, y, ynew, K, h, t, p, buf, st, g_aps, n_aps, n_apsides,
-                 ev_t, ev_kind, ev_y, n_ev, term_cross):  # fmt: skip
-    """Events inside the accepted step (t, t + h]: the first terminal event, then the apsis
-    before it (recorded; it may end the run after ``n_apsides`` apsides), then the terminal
-    event itself. Returns (ok, theta of the stop (2 = none), stop status, g_aps, n_aps, n_ev);
-    ok is False when the event buffers are full."""
-    th_stop = 2.0
-    stop_status = OK
-    stop_kind = 0
-    if term_cross:
-        for kind in range(FIRST_TERMINAL, LAST_TERMINAL + 1):
-            if not kind_enabled(effects, kind):
-                continue
-            g1 = event_value(kind, ynew, p, effects)
-            g0 = event_value(kind, y, p, effects)
-            if terminal_crossed(kind, g0, g1):
-                th = rk_locate(method, effects, kind, y, K, h, p, g0, g1, buf, st)
-                if th < th_stop:
-                    th_stop = th
-                    stop_kind = kind
-                    stop_status = status_of(kind)
-    g_new = ynew[2]
-    if n_apsides >= 0 and ((g_aps > 0.0 and g_new <= 0.0) or (g_aps < 0.0 and g_new >= 0.0)):
-        th = rk_locate(method, effects, np.int64(PERICENTRE), y, K, h, p, y[2], g_new, buf,
-                       st)  # fmt: skip
-        if th <= th_stop:
-            rk_dense(method, y, K, h, th, buf)
-            n_ev, g_aps, n_aps, reached = record_apsis(ev_t, ev_kind, ev_y, n_ev, t + th * h,
-                                                       buf, g_aps, n_aps, n_apsides)  # fmt: skip
-            if n_ev < 0:
-                return False, th_stop, stop_status, g_aps, n_aps, n_ev
-            if reached:
-                th_stop = th
-                stop_status = OK
-    if th_stop <= 1.0 and stop_status != OK:
-        rk_dense(method, y, K, h, th_stop, buf)
-        n_ev = push_event(ev_t, ev_kind, ev_y, n_ev, t + th_stop * h, stop_kind, buf)
-        if n_ev < 0:
-            return False, th_stop, stop_status, g_aps, n_aps, n_ev
-    return True, th_stop, stop_status, g_aps, n_aps, n_ev
 
 
 @kernel
@@ -269,6 +203,27 @@ def _samples(method, effects, y, K, h, t, t_lim, t_end, dt_out, next_out, tr_t, 
 
 
 @kernel
+def _stop_state(method, effects, y, K, h, t, th_stop, stop_status, p, ev_t, ev_y, n_ev, out,
+                rate):  # fmt: skip
+    """The state (into ``out``, and its rate with the attitude) and time [s] where a run stops
+    inside the step (t, t + h]: its last apsis as recorded (polished), or the dense output at
+    a terminal event."""
+    n = y.shape[0]
+    if stop_status == OK:
+        for j in range(n):
+            out[j] = ev_y[n_ev - 1, j]
+        if effects & ATTITUDE:
+            rhs(out, p, effects, K, 0)
+            for j in range(n):
+                rate[j] = K[0, j]
+        return ev_t[n_ev - 1]
+    rk_dense(method, y, K, h, th_stop, out)
+    if effects & ATTITUDE:
+        rk_dense_rate(method, K, th_stop, rate)
+    return t + th_stop * h
+
+
+@kernel
 def rk_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_steps, record,
            dt_out, ev_t, ev_kind, ev_y, tr_t, tr_y, tr_rate):  # fmt: skip
     """Integrate from t = 0 until t_end [s], the ``n_apsides``-th apsis (if > 0; apsides are
@@ -282,19 +237,20 @@ def rk_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_step
     with status BUFFER_FULL (the caller retries with more room). ``orbit`` (calE, h, L_z) is
     not needed by this method. Returns (status, n_accepted, n_rejected, t, y, n_ev, n_tr).
     """
-    A, C, E, E3, P, ns, S, q, beta, bw = tableau(method)
+    A, C, E, E3, P, ns, S, q, beta, bw, fmax = tableau(method)
     n = state_size(effects)
     n_rate = n if effects & ATTITUDE else 0
-    work = np.empty(S * n + 3 * n + n_rate + 8)  # one allocation for all work arrays
+    work = np.empty(2 * S * n + 3 * n + n_rate + 8)  # one allocation for all work arrays
     K = work[: S * n].reshape((S, n))
-    y = work[S * n : S * n + n]
-    ynew = work[S * n + n : S * n + 2 * n]
-    buf = work[S * n + 2 * n : S * n + 3 * n]  # scratch: extra stages, dense output, first step
-    rate = work[S * n + 3 * n : S * n + 3 * n + n_rate]
-    st = work[S * n + 3 * n + n_rate :]
+    K2 = work[S * n : 2 * S * n].reshape((S, n))  # stages of the step that polishes an apsis
+    w = work[2 * S * n :]
+    y = w[:n]
+    ynew = w[n : 2 * n]
+    buf = w[2 * n : 3 * n]  # scratch: extra stages, dense output, first step
+    rate = w[3 * n : 3 * n + n_rate]
+    st = w[3 * n + n_rate :]
     copy_into(y0, y)
-    k1 = 1.0 / (q + 1) - bw * beta
-    k_rej = 1.0 / (q + 1)
+    ctl = controller(method)
     t = 0.0
     rhs(y, p, effects, K, 0)
     status, n_ev, n_tr = start_protocol(effects, y, p, record, ev_t, ev_kind, ev_y, tr_t, tr_y)
@@ -314,33 +270,21 @@ def rk_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_step
     err_old = ERR_FLOOR
     rejected = False
     while True:
-        if n_acc + n_rej >= max_steps:
-            status = MAX_STEPS
-            break
-        if not h >= 16.0 * EPS * abs(t) or not h > 0.0:
-            status = STEP_TOO_SMALL
+        status = step_allowed(n_acc + n_rej, max_steps, h, t)
+        if status != OK:
             break
         last = False
         if t + h >= t_end:
             h = t_end - t
             last = True
         err = rk_attempt(method, effects, y, h, pt, K, ynew, rtol, atol)
-        if not ynew[0] > 0.0:
-            err = math.inf
-        if not err <= 1.0:
+        e = step_error(err, ynew[0], ctl)
+        accepted, h, h_next, err_old, rejected = step_decide(e, h, err_old, rejected, ctl)
+        if not accepted:
             n_rej += 1
-            h *= _shrink(err, k_rej)
-            rejected = True
             continue
         n_acc += 1
-        h_next = h * _grow(err, err_old, k1, beta, rejected)
-        rejected = False
-        err_old = max(err, ERR_FLOOR)
-
-        g_new = ynew[2]
-        aps_cross = n_apsides >= 0 and (
-            (g_aps > 0.0 and g_new <= 0.0) or (g_aps < 0.0 and g_new >= 0.0)
-        )
+        aps_cross = n_apsides >= 0 and apsis_crossed(g_aps, ynew[2])
         term_cross = False
         if effects & TERMINAL_EFFECTS:
             term_cross = terminal_between(effects, y, ynew, p)
@@ -350,9 +294,9 @@ def rk_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_step
         th_stop = 2.0
         stop_status = OK
         if aps_cross or term_cross:  # a call only when needed: its array arguments cost refcounts
-            ok, th_stop, stop_status, g_aps, n_aps, n_ev = _step_events(
-                method, effects, y, ynew, K, h, t, p, buf, st, g_aps, n_aps, n_apsides,
-                ev_t, ev_kind, ev_y, n_ev, term_cross)  # fmt: skip
+            ok, th_stop, stop_status, g_aps, n_aps, n_ev, _, _ = step_events(
+                method, effects, y, ynew, K, h, t, p, buf, st, K2, g_aps, n_aps, n_apsides,
+                ev_t, ev_kind, ev_y, n_ev, term_cross, True)  # fmt: skip
             if not ok:
                 n_ev = ev_t.shape[0]
                 status = BUFFER_FULL
@@ -367,11 +311,8 @@ def rk_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_step
                 status = BUFFER_FULL
                 break
         if th_stop <= 1.0:
-            # Stop inside the step, on the dense output.
-            rk_dense(method, y, K, h, th_stop, ynew)
-            if effects & ATTITUDE:
-                rk_dense_rate(method, K, th_stop, rate)
-            t = t + th_stop * h
+            t = _stop_state(method, effects, y, K, h, t, th_stop, stop_status, p, ev_t, ev_y,
+                            n_ev, ynew, rate)  # fmt: skip
         else:
             t = t_end if last else t + h
             if effects & ATTITUDE:

@@ -1,0 +1,390 @@
+"""Runge-Kutta orbits in lock-step on the CPU's SIMD lanes: the batch path of the RK methods.
+
+One orbit is a chain of dependent stages: a scalar step waits on the latency of every add,
+multiply and division (DOP853: ~400 ns a step, most of it idle). :data:`.lanes_step.LANES`
+orbits run side by side instead, each with its own step size, state and tolerances, and every
+line of the step is one vector instruction over the lanes (AVX2: 4 doubles): ~60 ns per orbit
+and step. :mod:`.lanes_step` generates the vectorised step and step-size control; this module
+is the scalar rest, per lane and only where needed:
+
+- the start of an orbit (:func:`.orbit.orbit_start`, :func:`.orbit.initial_state`,
+  :func:`.orbit.tolerance_scales`, :func:`.rk.initial_step`: as :func:`.orbit.one_period`);
+- the events of a step (:func:`.rk_events.step_events` on a scalar copy of the lane: apsides,
+  rim, slip) and the result (:func:`.orbit._reduce`);
+- the queue: a lane whose orbit ends takes the next point from a queue the threads share, so
+  no lane idles until the points run out, and a thread slowed by other work takes fewer.
+
+Results are those of :func:`.orbit.integrate_points` bit for bit, whichever lane or thread
+computes a point (tests/kernels/test_lanes.py): this is how the RK methods run in a batch, not
+a method of its own. The worker's arrays are borrowed views (:func:`.lanes_step.borrow`): the
+per-orbit helpers bind about a hundred arrays, each an atomic reference count otherwise.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import literally, prange
+
+from .._jit import kernel, parallel_kernel
+from .lanes_step import (
+    LANES,
+    Layout,
+    borrow,
+    fetch_add,
+    lanes_attempt,
+    lanes_control,
+    lanes_layout,
+)
+from .model import N_PARAMS, rhs, set_alpha
+from .orbit import _reduce, initial_state, orbit_start, store_period, tolerance_scales
+from .protocol import (
+    APOCENTRE,
+    BUFFER_FULL,
+    NOT_BOUNDED,
+    OK,
+    RECORD_NONE,
+    TERMINAL_EFFECTS,
+    start_protocol,
+    terminal_between,
+)
+from .rk import ERR_FLOOR, initial_step, step_allowed
+from .rk_codegen import rk_dense_stages
+from .rk_events import apsis_crossed, apsis_newton, step_events
+
+#: Events a lane can hold (one period: two apsides and a terminal event).
+EV_CAP = 4
+# Columns of the int array I: the lane's point (-1: idle), its apsides and events so far.
+_ORBIT, _N_APS, _N_EV = 0, 1, 2
+# Positions in the layout tuple (lanes_step.Layout): constant indices in the kernels.
+(_n, _S, _NS, _Y, _K, _YN, _AT, _H, _ERR, _P, _T, _EOLD, _GAPS, _REJ, _NACC, _NREJ, _ACT, _FLAG,
+ _HNEXT, _POL, _HSTEP, _IAPS, _STOP, _SAVE_Y, _SAVE_K, _NSLOTS) = range(26)  # fmt: skip
+assert len(Layout._fields) == 26 and Layout._fields[_POL] == "POLISH"
+
+
+@kernel(inline="always")
+def _lane_start(method, effects, l, i, alpha, energy, hh, Lz, params, rtol, max_steps, W, I,
+                LY0, LEV, LEVK, p, K, buf, ev_t, ev_kind, ev_y):  # fmt: skip
+    """Start point i in lane l the way :func:`.orbit.one_period` and :func:`.rk.rk_run` start
+    it. Returns OK when it runs, else the status it ends with at once (its parameters are then
+    in p, its events in ev_*)."""
+    ly = lanes_layout(method, effects)
+    n = ly[_n]
+    L = LANES
+    for k in range(N_PARAMS):
+        p[k] = params[k]
+    set_alpha(p, alpha[i])
+    I[l, _ORBIT] = i
+    I[l, _N_APS] = 0
+    I[l, _N_EV] = 0
+    for s in (_T, _REJ, _NACC, _NREJ, _ACT, _POL):
+        W[ly[s] * L + l] = 0.0
+    ok, r1, r2, rc = orbit_start(p, energy[i], hh[i], Lz[i])
+    if not ok:
+        return NOT_BOUNDED
+    y0 = initial_state(p, effects, r1, energy[i], hh[i], Lz[i])
+    y0[2] = 0.0
+    atol = tolerance_scales(p, effects, y0, energy[i], hh[i], Lz[i], r1, r2, rc)
+    atol *= rtol
+    for j in range(n):
+        LY0[l, j] = y0[j]
+    rhs(y0, p, effects, K, 0)
+    status, n_ev, n_tr = start_protocol(effects, y0, p, RECORD_NONE, ev_t, ev_kind, ev_y, ev_t,
+                                        ev_y)  # fmt: skip
+    _save_events(l, n_ev, ev_t, ev_kind, ev_y, LEV, LEVK)
+    I[l, _N_EV] = n_ev
+    if status != OK:
+        return status
+    h = initial_step(method, effects, y0, K, p, rtol, atol, buf)
+    for j in range(n):
+        W[(ly[_Y] + j) * L + l] = y0[j]
+        W[(ly[_K] + j) * L + l] = K[0, j]
+        W[(ly[_AT] + j) * L + l] = atol[j]
+    for k in range(N_PARAMS):
+        W[(ly[_P] + k) * L + l] = p[k]
+    W[ly[_H] * L + l] = h
+    W[ly[_EOLD] * L + l] = ERR_FLOOR
+    W[ly[_GAPS] * L + l] = y0[2] if y0[2] != 0.0 else K[0, 2]
+    W[ly[_ACT] * L + l] = 1.0
+    return step_allowed(0, max_steps, h, 0.0)
+
+
+@kernel(inline="always")
+def _save_events(l, n_ev, ev_t, ev_kind, ev_y, LEV, LEVK):
+    """Copy the first n_ev events of the scratch buffers into lane l's row of LEV, LEVK."""
+    n = ev_y.shape[1]
+    for e in range(n_ev):
+        LEV[l, e * (n + 1)] = ev_t[e]
+        LEVK[l, e] = ev_kind[e]
+        for j in range(n):
+            LEV[l, e * (n + 1) + 1 + j] = ev_y[e, j]
+
+
+@kernel(inline="always")
+def _load_events(l, n_ev, LEV, LEVK, ev_t, ev_kind, ev_y):
+    """Copy lane l's first n_ev events into the scratch buffers."""
+    n = ev_y.shape[1]
+    for e in range(n_ev):
+        ev_t[e] = LEV[l, e * (n + 1)]
+        ev_kind[e] = LEVK[l, e]
+        for j in range(n):
+            ev_y[e, j] = LEV[l, e * (n + 1) + 1 + j]
+
+
+@kernel(inline="always")
+def _lane_params(method, effects, l, W, p):
+    """Lane l's parameter array, into p."""
+    oP = lanes_layout(method, effects)[_P]
+    for k in range(N_PARAMS):
+        p[k] = W[(oP + k) * LANES + l]
+
+
+@kernel(inline="always")
+def _lane_finish(method, effects, l, status, n_apsides, W, I, LY0, p, ev_t, ev_kind, ev_y,
+                 out_f, out_n, out_status):  # fmt: skip
+    """Write the result of lane l's point (ended with ``status``; its parameters in p, its
+    events in ev_*) and idle the lane: one period as :func:`.orbit.one_period` reduces it, or
+    with ``n_apsides`` = 1 half a period (period = twice the time to r_max, by the time
+    symmetry of a conservative orbit; no drift)."""
+    ly = lanes_layout(method, effects)
+    L = LANES
+    i = I[l, _ORBIT]
+    n_ev = I[l, _N_EV]
+    y0 = LY0[l]
+    n_acc = np.int64(W[ly[_NACC] * L + l])
+    res = (status, n_acc, np.int64(W[ly[_NREJ] * L + l]), W[ly[_T] * L + l], y0, n_ev, 0)
+    st, T, psi, prec, nst, drift, loss = _reduce(effects, p, y0, res, ev_t, ev_kind, ev_y)
+    if n_apsides == 1:
+        nan = math.nan
+        st, T, psi, prec, drift, loss = status, nan, nan, nan, nan, nan
+        if status == OK and (n_ev < 1 or ev_kind[0] != APOCENTRE):
+            st = NOT_BOUNDED
+        elif status == OK:
+            T = 2.0 * ev_t[0]
+            psi = abs(ev_y[0, 1])
+            prec = (2.0 * psi - 2.0 * math.pi) / T
+    store_period(out_f, out_n, out_status, i, (st, T, psi, prec, nst, drift, loss))
+    I[l, _ORBIT] = -1
+    W[ly[_ACT] * L + l] = 0.0
+    W[ly[_H] * L + l] = 0.0
+
+
+@kernel(inline="always")
+def _lane_events(method, effects, l, n_apsides, term_cross, W, I, LEV, LEVK, p, K, K2, ys, yn,
+                 buf, brent, ev_t, ev_kind, ev_y):  # fmt: skip
+    """The events of lane l's accepted step (:func:`.rk_events.step_events` on a scalar copy
+    of the lane; p holds its parameters). Returns (stops, status); an apsis found here sets
+    the lane up to polish it on its next vector step (:func:`_lane_polished` ends the step)."""
+    ly = lanes_layout(method, effects)
+    n, S, ns = ly[_n], ly[_S], ly[_NS]
+    L = LANES
+    h = W[ly[_H] * L + l]
+    for j in range(n):
+        ys[j] = W[(ly[_Y] + j) * L + l]
+        yn[j] = W[(ly[_YN] + j) * L + l]
+    for i in range(ns + 1):
+        for j in range(n):
+            K[i, j] = W[(ly[_K] + i * n + j) * L + l]
+    if S > ns + 1:
+        rk_dense_stages(method, effects, ys, h, p, K, buf)
+    n_ev0 = I[l, _N_EV]
+    _load_events(l, n_ev0, LEV, LEVK, ev_t, ev_kind, ev_y)
+    ok, th_stop, stop_status, g_aps, n_aps, n_ev, i_aps, th_aps = step_events(
+        method, effects, ys, yn, K, h, W[ly[_T] * L + l], p, buf, brent, K2,
+        W[ly[_GAPS] * L + l], I[l, _N_APS], n_apsides, ev_t, ev_kind, ev_y, n_ev0,
+        term_cross, False)  # fmt: skip
+    W[ly[_GAPS] * L + l] = g_aps
+    I[l, _N_APS] = n_aps
+    if not ok:
+        I[l, _N_EV] = EV_CAP
+        _save_events(l, EV_CAP, ev_t, ev_kind, ev_y, LEV, LEVK)
+        return True, BUFFER_FULL
+    I[l, _N_EV] = n_ev
+    _save_events(l, n_ev, ev_t, ev_kind, ev_y, LEV, LEVK)
+    stops = th_stop <= 1.0
+    if i_aps >= 0:  # polish the apsis on the next vector step: from y, a step of th h
+        for j in range(n):
+            W[(ly[_SAVE_Y] + j) * L + l] = yn[j]
+            W[(ly[_SAVE_K] + j) * L + l] = W[(ly[_K] + ns * n + j) * L + l]
+        W[ly[_HSTEP] * L + l] = h
+        W[ly[_H] * L + l] = th_aps * h
+        W[ly[_IAPS] * L + l] = i_aps
+        W[ly[_STOP] * L + l] = stop_status if stops else -1.0
+        W[ly[_POL] * L + l] = 1.0
+        return False, OK
+    return stops, stop_status
+
+
+@kernel(inline="always")
+def _lane_polished(method, effects, l, max_steps, W, LEV, out, f):
+    """After lane l's polishing step: the apsis's state and time as
+    :func:`.rk_events.polish_apsis` makes them (into the lane's event I_APS; the dense
+    output's stands where the correction is not small), then the lane ends (STOP) or goes on
+    from the end of the step the apsis lies in. Returns (stops, status)."""
+    ly = lanes_layout(method, effects)
+    n, ns = ly[_n], ly[_NS]
+    L = LANES
+    for j in range(n):
+        out[j] = W[(ly[_YN] + j) * L + l]
+        f[j] = W[(ly[_K] + ns * n + j) * L + l]
+    h = W[ly[_HSTEP] * L + l]
+    t = W[ly[_T] * L + l]
+    applied, t_aps = apsis_newton(out, f, h, t + W[ly[_H] * L + l])
+    if applied:
+        e = np.int64(W[ly[_IAPS] * L + l]) * (n + 1)
+        LEV[l, e] = t_aps
+        for j in range(n):
+            LEV[l, e + 1 + j] = out[j]
+    W[ly[_POL] * L + l] = 0.0
+    stop = W[ly[_STOP] * L + l]
+    if stop >= 0.0:
+        return True, np.int64(stop)
+    for j in range(n):
+        W[(ly[_YN] + j) * L + l] = W[(ly[_SAVE_Y] + j) * L + l]
+        W[(ly[_K] + ns * n + j) * L + l] = W[(ly[_SAVE_K] + j) * L + l]
+    W[ly[_H] * L + l] = h
+    status = _lane_advance(method, effects, l, max_steps, W)
+    return status != OK, status
+
+
+@kernel(inline="always")
+def _lane_advance(method, effects, l, max_steps, W):
+    """Move lane l to the end of its accepted step (y, f(y), t, the next step size); returns
+    the status of the next attempt (:func:`.rk.step_allowed`)."""
+    ly = lanes_layout(method, effects)
+    n, ns = ly[_n], ly[_NS]
+    L = LANES
+    W[ly[_T] * L + l] += W[ly[_H] * L + l]
+    for j in range(n):
+        W[(ly[_Y] + j) * L + l] = W[(ly[_YN] + j) * L + l]
+        W[(ly[_K] + j) * L + l] = W[(ly[_K] + ns * n + j) * L + l]
+    h = W[ly[_HNEXT] * L + l]
+    W[ly[_H] * L + l] = h
+    n_steps = W[ly[_NACC] * L + l] + W[ly[_NREJ] * L + l]
+    return step_allowed(n_steps, max_steps, h, W[ly[_T] * L + l])
+
+
+@kernel(inline="always")
+def _lane_flagged(method, effects, l, n_apsides, max_steps, W, I, LEV, LEVK, p, K, K2, ys, yn,
+                  buf, brent, ev_t, ev_kind, ev_y):  # fmt: skip
+    """Finish lane l's attempt the control flagged (:func:`.lanes_step.control_source`):
+    FLAG 1, an accepted step with an apsis or a terminal event to look at, then the move to its
+    end; FLAG 2, no further attempt allowed. Returns (stops, status)."""
+    ly = lanes_layout(method, effects)
+    L = LANES
+    if W[ly[_FLAG] * L + l] == 2.0:
+        n_steps = W[ly[_NACC] * L + l] + W[ly[_NREJ] * L + l]
+        return True, step_allowed(n_steps, max_steps, W[ly[_H] * L + l], W[ly[_T] * L + l])
+    term = False
+    if effects & TERMINAL_EFFECTS:
+        _lane_params(method, effects, l, W, p)
+        for j in range(ly[_n]):
+            ys[j] = W[(ly[_Y] + j) * L + l]
+            yn[j] = W[(ly[_YN] + j) * L + l]
+        term = terminal_between(effects, ys, yn, p)
+    if W[ly[_FLAG] * L + l] == 3.0:
+        return _lane_polished(method, effects, l, max_steps, W, LEV, ys, yn)
+    if term or apsis_crossed(W[ly[_GAPS] * L + l], W[(ly[_YN] + 2) * L + l]):
+        _lane_params(method, effects, l, W, p)
+        stops, status = _lane_events(method, effects, l, n_apsides, term, W, I, LEV, LEVK, p, K,
+                                     K2, ys, yn, buf, brent, ev_t, ev_kind, ev_y)  # fmt: skip
+        if stops or W[ly[_POL] * L + l] != 0.0:
+            return stops, status
+    status = _lane_advance(method, effects, l, max_steps, W)
+    return status != OK, status
+
+
+@kernel
+def lanes_worker(method, effects, alpha, energy, hh, Lz, params, rtol, max_steps, n_apsides,
+                 queue, out_f, out_n, out_status):  # fmt: skip
+    """Integrate points LANES at a time, each until its ``n_apsides``-th apsis (2: one period;
+    1: half), into out_f (rows of :data:`.orbit.PERIOD_ROWS`), out_n (accepted steps),
+    out_status. A lane whose point ends takes the next from ``queue`` (int64[1]: the next
+    point's index, shared by the workers) until every point is taken."""
+    ly = lanes_layout(method, effects)
+    n, S = ly[_n], ly[_S]
+    L = LANES
+    # One owner per dtype; the worker uses borrowed views of them.
+    sizes = (ly[_NSLOTS] * L, n * L, EV_CAP * (n + 1) * L, N_PARAMS, 2 * S * n, 3 * n, 8, EV_CAP,
+             EV_CAP * n)  # fmt: skip
+    own_f = np.zeros(sum(sizes))
+    own_i = np.full(3 * L, -1, np.int64)
+    own_k = np.zeros((L + 1) * EV_CAP, np.int8)
+    parts = _split(own_f, sizes)
+    W = parts[0]
+    LY0 = parts[1].reshape((L, n))
+    LEV = parts[2].reshape((L, EV_CAP * (n + 1)))
+    p = parts[3]
+    K = parts[4][: S * n].reshape((S, n))
+    K2 = parts[4][S * n :].reshape((S, n))
+    ys, yn, buf = parts[5][:n], parts[5][n : 2 * n], parts[5][2 * n :]
+    brent, ev_t, ev_y = parts[6], parts[7], parts[8].reshape((EV_CAP, n))
+    I = borrow(own_i.reshape((L, 3)))  # noqa: E741
+    LEVK = borrow(own_k[: L * EV_CAP].reshape((L, EV_CAP)))
+    ev_kind = borrow(own_k[L * EV_CAP :])
+    alpha, energy, hh, Lz = borrow(alpha), borrow(energy), borrow(hh), borrow(Lz)
+    params, out_f, out_n, out_status = (
+        borrow(params),
+        borrow(out_f),
+        borrow(out_n),
+        borrow(out_status),
+    )
+    n_points = alpha.shape[0]
+    while True:
+        running = 0
+        for l in range(L):  # refill idle lanes; points that end at their start are written
+            while I[l, _ORBIT] < 0:
+                i = fetch_add(queue, 1)
+                if i >= n_points:
+                    break
+                status = _lane_start(method, effects, l, i, alpha, energy, hh, Lz, params, rtol,
+                                     max_steps, W, I, LY0, LEV, LEVK, p, K, buf, ev_t, ev_kind,
+                                     ev_y)  # fmt: skip
+                if status != OK:
+                    _lane_finish(method, effects, l, status, n_apsides, W, I, LY0, p, ev_t,
+                                 ev_kind, ev_y, out_f, out_n, out_status)  # fmt: skip
+            running += I[l, _ORBIT] >= 0
+        if running == 0:
+            break
+        lanes_attempt(method, effects, W, rtol)
+        lanes_control(method, effects, W, max_steps)
+        for l in range(L):
+            if W[ly[_FLAG] * L + l] == 0.0:
+                continue
+            stops, status = _lane_flagged(method, effects, l, n_apsides, max_steps, W, I, LEV,
+                                          LEVK, p, K, K2, ys, yn, buf, brent, ev_t, ev_kind,
+                                          ev_y)  # fmt: skip
+            if stops:
+                _lane_params(method, effects, l, W, p)
+                _load_events(l, I[l, _N_EV], LEV, LEVK, ev_t, ev_kind, ev_y)
+                _lane_finish(method, effects, l, status, n_apsides, W, I, LY0, p, ev_t, ev_kind,
+                             ev_y, out_f, out_n, out_status)  # fmt: skip
+    # The owners live to here: the borrowed views above hold no reference of their own.
+    own_f[0] = own_i[0] + own_k[0]
+
+
+@kernel
+def _split(own, sizes):
+    """Borrowed consecutive pieces of ``own`` of the given sizes."""
+    out = []
+    start = 0
+    for size in sizes:
+        out.append(borrow(own[start : start + size]))
+        start += size
+    return out
+
+
+@parallel_kernel
+def integrate_points_lanes(alpha, energy, h, Lz, params, method, effects, rtol, max_steps,
+                           n_apsides, n_workers, out_f, out_n, out_status):  # fmt: skip
+    """:func:`.orbit.integrate_points` for a Runge-Kutta ``method`` (literal, like ``effects``):
+    ``n_workers`` :func:`lanes_worker` (one per thread: ``numba.get_num_threads()``, which a
+    cached kernel cannot call) taking points from one queue; ``n_apsides`` 2 gives
+    integrate_points' results bit for bit, 1 half a period."""
+    literally(method)
+    literally(effects)
+    queue = np.zeros(1, np.int64)
+    for _ in prange(max(1, min(n_workers, alpha.shape[0]))):
+        lanes_worker(method, effects, alpha, energy, h, Lz, params, rtol, max_steps, n_apsides,
+                     queue, out_f, out_n, out_status)  # fmt: skip

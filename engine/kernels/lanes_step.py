@@ -1,0 +1,273 @@
+"""The vectorised parts of the lanes batch (:mod:`.lanes`): one Runge-Kutta step and its
+step-size control for :data:`LANES` orbits at once, generated for a literal method id.
+
+All lane state lives in one flat work array ``W``: slot s of lane l at ``W[s * LANES + l]``
+(:func:`layout`). The generated loops over the lanes address it with constant offsets from one
+base, so the compiler proves the lanes independent and turns each line into one vector
+instruction (AVX2: 4 doubles). A call into a library (a ``pow``) or a branch that cannot be
+turned into a select would make a loop scalar again (tests/kernels/test_lanes.py checks the
+step's divisions are vector instructions).
+
+- :func:`lanes_attempt` one step of every lane: the same generator as the scalar step
+  (:func:`.rk_codegen.unrolled_step_lines`), so the same arithmetic to the last bit; then the
+  error and root the controller needs (:func:`.rk.step_error`);
+- :func:`lanes_control` the decision of every lane (:func:`.rk.step_decide`): an accepted step
+  without an event moves the lane on here; a lane with an apsis or a terminal event to look
+  at, or out of steps, is flagged for the scalar code of :mod:`.lanes`.
+
+Plus two intrinsics: :func:`borrow` (an array view without reference counting) and
+:func:`fetch_add` (the threads' shared queue of points).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from typing import NamedTuple
+
+from numba.core import cgutils, types
+from numba.extending import intrinsic, overload
+
+from .model import N_PARAMS, rates5, rates6, rates9, rates10, state_size_of
+from .protocol import OK, TERMINAL_EFFECTS, terminal_between
+from .rk import step_allowed, step_decide, step_error
+from .rk_codegen import _GEN_OPTS, _literal, _rk_method, unrolled_step_lines
+from .rk_events import apsis_crossed
+from .tableaux import RK_TABLEAUX
+
+#: Orbits integrated side by side (4 doubles: one AVX2 register; wider gained nothing measured).
+LANES = 4
+#: Per-lane scalars, in this order after the parameters. FLAG: 0 nothing to do, 1 an accepted
+#: step to finish in scalar code (events), 2 out of steps or step size, 3 a polishing step
+#: taken (POLISH: the lane's attempt was the step to an apsis at theta h, :mod:`.lanes`; the
+#: step it lies in was H_STEP, event I_APS, then STOP: the status to end with, or -1).
+LANE_SCALARS = ("T", "ERR_OLD", "G_APS", "REJECTED", "N_ACC", "N_REJ", "ACTIVE", "FLAG", "H_NEXT",
+                "POLISH", "H_STEP", "I_APS", "STOP")  # fmt: skip
+
+
+class Layout(NamedTuple):
+    """Slot numbers of the work array (times LANES: the offset of lane 0)."""
+
+    n: int  # state components
+    S: int  # all stages of the tableau
+    ns: int  # main stages (K[ns] = f(y_new))
+    Y: int
+    K: int  # K[i, j] at K + i n + j, i = 0..ns
+    YN: int
+    ATOL: int
+    H: int
+    ERR: int  # the error the controller sees, and its root
+    P: int  # the parameter array
+    T: int
+    ERR_OLD: int
+    G_APS: int
+    REJECTED: int
+    N_ACC: int
+    N_REJ: int
+    ACTIVE: int
+    FLAG: int
+    H_NEXT: int
+    POLISH: int
+    H_STEP: int
+    I_APS: int
+    STOP: int
+    SAVE_Y: int  # y_new and f(y_new) of a step whose apsis is being polished
+    SAVE_K: int
+    n_slots: int
+
+
+def layout(method: int, n: int) -> Layout:
+    """The work array's slots for the pair ``method`` on n components."""
+    tb = RK_TABLEAUX[method]
+    ns = tb.n_stages
+    K = n
+    YN = K + (ns + 1) * n
+    ATOL = YN + n
+    H = ATOL + n
+    ERR = H + 1
+    P = ERR + 2
+    lane = {name: P + N_PARAMS + k for k, name in enumerate(LANE_SCALARS)}
+    SAVE_Y = P + N_PARAMS + len(LANE_SCALARS)
+    return Layout(n, tb.A.shape[0], ns, 0, K, YN, ATOL, H, ERR, P, **lane, SAVE_Y=SAVE_Y,
+                  SAVE_K=SAVE_Y + n, n_slots=SAVE_Y + 2 * n)  # fmt: skip
+
+
+def _w(slot: int, j: int = 0) -> str:
+    return f"W[{(slot + j) * LANES} + l]"
+
+
+def attempt_source(method: int, n: int) -> str:
+    """Source of ``impl(method, effects, W, rtol)``: one step of every lane (h, y, f(y),
+    tolerances and parameters from ``W``; its stages, y_new, error and root into ``W``)."""
+    ly = layout(method, n)
+    slot = {"y": ly.Y, "k0": ly.K, "atol": ly.ATOL}
+
+    def load(kind, j):
+        return _w(slot[kind], j)
+
+    def store(i, j, value):
+        return f"{_w(ly.YN if i == 'y' else ly.K + i * n, j)} = {value}"
+
+    pt = ", ".join(_w(ly.P, k) for k in range(N_PARAMS))
+    lines = ["def impl(method, effects, W, rtol):", f"    for l in range({LANES}):"]
+    lines += [f"        pt = ({pt})", f"        h = {_w(ly.H)}"]
+    lines += unrolled_step_lines(method, n, load, store, "        ")
+    lines.append(f"        {_w(ly.ERR)} = err")
+    # The controller's root in a loop of its own: where the tableau needs a pow (a library call)
+    # it keeps this loop scalar, not the step's.
+    ctl = repr(RK_TABLEAUX[method].controller())
+    lines += [f"    for l in range({LANES}):"]
+    lines += [f"        e = step_error({_w(ly.ERR)}, {_w(ly.YN)}, {ctl})"]
+    lines += [f"        {_w(ly.ERR, c)} = e[{c}]" for c in range(2)]
+    return "\n".join(lines) + "\n"
+
+
+def control_source(method: int, n: int, terminal: bool) -> str:
+    """Source of ``impl(method, effects, W, max_steps)``: the step-size decision of every
+    active lane, as :func:`.rk.rk_run` takes it, written with selects. A lane whose accepted
+    step crossed an apsis or (with ``terminal`` events compiled in) has a terminal event
+    (:func:`.protocol.terminal_between` y and y_new) keeps its state and gets FLAG 1; an
+    accepted step without one moves the lane to y_new; a lane that may not take another
+    attempt (:func:`.rk.step_allowed`) gets FLAG 2; a lane that took a polishing step keeps
+    everything and gets FLAG 3."""
+    ly = layout(method, n)
+    ctl = repr(RK_TABLEAUX[method].controller())
+    w = _w
+    y = ", ".join(_w(ly.Y, j) for j in range(n))
+    yn = ", ".join(_w(ly.YN, j) for j in range(n))
+    pt = ", ".join(_w(ly.P, k) for k in range(N_PARAMS))
+    term = f"terminal_between(effects, ({y}), ({yn}), ({pt}))" if terminal else "False"
+    lines = ["def impl(method, effects, W, max_steps):", f"    for l in range({LANES}):"]
+    lines += [
+        f"        pol = {w(ly.POLISH)} != 0.0",
+        f"        act = ({w(ly.ACTIVE)} != 0.0) & (not pol)",
+        f"        h = {w(ly.H)}",
+        f"        t = {w(ly.T)}",
+        f"        eold = {w(ly.ERR_OLD)}",
+        f"        acc, h_new, h_next, eold2, rej2 = step_decide(({w(ly.ERR)}, {w(ly.ERR, 1)}), "
+        f"h, eold, {w(ly.REJECTED)} != 0.0, {ctl})",
+        f"        aps = apsis_crossed({w(ly.G_APS)}, {w(ly.YN, 2)})",
+        f"        term = {term}",
+        "        simple = act & acc & (not aps) & (not term)",
+        f"        n_acc = {w(ly.N_ACC)} + (1.0 if act & acc else 0.0)",
+        f"        n_rej = {w(ly.N_REJ)} + (1.0 if act & (not acc) else 0.0)",
+        "        t2 = t + h if simple else t",
+        "        h2 = h_next if simple else (h_new if act else h)",
+        "        ok = step_allowed(n_acc + n_rej, max_steps, h2, t2) == OK",
+    ]
+    for j in range(n):
+        lines.append(f"        {w(ly.Y, j)} = {w(ly.YN, j)} if simple else {w(ly.Y, j)}")
+        lines.append(f"        {w(ly.K, j)} = {w(ly.K + ly.ns * n, j)} if simple else {w(ly.K, j)}")
+    lines += [
+        f"        {w(ly.T)} = t2",
+        f"        {w(ly.H)} = h2",
+        f"        {w(ly.H_NEXT)} = h_next if act else {w(ly.H_NEXT)}",
+        f"        {w(ly.ERR_OLD)} = eold2 if act else eold",
+        f"        {w(ly.REJECTED)} = (1.0 if rej2 else 0.0) if act else {w(ly.REJECTED)}",
+        f"        {w(ly.N_ACC)} = n_acc",
+        f"        {w(ly.N_REJ)} = n_rej",
+        f"        {w(ly.FLAG)} = 3.0 if pol else (1.0 if act & acc & (not simple) else "
+        "(2.0 if act & (not ok) else 0.0))",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+_NAMESPACE = {
+    "math": math,
+    "rates5": rates5,
+    "rates6": rates6,
+    "rates9": rates9,
+    "rates10": rates10,
+    "step_error": step_error,
+    "step_decide": step_decide,
+    "step_allowed": step_allowed,
+    "apsis_crossed": apsis_crossed,
+    "terminal_between": terminal_between,
+    "OK": OK,
+}
+
+
+@functools.cache
+def _compiled(kind: str, method: int, n: int, terminal: bool):
+    if kind == "attempt":
+        src = attempt_source(method, n)
+    else:
+        src = control_source(method, n, terminal)
+    namespace = dict(_NAMESPACE)
+    exec(compile(src, f"<conesurvey lanes {kind} method={method} n={n}>", "exec"), namespace)  # noqa: S102
+    return namespace["impl"]
+
+
+def _effects(effects) -> tuple[int, bool]:
+    e = _literal(effects, "effects")
+    return state_size_of(e), bool(e & TERMINAL_EFFECTS)
+
+
+def lanes_attempt(method, effects, W, rtol):
+    """One step of every lane, its error and root (:func:`attempt_source`). Jit-only."""
+    raise NotImplementedError("lanes_attempt runs inside numba kernels only")
+
+
+def lanes_control(method, effects, W, max_steps):
+    """The step-size decision of every lane (:func:`control_source`). Jit-only."""
+    raise NotImplementedError("lanes_control runs inside numba kernels only")
+
+
+def lanes_layout(method, effects):
+    """:func:`layout` of the literal method and effect set, as constants. Jit-only."""
+    raise NotImplementedError("lanes_layout runs inside numba kernels only")
+
+
+@overload(lanes_attempt, jit_options=_GEN_OPTS)
+def _ol_lanes_attempt(method, effects, W, rtol):
+    return _compiled("attempt", _rk_method(method), _effects(effects)[0], False)
+
+
+@overload(lanes_control, jit_options=_GEN_OPTS)
+def _ol_lanes_control(method, effects, W, max_steps):
+    return _compiled("control", _rk_method(method), *_effects(effects))
+
+
+@overload(lanes_layout, jit_options=_GEN_OPTS)
+def _ol_lanes_layout(method, effects):
+    consts = tuple(layout(_rk_method(method), _effects(effects)[0]))
+
+    def impl(method, effects):
+        return consts
+
+    return impl
+
+
+# ------------------------------------------------------------------------------ intrinsics
+@intrinsic
+def borrow(typingctx, arr):
+    """A view of ``arr`` without a reference-count handle (meminfo NULL): binding it to a
+    parameter costs no atomic update (~20 cycles each; an orbit's start, events and result bind
+    about a hundred). The caller keeps an owner alive for as long as the view is used."""
+    if not isinstance(arr, types.Array):
+        return None
+
+    def codegen(context, builder, sig, args):
+        src = context.make_array(arr)(context, builder, value=args[0])
+        dst = context.make_array(arr)(context, builder)
+        dst.meminfo = cgutils.get_null_value(dst.meminfo.type)
+        dst.parent = cgutils.get_null_value(dst.parent.type)
+        for field in ("nitems", "itemsize", "data", "shape", "strides"):
+            setattr(dst, field, getattr(src, field))
+        return dst._getvalue()
+
+    return arr(arr), codegen
+
+
+@intrinsic
+def fetch_add(typingctx, counter, value):
+    """counter[0] += value atomically; returns the old value (the workers' shared queue)."""
+    if not (isinstance(counter, types.Array) and counter.dtype == types.int64):
+        return None
+
+    def codegen(context, builder, sig, args):
+        ary = context.make_array(counter)(context, builder, value=args[0])
+        val = context.cast(builder, args[1], sig.args[1], types.int64)
+        return builder.atomic_rmw("add", ary.data, val, "monotonic")
+
+    return types.int64(counter, value), codegen
