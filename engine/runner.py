@@ -85,7 +85,9 @@ class RunFailed(Exception):
 
 @dataclass
 class RunStats:
-    """What a finished run reports: class counts, value ranges, timings, block counts."""
+    """What a finished run reports: class counts, value ranges, timings, block counts.
+    ``compute_seconds`` ends when the last block is stored (the output is written meanwhile);
+    ``write_seconds`` is what writing the output took after that."""
 
     shape: tuple[int, ...]
     counts: np.ndarray

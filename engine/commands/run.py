@@ -230,9 +230,9 @@ def print_summary(stats: RunStats, *, title: str, method: str, file: TextIO | No
         else ""
     )
     lines.append(
-        f"  time    {stats.compute_seconds:.2f} s computing ({rate:,.0f} points/s{reused}) "
-        f"+ {stats.write_seconds:.2f} s writing + {stats.compile_seconds:.2f} s compiling "
-        "(numba, cached after the first run)"
+        f"  time    {stats.compute_seconds:.2f} s computing ({rate:,.0f} points/s{reused}; "
+        f"the output written meanwhile) + {stats.write_seconds:.2f} s finishing the output + "
+        f"{stats.compile_seconds:.2f} s compiling (numba, cached after the first run)"
     )
     lines.append(f"  output  {stats.path.resolve() if stats.path else '?'}")
     print("\n".join(lines), file=out)

@@ -1,9 +1,8 @@
 """The compressions a result's variables can be written with (``conesurvey run --compression``).
 
 One list for every output format; each backend maps a name to its own library's settings
-(:func:`compression_keywords` for netCDF-4, here). What each choice costs (MB/s,
-ratio on a shipped survey, from ``scripts/bench_write.py``) and who can read it: README,
-"Output and compression".
+(:func:`compression_keywords` for netCDF-4, here). What each choice costs (MB/s and ratio on
+a shipped survey) and who can read it: README, "Output and compression".
 
 - ``blosc_lz4`` (default): Blosc with LZ4 and byte shuffle (HDF5 filter 32001): the fastest by
   far at nearly zlib's ratio; read by the netCDF4 wheels from PyPI (they ship the filter

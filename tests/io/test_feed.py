@@ -8,9 +8,12 @@ import time
 
 import numpy as np
 import pytest
+import runs
 
 from engine.io import OutputError
 from engine.io.feed import BlockFeed, feed
+from engine.runner import run_survey
+from engine.surveyfile import parse_survey
 
 
 class FakeStore:
@@ -137,3 +140,30 @@ def test_finish_reads_ahead_blocks_not_handed_over():
         f.finish()
     assert rec.written == [(i, float(i)) for i in range(n)]
     assert sorted(store.taken) == list(range(n))
+
+
+def test_a_run_interrupted_while_its_output_is_written_leaves_only_blocks(tmp_path):
+    """The output is open while the blocks are computed: an interruption then removes it
+    (nothing under the output's name, no temporary file in the store) and the rerun resumes
+    from the stored blocks to the same file as an uninterrupted run."""
+    # 3 x 40 x 33 x 60 points in 4 blocks
+    text = runs.gravity_survey("interrupted", alpha=(0.3, 0.6, 0.9), energy=40, lz=60)
+    survey = parse_survey(text)
+    out = tmp_path / "out.nc"
+    seen: list[int] = []
+
+    def crash(index: int) -> None:
+        seen.append(index)
+        if len(seen) == 2:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_survey(survey, out, block_points=1 << 14, on_block=crash)
+    assert runs.listing(tmp_path) == ["out.nc.parts"]
+    parts = runs.listing(tmp_path / "out.nc.parts")
+    assert runs.blocks_in(tmp_path / "out.nc.parts") == 2
+    assert not [n for n in parts if n.endswith(".tmp")], parts
+    stats = run_survey(survey, out, block_points=1 << 14)
+    assert (stats.blocks_reused, stats.blocks_total) == (2, 4)
+    run_survey(survey, tmp_path / "ref.nc", block_points=1 << 14)
+    runs.same_content(out, tmp_path / "ref.nc")
