@@ -16,8 +16,10 @@ tells the user's side). Every refusal comes before anything is written:
 4. write: remove debris, the discarded run or the bad blocks; create the store; compute the
    missing blocks (:mod:`engine.backends`) and commit each one as it arrives; a run killed at
    any moment (SIGKILL included) loses at most the blocks in flight;
-5. merge the verified blocks into a temporary file inside the store, fsync, rename to ``OUT``
-   (:func:`engine.io.netcdf.merge`); only then remove the store (manifest first).
+5. meanwhile, merge the blocks in order into a temporary file inside the store, each block as
+   soon as it and every block before it are stored (:func:`engine.io.netcdf.merge`, on a writer
+   thread: :mod:`engine.io.feed`); once the last is written, fsync and rename to ``OUT``; only
+   then remove the store (manifest first).
 
 A failure after step 3 (a full disk, a lost dask cluster, a block that changed on disk) raises
 :class:`RunFailed`: the blocks stored so far are kept and the same call resumes.
@@ -31,10 +33,10 @@ import os
 import shutil
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -44,23 +46,11 @@ from .grid import BLOCK_POINTS, Tiling
 from .io import OutputError, netcdf
 from .io import zarr as zarr_io
 from .io.atomic import not_regular
-from .io.blocks import (
-    BlockStore,
-    Scan,
-    Summary,
-    block_file_bytes,
-    check_parts_dir,
-    remove_store,
-)
+from .io.blocks import BlockStore, Scan, Summary, block_file_bytes, check_parts_dir, remove_store
+from .io.codecs import DEFAULT_COMPRESSION, compression_keywords, level
+from .io.leftovers import is_debris
 from .io.lock import Locked, LockError, OutputLock, describe_holder
-from .io.manifest import (
-    MANIFEST,
-    Manifest,
-    fingerprint,
-    parts_dir,
-    read_manifest,
-    survey_variables,
-)
+from .io.manifest import Manifest, fingerprint, parts_dir, read_manifest, survey_variables
 from .io.zarrstore import RunStore
 from .progress import format_bytes
 from .schema import DIMS
@@ -73,9 +63,13 @@ __all__ = [
     "RunError",
     "RunFailed",
     "RunStats",
-    "remove_leftovers",
     "run_survey",
 ]
+
+
+_Block = tuple[int, dict[str, np.ndarray]]
+#: What --compression can be for a Zarr store (Blosc LZ4 with shuffle, or none).
+ZARR_COMPRESSIONS = ("blosc_lz4", "none")
 
 
 class RunError(Exception):
@@ -95,7 +89,9 @@ class RunFailed(Exception):
 
 @dataclass
 class RunStats:
-    """What a finished run reports: class counts, value ranges, timings, block counts."""
+    """What a finished run reports: class counts, value ranges, timings, block counts.
+    ``compute_seconds`` ends when the last block is stored (the output is written meanwhile);
+    ``write_seconds`` is what writing the output took after that."""
 
     shape: tuple[int, ...]
     counts: np.ndarray
@@ -112,35 +108,6 @@ class RunStats:
     @property
     def points(self) -> int:
         return math.prod(self.shape)
-
-
-def _is_debris(root: Path, finished: str | None) -> bool:
-    """Whether the store ``root`` holds nothing to resume: it has no manifest (a killed cleanup
-    or start), or it is the store of the finished output's own survey."""
-    if not os.path.lexists(root / MANIFEST):
-        return True
-    if finished is None:
-        return False
-    try:
-        return read_manifest(root).fingerprint == finished
-    except OutputError:
-        return False
-
-
-def remove_leftovers(out: Path) -> bool:
-    """Remove the block store left beside the finished output ``out`` by a killed cleanup
-    (under the output's lock; nothing is done while a run holds it). Returns whether it did."""
-    root, backend = parts_dir(out), zarr_io.backend_for(out)
-    try:
-        with OutputLock.acquire(out, "conesurvey info"):
-            if not check_parts_dir(root) or not _is_debris(root, backend.read_fingerprint(out)):
-                return False
-            if not os.path.lexists(out):
-                return False
-            remove_store(root)
-            return True
-    except (LockError, OutputError, OSError):
-        return False
 
 
 @dataclass
@@ -172,7 +139,7 @@ def _inspect(
         finished = zarr_io.backend_for(out).read_fingerprint(out)
         if finished != plan.fp:
             raise RunError(f"output file exists: {out} (use --overwrite to replace it)")
-        if has_store and _is_debris(root, finished):
+        if has_store and is_debris(root, finished):
             remove_store(root)  # not a refusal: the run has nothing to do but tidy up
             warn(f"removed {root}, left behind by the run that finished {out}")
         raise AlreadyComplete(f"{out} already holds this survey, complete; nothing to do")
@@ -181,7 +148,7 @@ def _inspect(
     if overwrite:
         plan.remove_first = "discarded (--overwrite)"
         return plan
-    if _is_debris(root, None):
+    if is_debris(root, None):
         plan.remove_first = "removed: it has no manifest (left by a killed run)"
         return plan
     try:
@@ -246,7 +213,8 @@ def run_survey(
     command: str = "conesurvey",
     warn: Callable[[str], None] | None = None,
     on_block: Callable[[int], None] | None = None,
-    complevel: int = netcdf.ZLIB_LEVEL,
+    compression: str = DEFAULT_COMPRESSION,
+    complevel: int | None = None,
     check_space: bool = True,
 ) -> RunStats:
     """Run ``survey`` into the netCDF file ``out``, streaming blocks and resuming a killed run.
@@ -257,10 +225,18 @@ def run_survey(
     output do not fit on the disk. Raises :class:`RunError` when the run cannot start or
     resume (nothing written), :class:`RunFailed` when it stopped after writing (resumable).
     ``on_block(index)`` is called after each block is safely stored (for tests and hooks).
-    ``complevel``: zlib level of the netCDF variables, 0 = uncompressed.
+    ``compression`` / ``complevel``: how the output's variables are compressed
+    (:mod:`engine.io.codecs`; README, "Output and compression").
     """
-    if not (isinstance(complevel, int) and not isinstance(complevel, bool) and 0 <= complevel <= 9):
-        raise RunError(f"complevel must be an integer 0..9; got {complevel!r}")
+    try:
+        compression_keywords(compression, complevel)
+    except ValueError as exc:
+        raise RunError(str(exc)) from None
+    if zarr_io.is_zarr(out) and compression not in ZARR_COMPRESSIONS:
+        raise RunError(
+            f"compression {compression!r} is for netCDF output; a Zarr store is written with "
+            f"{' or '.join(ZARR_COMPRESSIONS)}"
+        )
     if scheduler is not None:
         try:
             check_address(scheduler)
@@ -295,10 +271,37 @@ def run_survey(
         except BackendError as exc:
             raise RunFailed(f"{exc}; nothing was written") from None
         try:
-            store = _prepare(out, survey, plan, tiling, warn, complevel)
-            _compute(store, backend, spec, pending, len(done), progress, on_block)
-            t1 = time.perf_counter()
-            summary = _merge(store, survey, out, plan.fp, command, overwrite, complevel)
+            store = _prepare(out, survey, plan, tiling, warn, level(compression, complevel))
+            if isinstance(store, RunStore):  # Zarr: the blocks wrote their chunks
+                for _ in _compute(store, backend, spec, pending, len(done), progress, on_block):
+                    pass
+                t1 = time.perf_counter()
+                summary = _merge(
+                    store,
+                    survey,
+                    out,
+                    fingerprint=plan.fp,
+                    command=command,
+                    overwrite=overwrite,
+                    complevel=level(compression, complevel),
+                )
+            else:
+                ended: list[float] = []  # when the last block was stored
+                blocks = _compute(store, backend, spec, pending, len(done), progress, on_block)
+                summary = _merge(
+                    store,
+                    survey,
+                    out,
+                    fingerprint=plan.fp,
+                    command=command,
+                    overwrite=overwrite,
+                    compression=compression,
+                    complevel=complevel,
+                    pending=pending,
+                    incoming=_timed(blocks, ended),
+                    warn=warn,
+                )
+                t1 = ended[0] if ended else t0
         finally:
             backend.close()
         try:
@@ -347,9 +350,9 @@ def _compute(
     reused: int,
     progress: Callable[[int, int], None] | None,
     on_block: Callable[[int], None] | None,
-) -> None:
-    """Compute and commit the pending blocks (RunFailed if a block cannot be stored or the
-    backend fails)."""
+) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
+    """Compute and commit the pending blocks, yielding each (as stored) once it is committed
+    (RunFailed if a block cannot be stored or the backend fails)."""
     tiling = store.tiling
     points = tiling.size - sum(tiling.points(i) for i in pending)
     if progress is not None:
@@ -359,7 +362,7 @@ def _compute(
         writer = getattr(store, "writer", None)  # Zarr: blocks write their own chunks
         for i, res in backend.blocks(spec, tiling, pending, writer):  # type: ignore[attr-defined]
             try:
-                store.commit(i, res)
+                clean = store.commit(i, res)
             except OSError as exc:
                 raise RunFailed(
                     f"{_cannot_write(exc, store.path(i))}; {stored} of {tiling.nblocks} "
@@ -371,35 +374,28 @@ def _compute(
                 progress(points, tiling.size)
             if on_block is not None:
                 on_block(i)
+            yield i, clean
     except (BackendError, OutputError) as exc:  # OutputError: a writer's (Zarr)
         raise RunFailed(f"{exc}; {stored} of {tiling.nblocks} blocks are stored") from None
+
+
+def _timed(blocks: Iterator[_Block], ended: list[float]) -> Iterator[_Block]:
+    """``blocks``, noting in ``ended`` when the last one has come."""
+    yield from blocks
+    ended.append(time.perf_counter())
 
 
 def _cannot_write(exc: OSError, where: Path) -> str:
     return f"cannot write {exc.filename or where}: {exc.strerror or exc}"
 
 
-def _merge(
-    store: BlockStore | RunStore,
-    survey: Survey,
-    out: Path,
-    fp: str,
-    command: str,
-    overwrite: bool,
-    complevel: int,
-) -> Summary:
-    """The blocks merged into the output file (RunError if it appeared meanwhile, RunFailed if
-    it cannot be written or a block changed)."""
+def _merge(store: BlockStore | RunStore, survey: Survey, out: Path, **options: Any) -> Summary:
+    """The blocks merged into the output (netCDF: while they are computed,
+    :func:`engine.io.netcdf.merge`; Zarr: the final commit, :func:`engine.io.zarr.merge`):
+    RunError if the output appeared meanwhile, RunFailed if it cannot be written or a block
+    changed, and what the compute raised."""
     try:
-        return zarr_io.backend_for(out).merge(
-            store,
-            survey,
-            out,
-            fingerprint=fp,
-            command=command,
-            overwrite=overwrite,
-            complevel=complevel,
-        )
+        return zarr_io.backend_for(out).merge(store, survey, out, **options)
     except FileExistsError:
         raise RunError(
             f"output file exists: {out} (created while this run computed; use --overwrite)"

@@ -158,11 +158,13 @@ def _in_small_fs(work, size: str) -> dict[str, str]:
 @pytest.mark.parametrize(
     ("size", "stored"),
     [("5m", 2), ("10m", 4)],
-    ids=["during the compute", "during the merge"],
+    ids=["early in the run", "late in the run"],
 )
 def test_a_real_full_disk(work, reference, size, stored):
-    """5 MB: room for two of the four 2.2 MB block files. 10 MB: all four blocks (8.6 MB), not
-    the output merged beside them."""
+    """5 MB: room for at most two of the four 2.2 MB block files. 10 MB: for all four blocks
+    (8.6 MB), not the output merged beside them. The output is written while the blocks are
+    computed, so the disk fills while a block is stored or while the output is written,
+    whichever comes first, with fewer blocks stored than fit alone."""
     r = _in_small_fs(work, size)
     assert r["first.rc"].strip() == "1", r
     err = r["first.err"]
@@ -171,7 +173,8 @@ def test_a_real_full_disk(work, reference, size, stored):
     assert ("No space left on device" in err) or ("NetCDF: HDF error" in err), err
     assert r["first.ls"].split() == ["out.nc.parts"]
     blocks = [n for n in r["first.parts"].split() if n.endswith(".npz")]
-    assert len(blocks) == stored and not [n for n in r["first.parts"].split() if ".tmp" in n]
+    assert 1 <= len(blocks) <= stored, r["first.parts"]
+    assert not [n for n in r["first.parts"].split() if ".tmp" in n]
     assert r["second.rc"].strip() == "0", r["second.err"]
     assert r["second.ls"].split() == ["out.nc"]
     runs.same_content(work / "result.nc", reference)

@@ -20,10 +20,10 @@ from typing import Any
 
 from ..io import OutputError
 from ..io import zarr as zarr_io
+from ..io.leftovers import remove_leftovers
 from ..io.lock import Locked, LockError, OutputLock, describe_holder
 from ..io.manifest import MANIFEST, parts_dir, read_manifest
 from ..io.netcdf import read_info
-from ..runner import remove_leftovers
 from ..surveyfile import SurveyError, parse_survey
 from . import Command, InputError
 

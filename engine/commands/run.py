@@ -17,7 +17,7 @@ from typing import TextIO
 
 from ..grid import BLOCK_POINTS
 from ..io import zarr as zarr_io
-from ..io.netcdf import ZLIB_LEVEL
+from ..io.codecs import COMPRESSIONS, DEFAULT_COMPRESSION, DEFAULT_LEVELS
 from ..kernels.fate import FATE_NAMES
 from ..kernels.geometry import CLASS_NAMES
 from ..progress import Progress
@@ -78,13 +78,23 @@ def add_arguments(run: argparse.ArgumentParser) -> None:
         "--chunk-points", dest="block_points", type=_positive_int, help=argparse.SUPPRESS
     )
     run.add_argument(
+        "--compression",
+        choices=COMPRESSIONS,
+        default=DEFAULT_COMPRESSION,
+        help=f"how the output's variables are compressed (default {DEFAULT_COMPRESSION}: "
+        "fast, read by the netCDF4 Python package and netCDF-C >= 4.9 with its filter "
+        "plugins; zlib: readable by every netCDF-4/HDF5 tool, several times slower to write; "
+        "a Zarr store takes blosc_lz4 or none; README, 'Output and compression')",
+    )
+    run.add_argument(
         "--complevel",
         type=int,
         choices=range(10),
-        default=ZLIB_LEVEL,
+        default=None,
         metavar="0-9",
-        help=f"zlib level of the output (default {ZLIB_LEVEL}; 0 = uncompressed, several "
-        "times faster to write, ~1.7x larger)",
+        help="compression level (default: "
+        + ", ".join(f"{n} {lvl}" for n, lvl in DEFAULT_LEVELS.items() if lvl)
+        + "; 0 = uncompressed)",
     )
     run.add_argument(
         "--force",
@@ -150,6 +160,7 @@ def _run(args: argparse.Namespace, command: str) -> int:
             scheduler=args.scheduler,
             workers=args.workers,
             command=command,
+            compression=args.compression,
             complevel=args.complevel,
             check_space=not args.force,
         )
@@ -221,9 +232,9 @@ def print_summary(stats: RunStats, *, title: str, method: str, file: TextIO | No
         else ""
     )
     lines.append(
-        f"  time    {stats.compute_seconds:.2f} s computing ({rate:,.0f} points/s{reused}) "
-        f"+ {stats.write_seconds:.2f} s writing + {stats.compile_seconds:.2f} s compiling "
-        "(numba, cached after the first run)"
+        f"  time    {stats.compute_seconds:.2f} s computing ({rate:,.0f} points/s{reused}; "
+        f"the output written meanwhile) + {stats.write_seconds:.2f} s finishing the output + "
+        f"{stats.compile_seconds:.2f} s compiling (numba, cached after the first run)"
     )
     lines.append(f"  output  {stats.path.resolve() if stats.path else '?'}")
     print("\n".join(lines), file=out)

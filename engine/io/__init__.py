@@ -9,9 +9,12 @@
 - :mod:`engine.io.blocks`: the store of finished blocks of a streamed run (``OUT.parts/``), a
   journal of their checksums, and the statistics gathered while blocks are merged;
 - :mod:`engine.io.contents`: the content checksum of a result file (``info --verify``);
+- :mod:`engine.io.codecs`: the compressions of ``--compression``, for every format;
+- :mod:`engine.io.feed`: the writer thread that merges blocks in order while they are computed;
 - :mod:`engine.io.netcdf`: the netCDF-4 / CF-1.11 backend: :func:`~engine.io.netcdf.write_survey`
   for an in-memory Dataset, :func:`~engine.io.netcdf.merge` for a block store,
-  :func:`~engine.io.netcdf.read_info` for a finished file or an unfinished run.
+  :func:`~engine.io.netcdf.read_info` (:mod:`engine.io.netcdf_info`) for a finished file or an
+  unfinished run.
 
 A second format (Zarr, say) is one more module with the functions of :mod:`engine.io.netcdf`'s
 backend interface. This module imports none of them, so importing one backend never imports

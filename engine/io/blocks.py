@@ -200,8 +200,9 @@ class BlockStore:
 
     # -- writing --
 
-    def commit(self, index: int, arrays: dict[str, np.ndarray]) -> None:
-        """Store block ``index``: write its file atomically, then journal its size and hash."""
+    def commit(self, index: int, arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Store block ``index``: write its file atomically, then journal its size and hash.
+        Returns the arrays as stored (the store's variables, C-contiguous, its dtypes)."""
         clean = {n: np.ascontiguousarray(arrays[n], dtype=dt) for n, dt in self.names.items()}
         size, digest = write_atomic(self.path(index), lambda f: np.savez(f, **clean), mode=0o600)
         fd = os.open(self.root / JOURNAL, os.O_WRONLY | os.O_APPEND | O_NOFOLLOW | O_CLOEXEC)
@@ -211,6 +212,7 @@ class BlockStore:
         finally:
             os.close(fd)
         self.journal[index] = (size, digest)
+        return clean
 
     # -- verifying --
 
@@ -284,17 +286,20 @@ class BlockStore:
                 raise OutputError(f"block file {p.name} has the wrong {n} layout")
         return out
 
+    def take(self, index: int) -> dict[str, np.ndarray]:
+        """Block ``index`` for the merge, verified as it is read (:meth:`load`); a bad block is
+        deleted (so that the next run computes it again) and raises OutputError."""
+        try:
+            return self.load(index)
+        except OutputError as exc:
+            with contextlib.suppress(OSError):
+                os.unlink(self.path(index))
+            raise OutputError(f"{exc}; it will be computed again") from None
+
     def blocks(self) -> Iterator[tuple[tuple[slice, ...], dict[str, np.ndarray]]]:
-        """(hyperslab, arrays) of every block in order, each verified as it is read; a bad
-        block is deleted (so that the next run computes it again) and raises OutputError."""
+        """(hyperslab, arrays) of every block in order, each read by :meth:`take`."""
         for i in range(self.tiling.nblocks):
-            try:
-                block = self.load(i)
-            except OutputError as exc:
-                with contextlib.suppress(OSError):
-                    os.unlink(self.path(i))
-                raise OutputError(f"{exc}; it will be computed again") from None
-            yield self.tiling.slices(i), block
+            yield self.tiling.slices(i), self.take(i)
 
     def remove(self) -> None:
         """Delete the store: the manifest first (what is left is recognisable debris)."""

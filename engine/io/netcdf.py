@@ -4,10 +4,13 @@ Backend interface (a second format, e.g. ``engine/io/zarr.py``, provides the sam
 
 - ``write_survey(ds, path, survey, *, command, overwrite) -> Path``: an in-memory survey
   Dataset with the survey's title, definition and scene;
-- ``merge(store, survey, out, *, fingerprint, command, overwrite, complevel) -> Summary``: the
-  blocks of a streamed run (:class:`engine.io.blocks.BlockStore`), each verified as it is
-  read, one storage chunk per block part, into ``out`` with its content checksum
-  (:mod:`engine.io.contents`); returns the class counts and value ranges gathered on the way;
+- ``merge(store, survey, out, *, fingerprint, command, overwrite, compression, complevel,
+  pending, incoming) -> Summary``: the blocks of a streamed run
+  (:class:`engine.io.blocks.BlockStore`) into ``out`` with its content checksum
+  (:mod:`engine.io.contents`), written while the blocks still ``pending`` are computed (the
+  caller's ``incoming`` yields each once it is committed; :mod:`engine.io.feed`); blocks not
+  handed over are verified as they are read; returns the class counts and value ranges
+  gathered on the way;
 - ``output_bytes(names, shape) -> int``: an upper bound of the size of what ``merge`` writes;
 - ``read_fingerprint(path) -> str | None``: the survey fingerprint a finished result records;
 - ``read_info(path, *, verify) -> dict``: provenance of a result, or of the unfinished run
@@ -22,9 +25,12 @@ and axis attribute comes from :mod:`engine.schema`. The file layout is described
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
-from collections.abc import Iterator, Mapping
+import shutil
+import sys
+from collections.abc import Callable, Collection, Iterable, Iterator, Mapping
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -34,13 +40,20 @@ import numpy as np
 
 from .._jit import threading_layer
 from .._version import __version__
-from ..kernels.geometry import CLASS_NAMES
 from ..schema import FINGERPRINT_ATTR, axis_attrs, map_kind, variable_attrs
-from . import OutputError, WriteError
-from .atomic import fsync_path, not_regular, replacing
-from .blocks import BlockStore, Summary, check_parts_dir, parts_info
-from .contents import CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher, verify_file
-from .manifest import parts_dir
+from . import WriteError
+from .atomic import fsync_path, replacing
+from .blocks import BlockStore, Summary
+from .codecs import (
+    DEFAULT_COMPRESSION,
+    FALLBACK,
+    compression_keywords,
+    is_blosc,
+    variable_keywords,
+)
+from .contents import CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher
+from .feed import feed
+from .netcdf_info import read_fingerprint, read_info
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -50,10 +63,8 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CONVENTIONS",
-    "ZLIB_LEVEL",
     "cf_attrs",
     "cf_dataset",
-    "compression",
     "encoding_for",
     "history_line",
     "merge",
@@ -65,8 +76,6 @@ __all__ = [
 ]
 
 CONVENTIONS = "CF-1.11"
-#: zlib level 1 + shuffle: level 4 compresses < 1 % better and costs 7-26 % more time.
-ZLIB_LEVEL = 1
 
 
 # --- attributes and encodings -----------------------------------------------------------------
@@ -132,35 +141,45 @@ def cf_dataset(
     return out
 
 
-def compression(complevel: int = ZLIB_LEVEL) -> dict[str, Any]:
-    """zlib + shuffle settings (netCDF4 and xarray take the same keys); 0 = uncompressed."""
-    return {"zlib": complevel > 0, "complevel": max(complevel, 1), "shuffle": complevel > 0}
-
-
-def encoding_for(ds: xr.Dataset, complevel: int = ZLIB_LEVEL) -> dict[str, dict[str, Any]]:
-    """netCDF encodings: coordinates without _FillValue, data variables zlib + shuffle."""
+def encoding_for(
+    ds: xr.Dataset, compression: str = DEFAULT_COMPRESSION, complevel: int | None = None
+) -> dict[str, dict[str, Any]]:
+    """netCDF encodings: coordinates without _FillValue, data variables compressed
+    (:func:`engine.io.codecs.variable_keywords`, by the variable's size: netCDF-C chunks a
+    small variable whole)."""
+    compression_keywords(compression, complevel)  # ValueError for a bad choice, always
     enc: dict[str, dict[str, Any]] = {}
     for name, var in ds.variables.items():
         if name in ds.coords:
             if var.dtype.kind == "f":
                 enc[str(name)] = {"_FillValue": None}
         elif var.ndim > 0:
-            enc[str(name)] = {**compression(complevel), "dtype": var.dtype}
+            codec = variable_keywords(compression, complevel, var.nbytes)
+            enc[str(name)] = {**codec, "dtype": var.dtype}
     return enc
 
 
 # --- writing ----------------------------------------------------------------------------------
 
 
-def write_netcdf(ds: xr.Dataset, path: str | os.PathLike[str], *, overwrite: bool = False) -> Path:
-    """Write ``ds`` to the netCDF-4 file ``path`` atomically; returns the path.
+def write_netcdf(
+    ds: xr.Dataset,
+    path: str | os.PathLike[str],
+    *,
+    overwrite: bool = False,
+    compression: str = DEFAULT_COMPRESSION,
+    complevel: int | None = None,
+) -> Path:
+    """Write ``ds`` to the netCDF-4 file ``path`` atomically, its variables compressed
+    (:func:`compression_keywords`); returns the path.
 
     Raises ``FileExistsError`` if ``path`` exists and not ``overwrite`` (checked before writing
     and again, atomically where the file system supports hard links, when renaming).
     """
     path = Path(path)
+    enc = encoding_for(ds, compression, complevel)
     with replacing(path, overwrite=overwrite) as tmp:
-        ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=encoding_for(ds))
+        ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=enc)
         fsync_path(tmp)
     return path
 
@@ -172,9 +191,14 @@ def write_survey(
     *,
     command: str = "conesurvey",
     overwrite: bool = False,
+    compression: str = DEFAULT_COMPRESSION,
+    complevel: int | None = None,
 ) -> Path:
     """Add the survey's title, definition and scene (:func:`cf_dataset`), then write it."""
-    return write_netcdf(cf_dataset(ds, **_provenance(survey, command)), path, overwrite=overwrite)
+    full = cf_dataset(ds, **_provenance(survey, command))
+    return write_netcdf(
+        full, path, overwrite=overwrite, compression=compression, complevel=complevel
+    )
 
 
 def _provenance(survey: Survey, command: str) -> dict[str, Any]:
@@ -189,8 +213,8 @@ def _provenance(survey: Survey, command: str) -> dict[str, Any]:
 
 def output_bytes(names: Mapping[str, np.dtype], shape: tuple[int, ...]) -> int:
     """Upper bound [bytes] of the netCDF file :func:`merge` writes: the values uncompressed
-    (zlib can grow incompressible data by < 0.1 %), the axes, 1 % and 1 MB for HDF5's
-    metadata (chunk indices, attributes, the survey definition)."""
+    (zlib and zstd grow incompressible data by < 0.5 %; blosc never stores it), the axes, 1 %
+    and 1 MB for HDF5's metadata (chunk indices, attributes, the survey definition)."""
     points = math.prod(shape)
     data = sum(np.dtype(dt).itemsize for dt in names.values()) * points + 8 * sum(shape)
     return int(data * 1.01) + (1 << 20)
@@ -204,182 +228,177 @@ def merge(
     fingerprint: str,
     command: str = "conesurvey",
     overwrite: bool = False,
-    complevel: int = ZLIB_LEVEL,
+    compression: str = DEFAULT_COMPRESSION,
+    complevel: int | None = None,
+    pending: Collection[int] = (),
+    incoming: Iterable[tuple[int, dict[str, np.ndarray]]] = (),
+    warn: Callable[[str], None] | None = None,
 ) -> Summary:
-    """Write every block of ``store`` into ``out`` (netCDF-4, chunk-aligned, zlib level
-    ``complevel`` + shuffle) through a temporary file inside the store (private to the run);
-    returns the statistics gathered on the way. The file carries the content checksum
-    (:mod:`engine.io.contents`) of what was written.
+    """Write every block of ``store`` into ``out`` (netCDF-4, one storage chunk per block part,
+    compressed: :func:`engine.io.codecs.variable_keywords`) through a temporary file inside the
+    store (private to the run); returns the statistics gathered on the way. The file carries
+    the content checksum (:mod:`engine.io.contents`) of what was written. If blosc fails on a
+    chunk, the file is written again from the store with that variable in zstd (``warn``
+    says so).
 
-    FileExistsError if ``out`` exists and not ``overwrite``; OutputError if a block is missing
-    or fails its checksum; WriteError if the netCDF library fails to write (a full disk
-    shows up as "NetCDF: HDF error"); nothing is left under ``out`` in any of these cases.
+    ``pending``: the blocks not in the store yet; iterating ``incoming`` (on this thread)
+    computes them and yields each, ``(index, arrays as stored)``, once it is committed. The
+    file is defined first (every variable and attribute) and written by a writer thread in
+    block order while they are computed (:class:`engine.io.feed.BlockFeed`); it is renamed to
+    ``out`` only when complete. What ``incoming`` raises is raised after the temporary file is
+    removed.
+
+    ValueError for a bad ``compression`` or ``complevel``; FileExistsError if ``out`` exists
+    and not ``overwrite``; OutputError if a block is missing or fails its checksum;
+    WriteError if the netCDF library fails to write (a full disk shows up as "NetCDF: HDF
+    error"); nothing is left under ``out`` in any of these cases.
     """
+    chunk = math.prod(store.tiling.chunk)
+    codecs = {
+        n: variable_keywords(compression, complevel, chunk * dt.itemsize)
+        for n, dt in store.names.items()
+    }
     attrs = cf_attrs(survey.attrs(), **_provenance(survey, command))
-    with replacing(out, overwrite=overwrite, tmp_dir=store.root) as tmp:
+    attrs[FINGERPRINT_ATTR] = fingerprint
+    upstream: list[BaseException] = []  # what the compute raised: passed on as it is
+
+    def computed() -> Iterator[tuple[int, dict[str, np.ndarray]]]:
         try:
-            summary = _write_merged(store, survey, tmp, attrs, fingerprint, complevel)
-        except RuntimeError as exc:  # netCDF4 reports HDF5 failures (ENOSPC too) like this
-            raise WriteError(f"writing {out} failed ({exc})") from None
-        fsync_path(tmp)
-    return summary
+            yield from incoming
+        except BaseException as exc:
+            upstream.append(exc)
+            raise
+
+    blocks: Iterable[tuple[int, dict[str, np.ndarray]]] = computed()
+    while True:
+        try:
+            with replacing(out, overwrite=overwrite, tmp_dir=store.root) as tmp:
+                try:
+                    summary = _write_file(tmp, store, survey, attrs, codecs, pending, blocks)
+                except RuntimeError as exc:  # netCDF4 reports HDF5 failures (ENOSPC too) so
+                    if upstream and exc is upstream[0]:
+                        raise
+                    raise WriteError(f"writing {out} failed ({exc})") from None
+                fsync_path(tmp)
+            return summary
+        except _Refused as exc:  # the file is gone: rewritten, that variable with zstd
+            if _free(store.root) < _ROOM:  # a full disk: the same error as any other codec's
+                raise WriteError(f"writing {out} failed ({exc.__cause__})") from None
+            codecs[exc.name] = variable_keywords(FALLBACK, complevel, 0)
+            (warn or _warn)(
+                f"{exc.name}: a storage chunk that blosc cannot shrink (HDF5's blosc filter "
+                f"then fails); {out.name} is written again with {exc.name} in {FALLBACK}"
+            )
+            pending, blocks = (), ()
 
 
-def _write_merged(
+class _Refused(Exception):  # noqa: N818 (not an error: the merge's signal to rewrite)
+    """Blosc could not write a chunk of variable ``name``."""
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self.name = name
+
+
+#: Free bytes below which a failed blosc write is taken for a full disk, not a chunk blosc
+#: cannot shrink (HDF5 reports both as "NetCDF: HDF error").
+_ROOM = 1 << 26
+
+
+def _free(directory: Path) -> int:
+    try:
+        return shutil.disk_usage(directory).free
+    except OSError:
+        return 0
+
+
+def _warn(msg: str) -> None:
+    print(f"conesurvey: warning: {msg}", file=sys.stderr)
+
+
+def _write_file(
+    tmp: Path,
     store: BlockStore,
     survey: Survey,
-    tmp: Path,
     attrs: dict[str, Any],
-    fingerprint: str,
-    complevel: int,
+    codecs: dict[str, dict[str, Any]],
+    pending: Collection[int],
+    blocks: Iterable[tuple[int, dict[str, np.ndarray]]],
 ) -> Summary:
-    summary = Summary()
-    hasher = ContentHasher(store.tiling.block)
-    kind = map_kind(survey.method, survey.scene)
-    with netCDF4.Dataset(tmp, "w", format="NETCDF4") as nc:
-        nc.setncatts(
-            {
-                **attrs,
-                FINGERPRINT_ATTR: fingerprint,
-                CHECKSUM_BLOCK_ATTR: np.asarray(store.tiling.block, np.int64),
-            }
-        )
-        for d in survey.dims:
-            values = np.asarray(getattr(survey, d), np.float64)
-            nc.createDimension(d, values.size)
-            v = nc.createVariable(d, "f8", (d,), fill_value=False)
-            v.setncatts(axis_attrs(d, survey.energy_relative))
-            v[:] = values
-            hasher.add(d, values)
-        variables = {}
-        for name, dt in store.names.items():
-            v = nc.createVariable(
-                name,
-                dt,
-                survey.dims,
-                **compression(complevel),
-                chunksizes=store.tiling.chunk,
-                fill_value=False if dt.kind in "iu" else np.nan,
-            )
-            v.setncatts(_typed_flags(variable_attrs(name, kind), dt))
-            variables[name] = v
-        for slab, block in store.blocks():
-            for name, arr in block.items():
-                variables[name][slab] = arr
-                hasher.add(name, arr)
-            summary.add(block)
+    """One attempt of :func:`merge` into ``tmp``: define, fill, checksum, close."""
+    nc = netCDF4.Dataset(tmp, "w", format="NETCDF4")
+    try:
+        hasher = ContentHasher(store.tiling.block)
+        variables = _define(nc, store, survey, attrs, codecs, hasher)
+        summary = _fill(store, variables, codecs, hasher, pending, blocks)
         nc.setncattr(CHECKSUM_ATTR, hasher.finish(nc))
+    except BaseException:
+        with contextlib.suppress(Exception):  # after a failed write the close fails too
+            nc.close()
+        raise
+    nc.close()
     return summary
 
 
-# --- reading ----------------------------------------------------------------------------------
+def _define(
+    nc: Any,
+    store: BlockStore,
+    survey: Survey,
+    attrs: dict[str, Any],
+    codecs: dict[str, dict[str, Any]],
+    hasher: ContentHasher,
+) -> dict[str, Any]:
+    """Define the whole file up front: global attributes, axes (written and hashed) and the
+    result variables (no values yet); returns the result variables by name."""
+    nc.setncatts({**attrs, CHECKSUM_BLOCK_ATTR: np.asarray(store.tiling.block, np.int64)})
+    for d in survey.dims:
+        values = np.asarray(getattr(survey, d), np.float64)
+        nc.createDimension(d, values.size)
+        v = nc.createVariable(d, "f8", (d,), fill_value=False)
+        v.setncatts(axis_attrs(d, survey.energy_relative))
+        v[:] = values
+        hasher.add(d, values)
+    kind = map_kind(survey.method, survey.scene)
+    variables = {}
+    for name, dt in store.names.items():
+        fill = False if dt.kind in "iu" else np.nan
+        v = nc.createVariable(
+            name, dt, survey.dims, chunksizes=store.tiling.chunk, fill_value=fill, **codecs[name]
+        )
+        v.setncatts(_typed_flags(variable_attrs(name, kind), dt))
+        variables[name] = v
+    # Blocks fill whole chunks: no chunk is read back, so none needs caching. Without a cache
+    # each chunk is compressed and written as its block is, not all at the close. The cache
+    # is set once the variables exist in HDF5 (the sync), else it does not apply.
+    nc.sync()
+    for v in variables.values():
+        v.set_var_chunk_cache(size=0)
+    return variables
 
 
-def read_info(path: str | os.PathLike[str], *, verify: bool = False) -> dict[str, Any]:
-    """Provenance of a result file, or of an unfinished run's block store.
+def _fill(
+    store: BlockStore,
+    variables: dict[str, Any],
+    codecs: dict[str, dict[str, Any]],
+    hasher: ContentHasher,
+    pending: Collection[int],
+    incoming: Iterable[tuple[int, dict[str, np.ndarray]]],
+) -> Summary:
+    """Write every block into ``variables`` on a writer thread while ``incoming`` computes the
+    ``pending`` ones (:func:`engine.io.feed.feed`); hash and count them on the way."""
+    summary = Summary()
 
-    Keys: ``path``, ``complete``, ``attrs`` (global attributes), ``dims``; a file adds
-    ``counts`` (class name -> count; values that are no class code under ``"other"``),
-    ``checksum`` (whether one is recorded), ``leftover_parts`` (a block store beside it) and,
-    with ``verify``, ``verified`` = (ok, what was found) (:func:`engine.io.contents.verify_file`).
-    A block store adds ``blocks_done`` and ``blocks_total``, or ``problem`` if its manifest is
-    missing or invalid. ``notes`` lists what could not be read. OutputError if there is neither
-    or the file is not readable netCDF. Never raises anything else for a damaged or foreign file.
-    """
-    path = Path(path)
-    parts = parts_dir(path)
-    info: dict[str, Any] = {"path": str(path), "notes": []}
-    kind = not_regular(path)
-    if kind is not None:
-        raise OutputError(f"{path} is {kind}, not a netCDF file")
-    if os.path.lexists(path):
-        info.update(_file_info(path, verify))
-        info["leftover_parts"] = os.path.lexists(parts)
-    elif os.path.lexists(parts):
-        info.update(_parts_state(parts))
-    else:
-        raise OutputError(f"no such file: {path}")
-    return info
+    def write(index: int, block: dict[str, np.ndarray]) -> None:
+        slab = store.tiling.slices(index)
+        for name, arr in block.items():
+            try:
+                variables[name][slab] = arr
+            except RuntimeError as exc:
+                if is_blosc(codecs[name]):
+                    raise _Refused(name) from exc
+                raise
+            hasher.add(name, arr)
+        summary.add(block)
 
-
-def read_fingerprint(path: Path) -> str | None:
-    """The survey fingerprint a finished result records (None if it has none, or is not a
-    readable netCDF file; a FIFO or device is not opened)."""
-    if not_regular(path) is not None:
-        return None
-    try:
-        with netCDF4.Dataset(path) as nc:
-            fp = nc.getncattr(FINGERPRINT_ATTR) if FINGERPRINT_ATTR in nc.ncattrs() else None
-    except Exception:  # not netCDF, damaged, a directory ...
-        return None
-    return fp if isinstance(fp, str) else None
-
-
-def _parts_state(parts: Path) -> dict[str, Any]:
-    """What an unfinished run's store says, or why it cannot say it."""
-    try:
-        check_parts_dir(parts)
-        return parts_info(parts)
-    except (OutputError, OSError) as exc:
-        return {"complete": False, "attrs": {}, "dims": {}, "problem": str(exc)}
-
-
-def _file_info(path: Path, verify: bool) -> dict[str, Any]:
-    info: dict[str, Any] = {"notes": []}
-    try:
-        with netCDF4.Dataset(path) as nc:
-            info["attrs"] = _attributes(nc, info["notes"])
-            info["dims"] = {d: len(nc.dimensions[d]) for d in nc.dimensions}
-            counts = _class_counts(nc, info["notes"])
-            if counts is not None:
-                info["counts"] = counts
-            info["complete"] = FINGERPRINT_ATTR in info["attrs"]
-            info["checksum"] = CHECKSUM_ATTR in info["attrs"]
-            if verify:
-                info["verified"] = verify_file(nc)
-    except Exception as exc:  # netCDF4 raises OSError, RuntimeError, ... for a damaged file
-        raise OutputError(f"{path} is not a readable netCDF file ({exc})") from None
-    return info
-
-
-def _attributes(nc: Any, notes: list[str]) -> dict[str, Any]:
-    out = {}
-    for key in nc.ncattrs():
-        try:
-            out[key] = nc.getncattr(key)
-        except Exception as exc:  # an attribute of a type netCDF4 cannot decode
-            notes.append(f"global attribute {key} cannot be read ({exc})")
-    return out
-
-
-def _class_counts(nc: Any, notes: list[str]) -> dict[str, int] | None:
-    """Count of each class code of ``orbit_class`` ("other" for values that are not one)."""
-    v = nc.variables.get("orbit_class")
-    if v is None:
-        return None
-    if np.dtype(v.dtype).kind not in "iu" or v.ndim == 0:
-        notes.append(f"orbit_class is not an integer array ({v.dtype}); classes not counted")
-        return None
-    v.set_auto_maskandscale(False)
-    n = len(CLASS_NAMES)
-    counts = np.zeros(n + 1, np.int64)
-    try:
-        for sl in _slabs(v.shape, v.chunking()):
-            codes = np.asarray(v[sl]).ravel().astype(np.int64)
-            valid = (codes >= 0) & (codes < n)
-            counts[:n] += np.bincount(codes[valid], minlength=n)
-            counts[n] += int((~valid).sum())
-    except Exception as exc:  # a damaged chunk
-        notes.append(f"orbit_class cannot be read ({exc}); classes not counted")
-        return None
-    out = dict(zip(CLASS_NAMES, counts[:n].tolist(), strict=True))
-    if counts[n]:
-        out["other"] = int(counts[n])
-    return out
-
-
-def _slabs(shape: tuple[int, ...], chunking: Any) -> Iterator[tuple[slice, ...]]:
-    """Hyperslabs one storage chunk along the first axis at a time (bounded memory)."""
-    step = chunking[0] if isinstance(chunking, list | tuple) else max(1, shape[0])
-    for s in range(0, shape[0], step):
-        yield (slice(s, min(shape[0], s + step)),) + tuple(slice(0, n) for n in shape[1:])
+    feed(store, write, pending, incoming)
+    return summary

@@ -119,7 +119,7 @@ def test_global_attributes(tmp_path, survey, ds):
 
 
 def test_encodings_on_disk(tmp_path, survey, ds):
-    path = write(ds, tmp_path / "out.nc", survey)
+    path = write(ds, tmp_path / "out.nc", survey, compression="zlib")
     with netCDF4.Dataset(path) as nc:
         assert nc.data_model == "NETCDF4"
         for name in ("alpha", "energy", "h", "Lz"):
@@ -136,11 +136,27 @@ def test_encodings_on_disk(tmp_path, survey, ds):
 
 
 def test_encoding_for_separates_coordinates_and_data(ds):
-    enc = encoding_for(ds)
+    enc = encoding_for(ds, "zlib")
     for name in ("alpha", "energy", "h", "Lz"):
         assert enc[name] == {"_FillValue": None}
     assert enc["orbit_class"]["dtype"] == np.int8
-    assert enc["r_min"]["complevel"] == 1 and enc["r_min"]["zlib"] is True
+    assert enc["r_min"] == {
+        "compression": "zlib",
+        "complevel": 1,
+        "shuffle": True,
+        "dtype": np.float64,
+    }
+
+
+def test_blosc_is_kept_from_variables_smaller_than_a_chunk_it_can_shrink(ds):
+    """blosc_lz4 (the default) for a variable of >= 64 KiB; zstd for a smaller one, where
+    HDF5's blosc filter would fail on a chunk it cannot shrink (engine.io.codecs)."""
+    big = ds.isel(alpha=[0] * 512)  # 512 x 7 x 2 x 2 points: 114,688 bytes of float64
+    assert big.r_min.nbytes >= 1 << 16 > ds.r_min.nbytes
+    assert encoding_for(big)["r_min"]["compression"] == "blosc_lz4"
+    assert encoding_for(big)["r_min"]["blosc_shuffle"] == 1
+    assert encoding_for(ds)["r_min"]["compression"] == "zstd"
+    assert encoding_for(big, "zstd", 3)["r_min"]["complevel"] == 3
 
 
 def test_energy_absolute_and_relative_axis_round_trip(tmp_path, ds_relative):

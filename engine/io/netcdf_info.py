@@ -1,0 +1,136 @@
+"""Reading the netCDF backend's results back: provenance, completeness, class counts.
+
+:func:`read_info` (``conesurvey info``) and :func:`read_fingerprint` (does the output already
+hold this survey?) of :mod:`engine.io.netcdf`'s backend interface, which re-exports them. A
+damaged or foreign file is reported, never a traceback; a FIFO or a device is never opened.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import netCDF4
+import numpy as np
+
+from ..kernels.geometry import CLASS_NAMES
+from ..schema import FINGERPRINT_ATTR
+from . import OutputError
+from .atomic import not_regular
+from .blocks import check_parts_dir, parts_info
+from .contents import CHECKSUM_ATTR, verify_file
+from .manifest import parts_dir
+
+__all__ = ["read_fingerprint", "read_info"]
+
+
+def read_info(path: str | os.PathLike[str], *, verify: bool = False) -> dict[str, Any]:
+    """Provenance of a result file, or of an unfinished run's block store.
+
+    Keys: ``path``, ``complete``, ``attrs`` (global attributes), ``dims``; a file adds
+    ``counts`` (class name -> count; values that are no class code under ``"other"``),
+    ``checksum`` (whether one is recorded), ``leftover_parts`` (a block store beside it) and,
+    with ``verify``, ``verified`` = (ok, what was found) (:func:`engine.io.contents.verify_file`).
+    A block store adds ``blocks_done`` and ``blocks_total``, or ``problem`` if its manifest is
+    missing or invalid. ``notes`` lists what could not be read. OutputError if there is neither
+    or the file is not readable netCDF. Never raises anything else for a damaged or foreign file.
+    """
+    path = Path(path)
+    parts = parts_dir(path)
+    info: dict[str, Any] = {"path": str(path), "notes": []}
+    kind = not_regular(path)
+    if kind is not None:
+        raise OutputError(f"{path} is {kind}, not a netCDF file")
+    if os.path.lexists(path):
+        info.update(_file_info(path, verify))
+        info["leftover_parts"] = os.path.lexists(parts)
+    elif os.path.lexists(parts):
+        info.update(_parts_state(parts))
+    else:
+        raise OutputError(f"no such file: {path}")
+    return info
+
+
+def read_fingerprint(path: Path) -> str | None:
+    """The survey fingerprint a finished result records (None if it has none, or is not a
+    readable netCDF file; a FIFO or device is not opened)."""
+    if not_regular(path) is not None:
+        return None
+    try:
+        with netCDF4.Dataset(path) as nc:
+            fp = nc.getncattr(FINGERPRINT_ATTR) if FINGERPRINT_ATTR in nc.ncattrs() else None
+    except Exception:  # not netCDF, damaged, a directory ...
+        return None
+    return fp if isinstance(fp, str) else None
+
+
+def _parts_state(parts: Path) -> dict[str, Any]:
+    """What an unfinished run's store says, or why it cannot say it."""
+    try:
+        check_parts_dir(parts)
+        return parts_info(parts)
+    except (OutputError, OSError) as exc:
+        return {"complete": False, "attrs": {}, "dims": {}, "problem": str(exc)}
+
+
+def _file_info(path: Path, verify: bool) -> dict[str, Any]:
+    info: dict[str, Any] = {"notes": []}
+    try:
+        with netCDF4.Dataset(path) as nc:
+            info["attrs"] = _attributes(nc, info["notes"])
+            info["dims"] = {d: len(nc.dimensions[d]) for d in nc.dimensions}
+            counts = _class_counts(nc, info["notes"])
+            if counts is not None:
+                info["counts"] = counts
+            info["complete"] = FINGERPRINT_ATTR in info["attrs"]
+            info["checksum"] = CHECKSUM_ATTR in info["attrs"]
+            if verify:
+                info["verified"] = verify_file(nc)
+    except Exception as exc:  # netCDF4 raises OSError, RuntimeError, ... for a damaged file
+        raise OutputError(f"{path} is not a readable netCDF file ({exc})") from None
+    return info
+
+
+def _attributes(nc: Any, notes: list[str]) -> dict[str, Any]:
+    out = {}
+    for key in nc.ncattrs():
+        try:
+            out[key] = nc.getncattr(key)
+        except Exception as exc:  # an attribute of a type netCDF4 cannot decode
+            notes.append(f"global attribute {key} cannot be read ({exc})")
+    return out
+
+
+def _class_counts(nc: Any, notes: list[str]) -> dict[str, int] | None:
+    """Count of each class code of ``orbit_class`` ("other" for values that are not one)."""
+    v = nc.variables.get("orbit_class")
+    if v is None:
+        return None
+    if np.dtype(v.dtype).kind not in "iu" or v.ndim == 0:
+        notes.append(f"orbit_class is not an integer array ({v.dtype}); classes not counted")
+        return None
+    v.set_auto_maskandscale(False)
+    n = len(CLASS_NAMES)
+    counts = np.zeros(n + 1, np.int64)
+    try:
+        for sl in _slabs(v.shape, v.chunking()):
+            codes = np.asarray(v[sl]).ravel().astype(np.int64)
+            valid = (codes >= 0) & (codes < n)
+            counts[:n] += np.bincount(codes[valid], minlength=n)
+            counts[n] += int((~valid).sum())
+    except Exception as exc:  # a damaged chunk
+        notes.append(f"orbit_class cannot be read ({exc}); classes not counted")
+        return None
+    out = dict(zip(CLASS_NAMES, counts[:n].tolist(), strict=True))
+    if counts[n]:
+        out["other"] = int(counts[n])
+    return out
+
+
+def _slabs(shape: tuple[int, ...], chunking: Any) -> Iterator[tuple[slice, ...]]:
+    """Hyperslabs one storage chunk along the first axis at a time (bounded memory)."""
+    step = chunking[0] if isinstance(chunking, list | tuple) else max(1, shape[0])
+    for s in range(0, shape[0], step):
+        yield (slice(s, min(shape[0], s + step)),) + tuple(slice(0, n) for n in shape[1:])
