@@ -233,7 +233,7 @@ class DaskBackend:
         while in_flight:
             for fut in self._completed(in_flight, watchdog):
                 del in_flight[fut]
-                result = self._result(fut)
+                result = self._result(fut, watchdog)
                 submit_next()
                 yield result
 
@@ -256,20 +256,27 @@ class DaskBackend:
             time.sleep(nap)
             nap = min(2 * nap, 0.05)
 
-    def _result(self, fut: Any) -> tuple[int, dict[str, np.ndarray]]:
+    def _result(self, fut: Any, watchdog: _Watchdog) -> tuple[int, dict[str, np.ndarray]]:
+        """The block of a finished future. Its data lives on the worker that computed it: if
+        that worker dies before the data arrives, dask computes the block again, so the wait is
+        in ``POLL`` slices with the cluster checked between them (a cluster left without
+        workers is a BackendError, not a run that waits forever)."""
         from distributed.scheduler import KilledWorker
 
-        if fut.status == "error":
-            exc = fut.exception()
-            if isinstance(exc, KilledWorker):
-                raise BackendError(f"dask gave up on a block: {_one_line(exc)}")
-            raise exc  # the block's own error (as a local run would raise it)
-        try:
-            result = fut.result()
-            fut.release()
-        except Exception as exc:
-            raise _lost(exc) from None
-        return result
+        while True:
+            if fut.status == "error":
+                exc = fut.exception()
+                if isinstance(exc, KilledWorker):
+                    raise BackendError(f"dask gave up on a block: {_one_line(exc)}")
+                raise exc  # the block's own error (as a local run would raise it)
+            try:
+                result = fut.result(timeout=POLL)
+                fut.release()
+                return result
+            except TimeoutError:
+                watchdog.check()
+            except Exception as exc:
+                raise _lost(exc) from None
 
     def close(self) -> None:
         """Close the client (and the local cluster); restore the environment."""

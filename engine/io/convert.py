@@ -27,8 +27,9 @@ from ..schema import DIMS, LAUNCH_DIMS
 from . import OutputError, WriteError, netcdf
 from . import zarr as zarr_io
 from .atomic import fsync_path, replacing
+from .codecs import compression_keywords
 from .contents import BLOCK_SCHEME, CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, SCHEME, ContentHasher
-from .netcdf import ZLIB_LEVEL, compression, history_line
+from .netcdf import history_line
 from .zarrlayout import ZarrView
 
 __all__ = ["Converted", "convert", "output_bytes"]
@@ -193,7 +194,7 @@ def _define_netcdf(nc: Any, src: _Source, hasher: ContentHasher) -> dict[str, An
             fill = attrs.pop("_FillValue", False)
             dtype = np.dtype(var.dtype).newbyteorder("=")
             variables[name] = nc.createVariable(
-                name, dtype, src.dims, **compression(ZLIB_LEVEL),
+                name, dtype, src.dims, **compression_keywords("zlib"),
                 chunksizes=src.tiling.chunk, fill_value=fill,
             )  # fmt: skip
             variables[name].setncatts(attrs)

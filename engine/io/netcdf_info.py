@@ -81,7 +81,7 @@ def _file_info(path: Path, verify: bool) -> dict[str, Any]:
         with netCDF4.Dataset(path) as nc:
             info["attrs"] = _attributes(nc, info["notes"])
             info["dims"] = {d: len(nc.dimensions[d]) for d in nc.dimensions}
-            counts = _class_counts(nc, info["notes"])
+            counts = class_counts(nc, info["notes"])
             if counts is not None:
                 info["counts"] = counts
             info["complete"] = FINGERPRINT_ATTR in info["attrs"]
@@ -103,7 +103,7 @@ def _attributes(nc: Any, notes: list[str]) -> dict[str, Any]:
     return out
 
 
-def _class_counts(nc: Any, notes: list[str]) -> dict[str, int] | None:
+def class_counts(nc: Any, notes: list[str]) -> dict[str, int] | None:
     """Count of each class code of ``orbit_class`` ("other" for values that are not one)."""
     v = nc.variables.get("orbit_class")
     if v is None:

@@ -37,7 +37,8 @@ from .atomic import exists_error, fsync_dir, fsync_path
 from .blocks import Summary, _dims, check_parts_dir
 from .contents import BLOCK_SCHEME, CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher, verify_file
 from .manifest import Manifest, parts_dir
-from .netcdf import _class_counts, cf_attrs
+from .netcdf import cf_attrs
+from .netcdf_info import class_counts
 from .zarrlayout import (
     UNFINISHED_ATTR,
     ChunkWriter,
@@ -350,7 +351,7 @@ def _store_info(path: Path, verify: bool) -> dict[str, Any]:
     info["dims"] = {}
     for var in view.variables.values():
         info["dims"].update(zip(var.dimensions, var.shape, strict=False))
-    counts = _class_counts(view, info["notes"])
+    counts = class_counts(view, info["notes"])
     if counts is not None:
         info["counts"] = counts
     info["complete"] = FINGERPRINT_ATTR in attrs and UNFINISHED_ATTR not in attrs
