@@ -291,3 +291,13 @@ def test_killed_after_the_last_block_the_rerun_only_commits(work, reference, cap
     )
     assert runs.listing(work) == ["out.zarr", "s.toml"]
     assert_same_dataset(reference / "ref.nc", work / "out.zarr")
+
+
+@pytest.mark.parametrize("compression", ["zlib", "zstd"])
+def test_a_netcdf_only_compression_is_refused_for_zarr(work, capsys, compression):
+    """A Zarr store is written with Blosc LZ4 or uncompressed: another --compression is a
+    one-line refusal naming the value, before anything is written."""
+    status, _, err = cli(capsys, *ARGS, "--compression", compression)
+    assert status == 2 and f"compression '{compression}'" in err and "Zarr" in err, err
+    assert err.count("\n") == 1
+    assert runs.listing(work) == ["s.toml"]
