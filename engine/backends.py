@@ -174,6 +174,10 @@ class DaskBackend:
         # from its running pool. The environment is restored when the cluster is gone.
         self._saved_env = dict(os.environ)
         self.cluster = None
+        # A wait for a block that :meth:`_result` abandons (its worker died) leaves the client's
+        # internal gather task to fail later with AllExit, which asyncio logs as "Task exception
+        # was never retrieved" at exit; what failed has been reported as one line already.
+        logging.getLogger("asyncio").setLevel(logging.CRITICAL)
         if scheduler is None:
             n = int(workers or 1)
             threads = max(1, (os.cpu_count() or 1) // n)
