@@ -37,7 +37,7 @@ definition) or over launch states alpha x r0 x v0 x w0, classifies each orbit (f
 bounded, circular, hyperbolic, radial, spills, slips, off_cone, out_of_range) and stores
 turning points, period, apsidal angle, precession rate, the friction needed to roll and, for a
 scene with rolling resistance, a rim or a friction limit, where and when rolling ends or each
-orbit's fate, in a CF-1.11 netCDF file. plot and report show a result."""
+orbit's fate, in a CF-1.11 netCDF file (or a Zarr store). plot and report show a result."""
 
 #: The registered commands, by name, in the order ``--help`` lists them.
 COMMANDS: dict[str, Command] = {}

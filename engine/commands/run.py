@@ -27,7 +27,8 @@ from . import PROG, Command, InputError, error, load
 __all__ = ["COMMAND", "print_summary"]
 
 DESCRIPTION = """\
-Run the survey defined in SURVEY.toml and write the results to a netCDF file.
+Run the survey defined in SURVEY.toml and write the results to a netCDF file (or a Zarr
+store: -o OUT.zarr).
 
 The definition names the scene ([scene]: M [kg], g [m s-2], a [m], k, rim [m]), the method
 and the four axes [axes.alpha] [radian], [axes.energy] (radial energy [J], or relative to
@@ -242,7 +243,7 @@ def print_summary(stats: RunStats, *, title: str, method: str, file: TextIO | No
 
 COMMAND = Command(
     name="run",
-    help="run a survey definition and write a netCDF file",
+    help="run a survey definition and write a netCDF file or a Zarr store",
     description=DESCRIPTION,
     add_arguments=add_arguments,
     run=_run,
