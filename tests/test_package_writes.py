@@ -15,8 +15,7 @@ import runs
 
 CODE = """
 import engine
-exact = engine.evaluate(0.5, 20.0, 1.0, 0.8)
-print(float(exact.period))
+print(float(engine.minimum_energy(0.5, 1.0, 0.8)))
 """
 
 
@@ -27,10 +26,10 @@ def _files(root: Path) -> dict[str, tuple[int, int]]:
 
 
 def test_evaluating_writes_only_into_the_user_cache(tmp_path):
-    """A copy of the package, byte-compiled as pip installs it; the exact method's kernels
-    compiled from a cold cache in a subprocess whose HOME and XDG_CACHE_HOME are temporary:
-    every new file is under the cache, none under the package. (Every kernel, integrators
-    included, is compiled through the same ``engine._jit.kernel`` and its cache locator.)"""
+    """A copy of the package, byte-compiled as pip installs it; a kernel (V_min: the
+    circular radius) compiled from a cold cache in a subprocess whose HOME and XDG_CACHE_HOME
+    are temporary: every new file is under the cache, none under the package. (Every kernel is
+    compiled through the same ``engine._jit.kernel`` and its cache locator.)"""
     pkg = tmp_path / "site" / "engine"
     shutil.copytree(runs.ROOT / "engine", pkg, ignore=shutil.ignore_patterns("__pycache__"))
     assert compileall.compile_dir(pkg, quiet=1)
@@ -53,7 +52,7 @@ def test_evaluating_writes_only_into_the_user_cache(tmp_path):
         timeout=900,
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
-    assert float(proc.stdout) > 0  # a bounded orbit's radial period
+    assert float(proc.stdout) > 0  # V_min of a spinning sphere under gravity
     assert _files(pkg) == before
     cached = [p for p in (home / ".cache" / "conesurvey").rglob("*") if p.is_file()]
     assert any(p.suffix == ".nbi" for p in cached) and any(p.suffix == ".nbc" for p in cached)
