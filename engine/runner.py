@@ -272,35 +272,21 @@ def run_survey(
             raise RunFailed(f"{exc}; nothing was written") from None
         try:
             store = _prepare(out, survey, plan, tiling, warn, level(compression, complevel))
-            if isinstance(store, RunStore):  # Zarr: the blocks wrote their chunks
-                for _ in _compute(store, backend, spec, pending, len(done), progress, on_block):
+            once = dict(fingerprint=plan.fp, command=command, overwrite=overwrite)
+            blocks = _compute(store, backend, spec, pending, len(done), progress, on_block)
+            if isinstance(store, RunStore):  # Zarr: the blocks wrote their chunks; commit
+                for _ in blocks:
                     pass
                 t1 = time.perf_counter()
-                summary = _merge(
-                    store,
-                    survey,
-                    out,
-                    fingerprint=plan.fp,
-                    command=command,
-                    overwrite=overwrite,
-                    complevel=level(compression, complevel),
-                )
-            else:
+                level_ = level(compression, complevel)
+                summary = _merge(store, survey, out, **once, complevel=level_)
+            else:  # netCDF: written while the blocks are computed
                 ended: list[float] = []  # when the last block was stored
-                blocks = _compute(store, backend, spec, pending, len(done), progress, on_block)
+                incoming = _timed(blocks, ended)
                 summary = _merge(
-                    store,
-                    survey,
-                    out,
-                    fingerprint=plan.fp,
-                    command=command,
-                    overwrite=overwrite,
-                    compression=compression,
-                    complevel=complevel,
-                    pending=pending,
-                    incoming=_timed(blocks, ended),
-                    warn=warn,
-                )
+                    store, survey, out, **once, compression=compression, complevel=complevel,
+                    pending=pending, incoming=incoming, warn=warn,
+                )  # fmt: skip
                 t1 = ended[0] if ended else t0
         finally:
             backend.close()

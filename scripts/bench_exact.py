@@ -34,7 +34,6 @@ import json
 import math
 import os
 import platform
-import re
 import subprocess
 import sys
 import tempfile
@@ -55,13 +54,14 @@ from engine.kernels.geometry import BOUNDED
 from engine.schema import DIMS
 from engine.surveyfile import load_survey
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from readme_block import README, update_readme  # noqa: E402
+
 M, G, K = 1.0, 9.81, 0.4
 SCENE = engine.Scene(M=M, g=G, k=K)
 TARGET_VS_PEER = 4.0
 TARGET_SPEEDUP = 1.8
 SURVEY = Path(__file__).resolve().parents[1] / "surveys" / "large_1e8.toml"
-README = Path(__file__).resolve().parents[1] / "README.md"
-MARK = ("<!-- bench_exact: start -->", "<!-- bench_exact: end -->")
 
 
 def random_bounded_points(n: int, seed: int = 20240601) -> dict[str, np.ndarray]:
@@ -265,15 +265,6 @@ def readme_table(n, n_grid, rounds, goals, ceiling, stages, peer_rate) -> str:
     return "\n".join(lines)
 
 
-def update_readme(text: str) -> None:
-    """Replace the README's block between the MARK comments by ``text``."""
-    src = README.read_text()
-    pat = re.compile(re.escape(MARK[0]) + ".*?" + re.escape(MARK[1]), re.S)
-    if not pat.search(src):
-        raise SystemExit(f"README.md has no {MARK[0]} ... {MARK[1]} block")
-    README.write_text(pat.sub(lambda _: f"{MARK[0]}\n{text}\n{MARK[1]}", src))
-
-
 def _load() -> str:
     return ", ".join(f"{x:.2f}" for x in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
 
@@ -414,7 +405,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
     md = readme_table(n, n_grid, args.rounds, goals, ceiling, stages, rate("peer", True))
     print("\n(g) README table\n" + md)
     if args.readme:
-        update_readme(md)
+        update_readme("bench_exact", md)
         print(f"\nwrote it into {README}")
 
     if not args.no_compile:

@@ -33,7 +33,6 @@ import json
 import math
 import os
 import platform
-import re
 import subprocess
 import sys
 import tempfile
@@ -54,6 +53,7 @@ from engine.methods import METHODS
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import integrator_peers as peers  # noqa: E402
+from readme_block import README, update_readme  # noqa: E402
 
 TARGET_ERR = 1e-10
 GOAL_VS_HEYOKA = 3.0
@@ -61,8 +61,6 @@ GOAL_VS_SCIPY = 600.0
 GOAL_SPEEDUP = 1.8
 #: Tolerance ladder (1, 2, 5 per decade) for "the loosest tolerance that reaches the target".
 LADDER = tuple(m * 10.0**-e for e in range(5, 16) for m in (5, 2, 1))
-README = Path(__file__).resolve().parents[1] / "README.md"
-MARK = ("<!-- bench_integrators: start -->", "<!-- bench_integrators: end -->")
 
 
 # ------------------------------------------------------------------------------ the engine
@@ -402,14 +400,6 @@ def markdown(o, rows, thr, gl, compiled) -> str:
     return "\n".join(lines)
 
 
-def update_readme(text: str) -> None:
-    src = README.read_text()
-    pat = re.compile(re.escape(MARK[0]) + ".*?" + re.escape(MARK[1]), re.S)
-    if not pat.search(src):
-        raise SystemExit(f"README.md has no {MARK[0]} ... {MARK[1]} block")
-    README.write_text(pat.sub(lambda _: f"{MARK[0]}\n{text}\n{MARK[1]}", src))
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("-n", type=int, default=200, help="orbits (default %(default)s)")
@@ -456,7 +446,7 @@ def main(argv: list[str] | None = None) -> int:
     md = markdown(o, rows, thr, gl, compiled)
     print("\nREADME table:\n" + md)
     if args.readme:
-        update_readme(md)
+        update_readme("bench_integrators", md)
         print(f"\nwrote it into {README}")
     print(f"\nload average at the end: {load()}; benchmark time "
           f"{time.perf_counter() - t_start:.0f} s")  # fmt: skip
