@@ -26,6 +26,7 @@ import errno
 import json
 import os
 import socket
+import time
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -44,6 +45,8 @@ __all__ = ["LockError", "Locked", "OutputLock", "describe_holder", "lock_path"]
 #: errno values of flock() that mean "this file system does not lock".
 NO_LOCKS = frozenset({errno.ENOLCK, errno.ENOSYS, errno.EOPNOTSUPP, errno.ENOTSUP, errno.EINVAL})
 _MAX_HOLDER_BYTES = 4096
+#: How long [s] a refused run waits for the lock's holder to record who it is.
+HOLDER_WAIT = 2.0
 
 
 class LockError(Exception):
@@ -114,6 +117,12 @@ class OutputLock:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
                 holder = _read_holder(fd)
+                # The holder writes who it is just after it takes the lock: a run that loses a
+                # race by microseconds waits up to HOLDER_WAIT seconds to name it.
+                deadline = time.monotonic() + HOLDER_WAIT
+                while not holder and time.monotonic() < deadline:
+                    time.sleep(0.02)
+                    holder = _read_holder(fd)
                 os.close(fd)
                 raise Locked(path, holder) from None
             except OSError as exc:
