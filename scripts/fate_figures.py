@@ -12,18 +12,14 @@ commands themselves.
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 from pathlib import Path
 
-from engine import cli
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from figure_cli import conesurvey as _cli  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def _cli(*args: str | Path) -> None:
-    status = cli.main([str(a) for a in args])
-    if status != 0:
-        raise SystemExit(f"conesurvey {args[0]} failed with status {status}")
 
 
 def main() -> None:

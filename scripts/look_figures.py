@@ -15,10 +15,12 @@ from __future__ import annotations
 import argparse
 import shutil
 import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
-from engine import cli
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from figure_cli import conesurvey as _cli  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SURVEY = ROOT / "surveys" / "gravity_precession.toml"
@@ -27,12 +29,6 @@ FLAGS = (
     "--headless --no-sandbox --disable-gpu --disable-background-networking "
     "--disable-component-update --disable-sync --no-first-run --hide-scrollbars"
 ).split()
-
-
-def _cli(*args: str | Path) -> None:
-    status = cli.main([str(a) for a in args])
-    if status != 0:
-        raise SystemExit(f"conesurvey {args[0]} failed with status {status}")
 
 
 def main() -> None:
