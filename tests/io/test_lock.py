@@ -126,3 +126,24 @@ def test_describe_holder_says_what_is_known():
     assert describe_holder({}) == "holder not yet recorded"
     assert describe_holder({"pid": 7}) == "pid 7"
     assert describe_holder({"host": "h", "started": "T"}) == "on host h, started T"
+
+
+def test_a_run_refused_just_after_the_lock_was_taken_still_names_the_holder(tmp_path):
+    """The holder takes the flock, then writes who it is: a run refused in between waits for
+    the record (here written 0.3 s late by a thread of this process holding the flock)."""
+    import fcntl
+    import threading
+
+    out = tmp_path / "out.nc"
+    fd = os.open(lock_path(out), os.O_RDWR | os.O_CREAT, 0o644)
+    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    record = {"pid": 4242, "host": "node7", "started": "2026-01-02T03:04:05Z"}
+    late = threading.Timer(0.3, lambda: os.pwrite(fd, json.dumps(record).encode(), 0))
+    late.start()
+    try:
+        with pytest.raises(Locked) as info:
+            OutputLock.acquire(out, "second")
+        assert info.value.holder["pid"] == 4242 and info.value.holder["host"] == "node7"
+    finally:
+        late.join()
+        os.close(fd)
