@@ -18,10 +18,10 @@ import numpy as np
 from numba import literally, prange
 
 from .._jit import kernel, parallel_kernel
+from .effects import DISSIPATIVE
 from .model import (
     P_R_VERTEX,
     P_V_REST,
-    ROLLING_RESISTANCE,
     holds_at_rest,
     invariants,
     kinetic_energy,
@@ -108,7 +108,7 @@ def fate_of(method, effects, p, energy, h, Lz, r_start, rtol, t_horizon, max_ste
     (its r_min, or a launch radius), theta = 0, t = 0.
 
     Returns (fate, time [s], r [m], theta [rad], revolutions, energy lost [J], drift of the
-    energy balance E + W_resistance [1], steps).
+    energy balance E + W [1], W the work of the dissipative forces, steps).
     """
     nan = math.nan
     if not (r_start >= 0.0 and math.isfinite(energy) and math.isfinite(Lz)):
@@ -128,7 +128,7 @@ def fate_of(method, effects, p, energy, h, Lz, r_start, rtol, t_horizon, max_ste
                                  max_steps)  # fmt: skip
     E0 = invariants(y0, p)[0]
     E1 = invariants(y, p)[0]
-    work = y[state_size(effects) - 1] if effects & ROLLING_RESISTANCE else 0.0
+    work = y[state_size(effects) - 1] if effects & DISSIPATIVE else 0.0
     scale = max(abs(E0), kinetic_energy(y0, p))
     drift = abs(E1 + work - E0) / scale
     return fate, t, y[0], y[1], abs(y[1]) / (2.0 * math.pi), E0 - E1, drift, steps
