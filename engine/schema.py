@@ -134,7 +134,8 @@ RESULTS: dict[str, Variable] = {
     "energy_loss": _f("J", "total energy lost over the first radial period"),
 }
 #: The closed form's variables (every map holds them).
-CLOSED_FORM = tuple(RESULTS)[:8]
+CLOSED_FORM = ("orbit_class", "r_min", "r_max", "r_circ", "period", "apsidal_angle",
+               "precession_rate", "mu_required")  # fmt: skip
 #: What a one-period integrator map adds; it also replaces period, apsidal angle and precession.
 INTEGRATED = ("n_steps", "energy_drift", "status")
 #: Closed-form variables a one-period map replaces by the integrator's own values.

@@ -11,9 +11,10 @@ import pytest
 from engine import Scene
 from engine.kernels import effects as fx
 from engine.kernels import symplectic
+from engine.kernels.batch import BATCH_ROWS
 from engine.kernels.protocol import EVENT_NAMES, kind_enabled
 from engine.methods import METHODS, Method
-from engine.schema import RESULTS, map_kind, period_variables, result_variables
+from engine.schema import CLOSED_FORM, RESULTS, map_kind, period_variables, result_variables
 
 #: One scene per effect, with only that effect on.
 ONLY = {
@@ -109,3 +110,10 @@ def test_table_variables_exist():
         for out, names in effect.variables:
             if out != "trajectory":
                 assert set(names) <= set(RESULTS)
+
+
+def test_closed_form_variables_are_the_batch_rows_by_name():
+    """The closed form's variables and the batch kernel's rows are named, not counted."""
+    assert CLOSED_FORM[0] == "orbit_class"
+    assert CLOSED_FORM[1:] == BATCH_ROWS[: len(CLOSED_FORM) - 1]
+    assert set(CLOSED_FORM) <= set(RESULTS)
