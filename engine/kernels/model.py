@@ -107,12 +107,6 @@ def potential_d1(r, A, B, C):
     return -2.0 * A / (r * r * r) - B / (r * r) + C
 
 
-@kernel
-def potential_d2(r, A, B, C):
-    """V''(r) [J/m^2]."""
-    return 6.0 * A / (r * r * r * r) + 2.0 * B / (r * r * r)
-
-
 # ----------------------------------------------------------------- invariants and forces
 @kernel
 def invariants_of(r, u, v, w, s, c, M, g, k):

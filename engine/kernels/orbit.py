@@ -168,7 +168,7 @@ def tolerance_scales(p, effects, y0, energy, h, Lz, r1, r2, rc):
 
 # ------------------------------------------------------------------------- one radial period
 @kernel
-def _reduce(effects, p, y0, res, ev_t, ev_kind, ev_y):
+def reduce_period(effects, p, y0, res, ev_t, ev_kind, ev_y):
     """(status, T, psi, precession, steps, drift, loss) from a run that stopped at the second
     apsis."""
     nan = math.nan
@@ -209,7 +209,7 @@ def one_period(method, effects, p, energy, h, Lz, rtol, max_steps):
     res = run(method, effects, y0, p, (energy, h, Lz), rtol, atol, math.inf, np.int64(2),
               max_steps, np.int64(RECORD_NONE), 0.0, ev_t, ev_kind, ev_y, ev_t, ev_y,
               ev_y)  # fmt: skip
-    return _reduce(effects, p, y0, res, ev_t, ev_kind, ev_y)
+    return reduce_period(effects, p, y0, res, ev_t, ev_kind, ev_y)
 
 
 @parallel_kernel
