@@ -98,68 +98,82 @@ def _global_names(code: Any) -> set[str]:
 
 
 class _Keys:
-    """Digests of kernels and values, memoised for the process (the sources do not change
+    """The closure of a kernel: every function and package module it reaches (the kernels it
+    calls, the jit-only stubs and the modules whose ``@overload`` generates their code), each
+    with a digest of itself alone (its code, the names it reads and the values of the
+    constants among them). A key is the sorted set of these digests, so it does not depend on
+    the order the closure is walked in. Memoised for the process (the sources do not change
     under a running interpreter: a changed file is a new process)."""
 
     def __init__(self) -> None:
-        self.done: dict[int, str] = {}
-        self.modules: dict[str, str] = {}
+        self.local: dict[tuple[str, int], tuple[str, list]] = {}
 
-    def function(self, fn: Any) -> str:
-        """A kernel's own code and everything it reads: the kernels it calls, recursively, and
-        the values of the module-level names it uses."""
-        key = id(fn)
-        if key in self.done:
-            return self.done[key]
-        self.done[key] = f"cycle:{fn.__qualname__}"
-        h = hashlib.sha256(_code_digest(fn.__code__).encode())
+    def closure(self, fn: Any) -> list[str]:
+        """The digests of everything ``fn`` reaches, sorted."""
+        seen: set[tuple[str, int]] = set()
+        out = []
+        stack: list[tuple[str, Any]] = [("f", fn)]
+        while stack:
+            kind, obj = stack.pop()
+            node = (kind, id(obj))
+            if node in seen:
+                continue
+            seen.add(node)
+            if node not in self.local:
+                self.local[node] = (self._function if kind == "f" else self._module)(obj)
+            digest, children = self.local[node]
+            out.append(digest)
+            stack.extend(children)
+        return sorted(out)
+
+    def _function(self, fn: Any) -> tuple[str, list]:
+        parts, children = [fn.__module__, fn.__qualname__, _code_digest(fn.__code__)], []
         glob = fn.__globals__
         for name in sorted(_global_names(fn.__code__)):
             if name in glob:
-                h.update(f"{name}={self.value(glob[name])};".encode())
-        self.done[key] = h.hexdigest()
-        return self.done[key]
+                parts.append(f"{name}={self.ref(glob[name], children)}")
+        return hashlib.sha256(";".join(parts).encode()).hexdigest(), children
 
-    def module(self, name: str) -> str:
-        """A package module's whole namespace (for the jit-only stubs whose ``@overload`` there
-        generates code from the module's data and helpers)."""
-        if name not in self.modules:
-            self.modules[name] = f"cycle:{name}"
-            h = hashlib.sha256()
-            for key, obj in sorted(vars(sys.modules[name]).items()):
-                if not key.startswith("__"):
-                    h.update(f"{key}={self.value(obj)};".encode())
-            self.modules[name] = h.hexdigest()
-        return self.modules[name]
+    def _module(self, module: Any) -> tuple[str, list]:
+        parts, children = [module.__name__], []
+        for key, obj in sorted(vars(module).items()):
+            if not key.startswith("__"):
+                parts.append(f"{key}={self.ref(obj, children)}")
+        return hashlib.sha256(";".join(parts).encode()).hexdigest(), children
 
-    def value(self, obj: Any) -> str:
-        """A digest of what numba would freeze or compile from a module-level object."""
+    def ref(self, obj: Any, children: list) -> str:
+        """How a function or module refers to ``obj``: a constant by its value, a function or a
+        module by its name (added to ``children``, whose own digests join the closure)."""
         if isinstance(obj, Dispatcher):
-            return self.function(obj.py_func) + repr(sorted(obj.targetoptions.items()))
+            children.append(("f", obj.py_func))
+            name = f"{obj.py_func.__module__}.{obj.py_func.__qualname__}"
+            return f"jit {name} {sorted(obj.targetoptions.items())}"
         if hasattr(obj, "__wrapped__") and callable(obj):
-            return self.value(obj.__wrapped__)
+            return self.ref(obj.__wrapped__, children)
         if inspect.isfunction(obj) or hasattr(obj, "_defn"):  # plain functions and intrinsics
             fn = getattr(obj, "_defn", obj)
-            if not _in_package(fn.__module__):
-                return f"{fn.__module__}.{fn.__qualname__}"
-            return _code_digest(fn.__code__) + self.module(fn.__module__)
+            if _in_package(fn.__module__):  # a stub: its module's @overload makes its code
+                children.append(("f", fn))
+                children.append(("m", sys.modules[fn.__module__]))
+            return f"fn {fn.__module__}.{fn.__qualname__}"
+        if inspect.ismodule(obj):
+            if _in_package(obj.__name__):  # read as module.NAME
+                children.append(("m", obj))
+            return f"module {obj.__name__}"
         if isinstance(obj, np.ndarray):
-            return hashlib.sha256(
-                repr((obj.dtype.str, obj.shape)).encode() + obj.tobytes()
-            ).hexdigest()
+            head = repr((obj.dtype.str, obj.shape)).encode()
+            return hashlib.sha256(head + obj.tobytes()).hexdigest()
         if isinstance(obj, tuple | list):
-            return type(obj).__name__ + "(" + ",".join(self.value(x) for x in obj) + ")"
+            return type(obj).__name__ + "(" + ",".join(self.ref(x, children) for x in obj) + ")"
         if isinstance(obj, dict):
-            items = sorted((self.value(k), self.value(v)) for k, v in obj.items())
+            items = sorted((self.ref(k, children), self.ref(v, children)) for k, v in obj.items())
             return "{" + ",".join(f"{k}:{v}" for k, v in items) + "}"
         if isinstance(obj, set | frozenset):
-            return "{" + ",".join(sorted(self.value(x) for x in obj)) + "}"
+            return "{" + ",".join(sorted(self.ref(x, children) for x in obj)) + "}"
         if obj is None or isinstance(obj, bool | int | float | complex | str | bytes | np.generic):
             return f"{type(obj).__name__}:{obj!r}"
-        if inspect.ismodule(obj) and _in_package(obj.__name__):  # read as module.NAME
-            return self.module(obj.__name__)
-        if inspect.ismodule(obj) or inspect.isclass(obj):
-            return f"{obj.__name__}"
+        if inspect.isclass(obj):
+            return f"class {obj.__module__}.{obj.__qualname__}"
         return type(obj).__qualname__
 
 
@@ -171,7 +185,8 @@ def compile_key(py_func: Any) -> str:
     its own code and the kernels it calls, the constants they read, the compile options and the
     numba version."""
     h = hashlib.sha256(f"numba {numba.__version__}; {sorted(_COMMON.items())};".encode())
-    h.update(_KEYS.function(py_func).encode())
+    for digest in _KEYS.closure(py_func):
+        h.update(digest.encode())
     return h.hexdigest()
 
 
