@@ -128,7 +128,7 @@ def select_lanes(F, m, g, circ_tol, S):
         vmin = F[F_VMIN, j]
         delta = e - vmin
         reg = (F[F_KIND, j] == 0.0 and F[F_C, j] > 0.0 and g != 0.0 and delta >= 0.0
-               and not abs(e - vmin) <= circ_tol * abs(vmin))  # fmt: skip
+               and not abs(e - vmin) <= circ_tol * F[F_NOISE, j])  # fmt: skip
         S[_REG, j] = 1.0 if reg else 0.0
         S[_RC, j] = F[F_RC, j]
         S[_CC, j] = F[F_C, j]
