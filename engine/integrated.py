@@ -129,9 +129,10 @@ def evaluate_integrated(
             raise ValueError(f"{name} has length {a.shape[0]}, alpha has {n}")
     if int(max_steps) < 1:
         raise ValueError(f"max_steps must be >= 1; got {max_steps!r}")
+    # Written (and first touched) by the parallel kernel, point by point: no serial pass here.
     out_f = np.empty((len(PERIOD_ROWS), n))
-    out_n = np.zeros(n, np.int64)
-    out_status = np.zeros(n, np.int8)
+    out_n = np.empty(n, np.int64)
+    out_status = np.empty(n, np.int8)
     if n:
         integrate_points(*arrays, scene.params(), m.kernel_id, scene.effects_mask, r,
                          int(max_steps), out_f, out_n, out_status)  # fmt: skip

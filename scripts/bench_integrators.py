@@ -58,6 +58,7 @@ from engine.methods import METHODS
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import integrator_peers as peers  # noqa: E402
+from bench_common import MACHINE, load, serial_share  # noqa: E402
 from readme_block import update_readme  # noqa: E402
 
 #: Where ``--doc`` writes the table (between ``<!-- bench_integrators: start/end -->``).
@@ -160,64 +161,6 @@ class Timed:
         w1, c1 = time.perf_counter(), time.thread_time()
         self.wall = min(self.wall, (w1 - w0) / self.calls)
         self.cpu = min(self.cpu, (c1 - c0) / self.calls)
-
-
-def load() -> str:
-    return ", ".join(f"{x:.2f}" for x in os.getloadavg())
-
-
-def _cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
-
-
-#: The machine, in words (every figure names it).
-MACHINE = f"{_cpu_model()}, {os.cpu_count()} logical CPUs"
-
-
-class InKernel:
-    """Wall time spent inside a module's kernel entry point (the parallel region): wraps
-    ``module.name`` while active. ``serial_share(fn)``: at 1 thread, the share of fn's wall time
-    spent outside it (allocating, validating, assembling: the part threads cannot shorten)."""
-
-    def __init__(self, module, name: str):
-        self.module, self.name = module, name
-        self.inside = 0.0
-
-    def __enter__(self):
-        inner = self.original = getattr(self.module, self.name)
-
-        def timed(*args, **kw):
-            t0 = time.perf_counter()
-            try:
-                return inner(*args, **kw)
-            finally:
-                self.inside += time.perf_counter() - t0
-
-        setattr(self.module, self.name, timed)
-        return self
-
-    def __exit__(self, *exc):
-        setattr(self.module, self.name, self.original)
-
-
-def serial_share(fn: Callable[[], object], module, name: str, rounds: int = 5) -> float:
-    """Best (lowest) share of ``fn``'s wall time at 1 thread spent outside ``module.name``."""
-    numba.set_num_threads(1)
-    best = math.inf
-    fn()
-    for _ in range(rounds):
-        with InKernel(module, name) as k:
-            t0 = time.perf_counter()
-            fn()
-            total = time.perf_counter() - t0
-        best = min(best, 1.0 - k.inside / total)
-    return best
 
 
 # ------------------------------------------------------------------------------------ the run
