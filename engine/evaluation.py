@@ -17,15 +17,10 @@ import numpy as np
 
 from .fates import Horizon, fates, require_horizon
 from .integrated import evaluate_integrated
-from .kernels.batch import (
-    BATCH_ROWS,
-    empty_outputs,
-    minimum_energy_batch,
-    orbit_units,
-    work_units,
-)
+from .kernels.batch import BATCH_ROWS, empty_outputs, minimum_energy_batch, work_units
 from .kernels.geometry import BOUNDED, CIRCULAR_TOL
 from .kernels.protocol import NOT_BOUNDED
+from .kernels.workqueue import orbit_units_queued
 from .launch import invariants
 from .methods import DEFAULT_RTOL
 from .scene import Scene
@@ -104,29 +99,30 @@ def _integrate_bounded(a, e, hh, lz, scene, method, rtol, cls) -> dict[str, np.n
     return upd
 
 
-#: Jobs per thread: units of work are handed out in this many pieces per thread, so a thread
-#: that finishes early (cheap points: forbidden, circular) takes more.
-JOBS_PER_THREAD = 8
 _POOL: dict[int, ThreadPoolExecutor] = {}
 _NO_ENERGY = np.empty(0)
 
 
-def _in_threads(*args) -> None:
-    """:func:`.kernels.batch.orbit_units` over all its units of work, on
-    ``numba.get_num_threads()`` threads (the kernel releases the GIL). Not a ``prange`` kernel:
-    numba compiles a parallel kernel's whole call tree once more (~9 s on a cold cache); a
-    thread pool costs nothing. The results do not depend on the number of threads."""
+def run_units(*args) -> None:
+    """The parallel region of the closed form: :func:`.kernels.batch.orbit_units` over all its
+    units of work (``args``: its arguments after the unit range), on ``numba.get_num_threads()``
+    threads. Each thread makes one call of :func:`.kernels.workqueue.orbit_units_queued`,
+    which takes units from a shared counter one at a time (the finest even split, balanced
+    while it runs); the calling thread is one of them. The outputs are first touched there,
+    by the thread that computes them. Not a ``prange`` kernel: numba compiles a parallel
+    kernel's whole call tree once more (~9 s on a cold cache); a thread pool costs nothing (the
+    kernel releases the GIL). The results do not depend on the number of threads."""
     alpha, energy, h, Lz, grid = args[:5]
     units = work_units(alpha.size, energy.size, h.size * Lz.size, grid)
     nt = max(1, min(numba.get_num_threads(), units))
+    queue = np.zeros(1, np.int64)
     if nt == 1:
-        orbit_units(0, units, *args)
+        orbit_units_queued(queue, units, *args)
         return
     if nt not in _POOL:
-        _POOL[nt] = ThreadPoolExecutor(max_workers=nt, thread_name_prefix="conesurvey-lanes")
-    nj = min(units, nt * JOBS_PER_THREAD)
-    cuts = [units * i // nj for i in range(nj + 1)]
-    jobs = [_POOL[nt].submit(orbit_units, cuts[i], cuts[i + 1], *args) for i in range(nj)]
+        _POOL[nt] = ThreadPoolExecutor(max_workers=nt - 1, thread_name_prefix="conesurvey-lanes")
+    jobs = [_POOL[nt].submit(orbit_units_queued, queue, units, *args) for _ in range(nt - 1)]
+    orbit_units_queued(queue, units, *args)
     for job in jobs:
         job.result()
 
@@ -136,7 +132,7 @@ def orbit_batch(alpha: np.ndarray, energy: np.ndarray, h: np.ndarray, Lz: np.nda
                 out_cls: np.ndarray, out_f: np.ndarray) -> None:  # fmt: skip
     """:func:`.kernels.geometry.orbit_point` over 1-D float64 arrays, in parallel and in lanes:
     ``out_cls`` int8[n], ``out_f`` float64[10, n] (rows :data:`.kernels.batch.BATCH_ROWS`)."""
-    _in_threads(alpha, energy, h, Lz, False, False, float(M), float(g), float(k), float(a),
+    run_units(alpha, energy, h, Lz, False, False, float(M), float(g), float(k), float(a),
                 float(rim), float(mu), float(circ_tol), out_cls, out_f, _NO_ENERGY)  # fmt: skip
 
 
@@ -148,7 +144,7 @@ def orbit_grid(alpha: np.ndarray, energy: np.ndarray, h: np.ndarray, Lz: np.ndar
     flat in that C order), each family computed once per (alpha, h, L_z) for a chunk of
     energies; ``relative``: the energy axis is an offset (:func:`.kernels.batch.orbit_units`),
     ``out_energy`` float64[n] receives the absolute energy."""
-    _in_threads(alpha, energy, h, Lz, True, bool(relative), float(M), float(g), float(k),
+    run_units(alpha, energy, h, Lz, True, bool(relative), float(M), float(g), float(k),
                 float(a), float(rim), float(mu), float(circ_tol), out_cls, out_f,
                 out_energy)  # fmt: skip
 

@@ -1,10 +1,13 @@
 """Orbit geometry by integration: one radial period per point, in a parallel numba kernel.
 
 :func:`evaluate_integrated` integrates each point's orbit from its inner turning point r_min
-(u = 0, theta = 0) to the next r_min and reports the radial period, the apsidal angle (azimuth
-swept from r_min to the next r_max), the precession rate, the work done (accepted steps), the
-energy drift and a status code. With rolling resistance the same quantities are measured over the
-first (decaying) radial period, plus the energy lost.
+(u = 0, theta = 0) and reports the radial period, the apsidal angle (azimuth swept from r_min
+to the next r_max), the precession rate, the work done (accepted steps), the energy drift and a
+status code. A conservative scene's radial motion is symmetric under time reversal (r_max back
+to r_min mirrors r_min to r_max), so it is integrated to r_max only and the time doubled: half
+the work of the whole period, the same period and apsidal angle. With rolling resistance the
+motion is not symmetric: the first (decaying) radial period is integrated to the next r_min,
+and the energy lost over it is reported too.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ __all__ = ["evaluate_integrated", "integrate_points", "STATUS_MESSAGES", "DEFAUL
 
 #: Step budget per orbit (accepted + rejected steps); beyond it the status is MAX_STEPS.
 DEFAULT_MAX_STEPS = 1_000_000
+_BY_ID = {m.kernel_id: m for m in METHODS.values() if m.integrates}
 
 
 def integrate_points(
@@ -43,7 +47,8 @@ def integrate_points(
     out_n: np.ndarray,
     out_status: np.ndarray,
 ) -> None:
-    """One radial period from r_min for every point, in parallel (numba prange).
+    """One radial period from r_min for every point, in parallel (numba prange): to r_max and
+    doubled for a conservative ``effects``, to the next r_min with rolling resistance.
 
     alpha, energy, h, Lz: 1-D float64 [rad, J, m/s, kg m^2/s]; ``params`` the scene's parameter
     array (:meth:`engine.Scene.params`; alpha is replaced per point); ``method`` a kernel id
@@ -55,14 +60,14 @@ def integrate_points(
     method that cannot honour the effects gives every point the status UNSUPPORTED, without
     compiling anything.
     """
-    by_id = {m.kernel_id: m for m in METHODS.values() if m.integrates}
-    if effects & by_id[method].refused_mask:
+    m = _BY_ID[method]
+    if effects & m.refused_mask:
         out_f[:] = math.nan
         out_n[:] = 0
         out_status[:] = UNSUPPORTED
         return
-    if by_id[method].family == "runge-kutta":  # several orbits at once on the SIMD lanes
-        args = (alpha, energy, h, Lz, params, method, effects, rtol, max_steps, 2,
+    if m.family == "runge-kutta":  # several orbits at once on the SIMD lanes
+        args = (alpha, energy, h, Lz, params, method, effects, rtol, max_steps,
                 numba.get_num_threads(), out_f, out_n, out_status)  # fmt: skip
         call_specialized(_lanes_kernel, args, (5, 6))
         return
@@ -82,7 +87,8 @@ def evaluate_integrated(
     *,
     max_steps: int = DEFAULT_MAX_STEPS,
 ) -> dict[str, np.ndarray]:
-    """Integrate one radial period from r_min for each point.
+    """One radial period from r_min for each point, by integration (module docstring: to r_max
+    and doubled where the scene is conservative, the whole period with rolling resistance).
 
     Parameters
     ----------
@@ -100,9 +106,10 @@ def evaluate_integrated(
     Returns
     -------
     dict of 1-D arrays: "period" [s], "apsidal_angle" [rad], "precession_rate" [rad/s],
-    "n_steps" (int64, accepted steps), "energy_drift" (|E(T) - E(0)| / max(|E(0)|, KE(0)), KE the
-    kinetic energy at the start: relative to the total energy E, or to the kinetic energy where
-    E ~ 0), "status" (int8, meanings in ``STATUS_MESSAGES``); with rolling resistance also
+    "n_steps" (int64, accepted steps: the work done), "energy_drift" (|E(t) - E(0)| /
+    max(|E(0)|, KE(0)) at the end t of the integration, r_max or the next r_min, KE the kinetic
+    energy at the start: relative to the total energy E, or to the kinetic energy where E ~ 0),
+    "status" (int8, meanings in ``STATUS_MESSAGES``); with rolling resistance also
     "energy_loss" [J] = E(0) - E(T) (and "energy_drift" is then that physical loss, scaled).
     Failed points have NaN and a nonzero status; a sphere that rolling resistance brings to rest
     within the period ends with "step size fell below 16 eps |t|" (the friction force turns
@@ -122,9 +129,10 @@ def evaluate_integrated(
             raise ValueError(f"{name} has length {a.shape[0]}, alpha has {n}")
     if int(max_steps) < 1:
         raise ValueError(f"max_steps must be >= 1; got {max_steps!r}")
+    # Written (and first touched) by the parallel kernel, point by point: no serial pass here.
     out_f = np.empty((len(PERIOD_ROWS), n))
-    out_n = np.zeros(n, np.int64)
-    out_status = np.zeros(n, np.int8)
+    out_n = np.empty(n, np.int64)
+    out_status = np.empty(n, np.int8)
     if n:
         integrate_points(*arrays, scene.params(), m.kernel_id, scene.effects_mask, r,
                          int(max_steps), out_f, out_n, out_status)  # fmt: skip

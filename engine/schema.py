@@ -109,7 +109,9 @@ RESULTS: dict[str, Variable] = {
     # one-period maps of an integrator
     "n_steps": Variable("int64", "1", "accepted integrator steps"),
     "energy_drift": _f(
-        "1", "|E(T) - E(0)| / max(|E(0)|, kinetic energy at start) over one radial period"
+        "1",
+        "|E(t) - E(0)| / max(|E(0)|, kinetic energy at start) at the end t of the integration "
+        "(r_max: the period is twice the time to it, by time symmetry)",
     ),
     "status": Variable("int8", None, "integrator status", STATUS_FLAGS),
     # fate maps

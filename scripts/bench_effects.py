@@ -1,6 +1,8 @@
 """What each effect costs, and what the generic stepper costs against a hand-written kernel.
 
-The task: integrate one radial period from r_min for N bounded orbits (the survey kernel
+The task: one radial period from r_min for N bounded orbits (integrated to r_max and doubled by
+time symmetry; with rolling resistance, which breaks the symmetry, the whole period: that row
+does twice the steps) (the survey kernel
 ``engine.integrated.integrate_points``: apsides located on the dense output, period, apsidal
 angle, energy drift; for the Runge-Kutta methods it runs several orbits at once on the SIMD lanes,
 ``engine.kernels.lanes``). The baseline is a kernel written by hand for exactly the gravity-only
@@ -8,8 +10,8 @@ scene: a Dormand-Prince 5(4) loop, one orbit at a time, with the coefficients as
 equations of motion inlined as scalar code, the same error norm, PI controller and event location.
 It is compared with the generic scalar run kernel (``engine.kernels.orbit.integrate_points``, the
 same one-orbit-at-a-time loop): both take the same accepted steps (checked), and the generic one
-takes one more step per apsis to polish it (``rk_events.polish_apsis``: 2 per period, ~2% of
-rk45's steps at rtol 1e-10), so their ratio is the price of the tableau-driven, effect-flagged
+takes one more step per apsis to polish it (``rk_events.polish_apsis``: 1 per half period, ~2%
+of rk45's steps at rtol 1e-10), so their ratio is the price of the tableau-driven, effect-flagged
 code. The effects table times the batch users run.
 
 Each configuration is timed side by side in one process, interleaved, best of ``--repeats`` (one
@@ -79,7 +81,7 @@ def _w(P, x):
 
 @numba.njit
 def _hand_one(p, energy, hh, Lz, rtol, max_steps):
-    """One radial period, DP5 written out by hand. Returns (T, psi, steps)."""
+    """One radial period, DP5 written out by hand: to r_max, doubled. Returns (T, psi, steps)."""
     ok, r1, r2, rc = orbit_start(p, energy, hh, Lz)
     if not ok:
         return math.nan, math.nan, 0
@@ -106,7 +108,6 @@ def _hand_one(p, energy, hh, Lz, rtol, max_steps):
     h = initial_step(RK45, 0, y0, K, p, rtol, rtol * sc, np.empty(5))
     t = 0.0
     g_aps = k1u  # u = 0 at the start: sign of udot
-    n_aps = 0
     psi = math.nan
     T = math.nan
     err_old = ERR_FLOOR
@@ -192,24 +193,21 @@ def _hand_one(p, energy, hh, Lz, rtol, max_steps):
                 ux = u + h * (_w(P0, x) * k1u + _w(P2, x) * k3u + _w(P3, x) * k4u
                               + _w(P4, x) * k5u + _w(P5, x) * k6u + _w(P6, x) * k7u)  # fmt: skip
                 brent_update(st, ux)
-            n_aps += 1
-            if n_aps == 1:
-                psi = abs(
-                    th
-                    + h
-                    * (
-                        _w(P0, x) * k1t
-                        + _w(P2, x) * k3t
-                        + _w(P3, x) * k4t
-                        + _w(P4, x) * k5t
-                        + _w(P5, x) * k6t
-                        + _w(P6, x) * k7t
-                    )
+            # r_max: the period is twice the time to it (time symmetry), as the engine's
+            # one-period map of a conservative scene takes it
+            psi = abs(
+                th
+                + h
+                * (
+                    _w(P0, x) * k1t
+                    + _w(P2, x) * k3t
+                    + _w(P3, x) * k4t
+                    + _w(P4, x) * k5t
+                    + _w(P5, x) * k6t
+                    + _w(P6, x) * k7t
                 )
-            else:
-                T = t + x * h
-                return T, psi, n
-            g_aps = -g_aps
+            )
+            return 2.0 * (t + x * h), psi, n
         t += h
         r, th, u, v, w = rn, tn, un, vn, wn
         k1r, k1t, k1u, k1v, k1w = k7r, k7t, k7u, k7v, k7w

@@ -1,5 +1,6 @@
 """Evaluating maps over flat points and survey blocks (engine.evaluation)."""
 
+import numba
 import numpy as np
 import pytest
 
@@ -63,3 +64,31 @@ def test_grid_path_equals_flat_path_bit_for_bit(relative, scene):
     for name, col in flat.items():
         assert np.array_equal(block[name].reshape(-1), col, equal_nan=True), name
     assert len(np.unique(flat["orbit_class"])) >= 3
+
+
+def test_threads_share_the_units_and_give_the_same_numbers():
+    """run_units: the threads take units of work from one counter; whatever thread computes a
+    unit, every output equals the one-thread run bit for bit, on flat points (more units than
+    threads, a last unit shorter than the others) and on a grid block."""
+    rng = np.random.default_rng(4)
+    n = 5 * 512 + 37  # six units of 512 points, the last one short
+    a, h, lz = rng.uniform(0.2, 1.4, n), rng.uniform(-2, 2, n), rng.uniform(0.05, 2, n)
+    e = minimum_energy_flat(a, h, lz, engine.Scene()) * rng.uniform(0.5, 3.0, n)
+    spec = dict(alpha=np.linspace(0.2, 1.4, 3), energy=np.geomspace(1e-6, 10, 130),
+                h=np.linspace(-2, 2, 5), Lz=np.linspace(0.1, 2, 7), scene=engine.Scene(),
+                method="exact", energy_relative=True, circular_tol=1e-12, rtol=1e-10)  # fmt: skip
+    grid = (slice(0, 3), slice(0, 130), slice(0, 5), slice(0, 7))
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = evaluate_flat(a, e, h, lz, engine.Scene()), evaluate_block(spec, grid)
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+        for _ in range(3):
+            many = evaluate_flat(a, e, h, lz, engine.Scene()), evaluate_block(spec, grid)
+            for res1, res2 in zip(one, many, strict=True):
+                assert set(res1) == set(res2)
+                for name in res1:
+                    assert np.array_equal(res1[name], res2[name], equal_nan=True), name
+    finally:
+        numba.set_num_threads(before)
+    assert len(np.unique(one[0]["orbit_class"])) >= 2

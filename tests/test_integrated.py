@@ -126,6 +126,9 @@ def test_rolling_resistance_reports_energy_loss():
     assert np.isfinite(lossy["apsidal_angle"]) and np.isfinite(lossy["period"])
     # the drift is then the (physical) loss relative to the energy scale
     assert lossy["energy_drift"] > 1e3 * base["energy_drift"]
+    # the conservative scene integrates to r_max and doubles (time symmetry); the dissipative
+    # one, whose way back is not the mirror image of the way out, the whole period
+    assert 1.6 * base["n_steps"] < lossy["n_steps"] < 2.5 * base["n_steps"]
 
 
 @pytest.mark.parametrize("bad", [0.0, 1e-15, 1e-2, -1e-10, "x", math.nan])

@@ -10,7 +10,8 @@ is the scalar rest, per lane and only where needed:
 - the start of an orbit (:func:`.orbit.orbit_start`, :func:`.orbit.initial_state`,
   :func:`.orbit.tolerance_scales`, :func:`.rk.initial_step`: as :func:`.orbit.one_period`);
 - the events of a step (:func:`.rk_events.step_events` on a scalar copy of the lane: apsides,
-  rim, slip) and the result (:func:`.orbit.reduce_period`);
+  rim, slip) and the result (:func:`.orbit.reduce_period`: half a period for a conservative
+  scene, :func:`.orbit.period_apsides`);
 - the queue: a lane whose orbit ends takes the next point from a queue the threads share, so
   no lane idles until the points run out, and a thread slowed by other work takes fewer.
 
@@ -21,8 +22,6 @@ per-orbit helpers bind about a hundred arrays, each an atomic reference count ot
 """
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 from numba import literally, prange
@@ -38,9 +37,15 @@ from .lanes_step import (
     lanes_layout,
 )
 from .model import N_PARAMS, rhs, set_alpha
-from .orbit import initial_state, orbit_start, reduce_period, store_period, tolerance_scales
+from .orbit import (
+    initial_state,
+    orbit_start,
+    period_apsides,
+    reduce_period,
+    store_period,
+    tolerance_scales,
+)
 from .protocol import (
-    APOCENTRE,
     BUFFER_FULL,
     NOT_BOUNDED,
     OK,
@@ -141,12 +146,10 @@ def _lane_params(method, effects, l, W, p):
 
 
 @kernel(inline="always")
-def _lane_finish(method, effects, l, status, n_apsides, W, I, LY0, p, ev_t, ev_kind, ev_y,
-                 out_f, out_n, out_status):  # fmt: skip
+def _lane_finish(method, effects, l, status, W, I, LY0, p, ev_t, ev_kind, ev_y, out_f, out_n,
+                 out_status):  # fmt: skip
     """Write the result of lane l's point (ended with ``status``; its parameters in p, its
-    events in ev_*) and idle the lane: one period as :func:`.orbit.one_period` reduces it, or
-    with ``n_apsides`` = 1 half a period (period = twice the time to r_max, by the time
-    symmetry of a conservative orbit; no drift)."""
+    events in ev_*) and idle the lane: one period as :func:`.orbit.one_period` reduces it."""
     ly = lanes_layout(method, effects)
     L = LANES
     i = I[l, _ORBIT]
@@ -154,24 +157,15 @@ def _lane_finish(method, effects, l, status, n_apsides, W, I, LY0, p, ev_t, ev_k
     y0 = LY0[l]
     n_acc = np.int64(W[ly[_NACC] * L + l])
     res = (status, n_acc, np.int64(W[ly[_NREJ] * L + l]), W[ly[_T] * L + l], y0, n_ev, 0)
-    st, T, psi, prec, nst, drift, loss = reduce_period(effects, p, y0, res, ev_t, ev_kind, ev_y)
-    if n_apsides == 1:
-        nan = math.nan
-        st, T, psi, prec, drift, loss = status, nan, nan, nan, nan, nan
-        if status == OK and (n_ev < 1 or ev_kind[0] != APOCENTRE):
-            st = NOT_BOUNDED
-        elif status == OK:
-            T = 2.0 * ev_t[0]
-            psi = abs(ev_y[0, 1])
-            prec = (2.0 * psi - 2.0 * math.pi) / T
-    store_period(out_f, out_n, out_status, i, (st, T, psi, prec, nst, drift, loss))
+    store_period(out_f, out_n, out_status, i, reduce_period(effects, p, y0, res, ev_t, ev_kind,
+                                                            ev_y))  # fmt: skip
     I[l, _ORBIT] = -1
     W[ly[_ACT] * L + l] = 0.0
     W[ly[_H] * L + l] = 0.0
 
 
 @kernel(inline="always")
-def _lane_events(method, effects, l, n_apsides, term_cross, W, I, LEV, LEVK, p, K, K2, ys, yn,
+def _lane_events(method, effects, l, term_cross, W, I, LEV, LEVK, p, K, K2, ys, yn,
                  buf, brent, ev_t, ev_kind, ev_y):  # fmt: skip
     """The events of lane l's accepted step (:func:`.rk_events.step_events` on a scalar copy
     of the lane; p holds its parameters). Returns (stops, status); an apsis found here sets
@@ -192,7 +186,7 @@ def _lane_events(method, effects, l, n_apsides, term_cross, W, I, LEV, LEVK, p, 
     _load_events(l, n_ev0, LEV, LEVK, ev_t, ev_kind, ev_y)
     ok, th_stop, stop_status, g_aps, n_aps, n_ev, i_aps, th_aps = step_events(
         method, effects, ys, yn, K, h, W[ly[_T] * L + l], p, buf, brent, K2,
-        W[ly[_GAPS] * L + l], I[l, _N_APS], n_apsides, ev_t, ev_kind, ev_y, n_ev0,
+        W[ly[_GAPS] * L + l], I[l, _N_APS], period_apsides(effects), ev_t, ev_kind, ev_y, n_ev0,
         term_cross, False)  # fmt: skip
     W[ly[_GAPS] * L + l] = g_aps
     I[l, _N_APS] = n_aps
@@ -266,7 +260,7 @@ def _lane_advance(method, effects, l, max_steps, W):
 
 
 @kernel(inline="always")
-def _lane_flagged(method, effects, l, n_apsides, max_steps, W, I, LEV, LEVK, p, K, K2, ys, yn,
+def _lane_flagged(method, effects, l, max_steps, W, I, LEV, LEVK, p, K, K2, ys, yn,
                   buf, brent, ev_t, ev_kind, ev_y):  # fmt: skip
     """Finish lane l's attempt the control flagged (:func:`.lanes_step.control_source`):
     FLAG 1, an accepted step with an apsis or a terminal event to look at, then the move to its
@@ -287,7 +281,7 @@ def _lane_flagged(method, effects, l, n_apsides, max_steps, W, I, LEV, LEVK, p, 
         return _lane_polished(method, effects, l, max_steps, W, LEV, ys, yn)
     if term or apsis_crossed(W[ly[_GAPS] * L + l], W[(ly[_YN] + 2) * L + l]):
         _lane_params(method, effects, l, W, p)
-        stops, status = _lane_events(method, effects, l, n_apsides, term, W, I, LEV, LEVK, p, K,
+        stops, status = _lane_events(method, effects, l, term, W, I, LEV, LEVK, p, K,
                                      K2, ys, yn, buf, brent, ev_t, ev_kind, ev_y)  # fmt: skip
         if stops or W[ly[_POL] * L + l] != 0.0:
             return stops, status
@@ -296,12 +290,13 @@ def _lane_flagged(method, effects, l, n_apsides, max_steps, W, I, LEV, LEVK, p, 
 
 
 @kernel
-def lanes_worker(method, effects, alpha, energy, hh, Lz, params, rtol, max_steps, n_apsides,
-                 queue, out_f, out_n, out_status):  # fmt: skip
-    """Integrate points LANES at a time, each until its ``n_apsides``-th apsis (2: one period;
-    1: half), into out_f (rows of :data:`.orbit.PERIOD_ROWS`), out_n (accepted steps),
-    out_status. A lane whose point ends takes the next from ``queue`` (int64[1]: the next
-    point's index, shared by the workers) until every point is taken."""
+def lanes_worker(method, effects, alpha, energy, hh, Lz, params, rtol, max_steps, queue, out_f,
+                 out_n, out_status):  # fmt: skip
+    """Integrate points LANES at a time, each over one radial period as
+    :func:`.orbit.one_period` does (to r_max and doubled for a conservative scene), into out_f
+    (rows of :data:`.orbit.PERIOD_ROWS`), out_n (accepted steps), out_status. A lane whose
+    point ends takes the next from ``queue`` (int64[1]: the next point's index, shared by the
+    workers) until every point is taken."""
     ly = lanes_layout(method, effects)
     n, S = ly[_n], ly[_S]
     L = LANES
@@ -342,8 +337,8 @@ def lanes_worker(method, effects, alpha, energy, hh, Lz, params, rtol, max_steps
                                      max_steps, W, I, LY0, LEV, LEVK, p, K, buf, ev_t, ev_kind,
                                      ev_y)  # fmt: skip
                 if status != OK:
-                    _lane_finish(method, effects, l, status, n_apsides, W, I, LY0, p, ev_t,
-                                 ev_kind, ev_y, out_f, out_n, out_status)  # fmt: skip
+                    _lane_finish(method, effects, l, status, W, I, LY0, p, ev_t, ev_kind, ev_y,
+                                 out_f, out_n, out_status)  # fmt: skip
             running += I[l, _ORBIT] >= 0
         if running == 0:
             break
@@ -352,14 +347,14 @@ def lanes_worker(method, effects, alpha, energy, hh, Lz, params, rtol, max_steps
         for l in range(L):
             if W[ly[_FLAG] * L + l] == 0.0:
                 continue
-            stops, status = _lane_flagged(method, effects, l, n_apsides, max_steps, W, I, LEV,
+            stops, status = _lane_flagged(method, effects, l, max_steps, W, I, LEV,
                                           LEVK, p, K, K2, ys, yn, buf, brent, ev_t, ev_kind,
                                           ev_y)  # fmt: skip
             if stops:
                 _lane_params(method, effects, l, W, p)
                 _load_events(l, I[l, _N_EV], LEV, LEVK, ev_t, ev_kind, ev_y)
-                _lane_finish(method, effects, l, status, n_apsides, W, I, LY0, p, ev_t, ev_kind,
-                             ev_y, out_f, out_n, out_status)  # fmt: skip
+                _lane_finish(method, effects, l, status, W, I, LY0, p, ev_t, ev_kind, ev_y, out_f,
+                             out_n, out_status)  # fmt: skip
     # The owners live to here: the borrowed views above hold no reference of their own.
     own_f[0] = own_i[0] + own_k[0]
 
@@ -377,14 +372,14 @@ def _split(own, sizes):
 
 @parallel_kernel
 def integrate_points_lanes(alpha, energy, h, Lz, params, method, effects, rtol, max_steps,
-                           n_apsides, n_workers, out_f, out_n, out_status):  # fmt: skip
-    """:func:`.orbit.integrate_points` for a Runge-Kutta ``method`` (literal, like ``effects``):
-    ``n_workers`` :func:`lanes_worker` (one per thread: ``numba.get_num_threads()``, which a
-    cached kernel cannot call) taking points from one queue; ``n_apsides`` 2 gives
-    integrate_points' results bit for bit, 1 half a period."""
+                           n_workers, out_f, out_n, out_status):  # fmt: skip
+    """:func:`.orbit.integrate_points` for a Runge-Kutta ``method`` (literal, like ``effects``),
+    its results bit for bit: ``n_workers`` :func:`lanes_worker` (one per thread:
+    ``numba.get_num_threads()``, which a cached kernel cannot call) taking points from one
+    queue."""
     literally(method)
     literally(effects)
     queue = np.zeros(1, np.int64)
     for _ in prange(max(1, min(n_workers, alpha.shape[0]))):
-        lanes_worker(method, effects, alpha, energy, h, Lz, params, rtol, max_steps, n_apsides,
-                     queue, out_f, out_n, out_status)  # fmt: skip
+        lanes_worker(method, effects, alpha, energy, h, Lz, params, rtol, max_steps, queue,
+                     out_f, out_n, out_status)  # fmt: skip

@@ -1,6 +1,13 @@
 """Integrating orbits: the start state, tolerances, one run kernel per method id, the one-period
 reduction and the parallel batch over points.
 
+One radial period by symmetry: without a dissipative effect (:data:`.effects.DISSIPATIVE`) the
+equations of motion are invariant under t -> -t, theta -> -theta, u -> -u (r, v, w unchanged),
+so the motion from r_max back to r_min is the mirror image of the motion from r_min to r_max.
+A conservative scene's one-period map therefore integrates r_min -> r_max once
+(:func:`period_apsides` = 1) and doubles: period = 2 t(r_max), and the apsidal angle is the
+azimuth swept to r_max. A dissipative scene integrates the whole (decaying) period.
+
 Every integrator kernel follows the run protocol (:mod:`.protocol`) with one signature::
 
     run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_steps, record,
@@ -168,21 +175,31 @@ def tolerance_scales(p, effects, y0, energy, h, Lz, r1, r2, rc):
 
 # ------------------------------------------------------------------------- one radial period
 @kernel
+def period_apsides(effects):
+    """Apsides a one-period run of ``effects`` integrates to: 1 (r_max; the period and the
+    apsidal angle by time symmetry) for a conservative scene, 2 (the next r_min) for a
+    dissipative one. Folds to a constant for a literal ``effects``."""
+    return 2 if effects & DISSIPATIVE else 1
+
+
+@kernel
 def reduce_period(effects, p, y0, res, ev_t, ev_kind, ev_y):
-    """(status, T, psi, precession, steps, drift, loss) from a run that stopped at the second
-    apsis."""
+    """(status, T, psi, precession, steps, drift, loss) from a run that stopped at its
+    :func:`period_apsides`-th apsis. Conservative: T = twice the time to r_max, the drift
+    measured at r_max; dissipative: T = the time to the next r_min, drift and loss there."""
     nan = math.nan
     status = res[0]
     n_acc = res[1]
     n_ev = res[5]
     if status != OK:
         return status, nan, nan, nan, n_acc, nan, nan
-    if n_ev < 2 or ev_kind[0] != APOCENTRE or ev_kind[1] != PERICENTRE:
+    last = period_apsides(effects) - 1
+    if n_ev <= last or ev_kind[0] != APOCENTRE or (last == 1 and ev_kind[1] != PERICENTRE):
         return NOT_BOUNDED, nan, nan, nan, n_acc, nan, nan
-    T = ev_t[1]
+    T = ev_t[1] if last == 1 else 2.0 * ev_t[0]
     psi = abs(ev_y[0, 1])
     E0 = invariants(y0, p)[0]
-    E1 = invariants(ev_y[1], p)[0]
+    E1 = invariants(ev_y[last], p)[0]
     scale = max(abs(E0), kinetic_energy(y0, p))
     drift = abs(E1 - E0) / scale
     loss = E0 - E1 if effects & DISSIPATIVE else nan
@@ -191,11 +208,13 @@ def reduce_period(effects, p, y0, res, ev_t, ev_kind, ev_y):
 
 @kernel
 def one_period(method, effects, p, energy, h, Lz, rtol, max_steps):
-    """One radial period from r_min (u = 0, theta = 0) to the next r_min.
+    """One radial period from r_min (u = 0, theta = 0): integrated to r_max and doubled for a
+    conservative scene, to the next r_min for a dissipative one (:func:`period_apsides`).
 
     Returns (status, period [s], apsidal angle [rad], precession rate [rad/s], accepted steps,
-    energy drift [1], energy lost [J]). The drift is |E(T) - E(0)| / max(|E(0)|, KE(0)), KE the
-    kinetic energy: relative to E, or to the kinetic energy where E ~ 0.
+    energy drift [1], energy lost [J]). The drift is |E(t) - E(0)| / max(|E(0)|, KE(0)) at the
+    run's end t (r_max, or the next r_min), KE the kinetic energy: relative to E, or to the
+    kinetic energy where E ~ 0.
     """
     ok, r1, r2, rc = orbit_start(p, energy, h, Lz)
     if not ok:
@@ -206,9 +225,9 @@ def one_period(method, effects, p, energy, h, Lz, rtol, max_steps):
     atol *= rtol
     ev_t, ev_kind, ev_y = event_buffers(4, y0.shape[0])
     # Nothing is recorded: the event buffers stand in for the (unused) trajectory buffers.
-    res = run(method, effects, y0, p, (energy, h, Lz), rtol, atol, math.inf, np.int64(2),
-              max_steps, np.int64(RECORD_NONE), 0.0, ev_t, ev_kind, ev_y, ev_t, ev_y,
-              ev_y)  # fmt: skip
+    n_aps = np.int64(period_apsides(effects))
+    res = run(method, effects, y0, p, (energy, h, Lz), rtol, atol, math.inf, n_aps, max_steps,
+              np.int64(RECORD_NONE), 0.0, ev_t, ev_kind, ev_y, ev_t, ev_y, ev_y)  # fmt: skip
     return reduce_period(effects, p, y0, res, ev_t, ev_kind, ev_y)
 
 

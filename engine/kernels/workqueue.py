@@ -1,0 +1,32 @@
+"""The closed form's units of work taken from a counter the threads share.
+
+:func:`orbit_units_queued` is what each thread of :func:`engine.evaluation.run_units` runs:
+it takes the next unit (:func:`.batch.work_units`: 512 points, or 32 (alpha, h, L_z) triples
+times 64 energies of a grid) with an atomic increment (:func:`.lanes_step.fetch_add`) until
+none is left. One call per thread, so the threads start at once and none waits on the Python
+interpreter for its next piece, and the split is as fine as a unit: the threads finish within
+a unit of each other whatever the points cost (forbidden and circular points are cheap, bounded
+ones are not). The results do not depend on which thread computes a unit.
+"""
+
+from __future__ import annotations
+
+from .._jit import kernel
+from .batch import orbit_units
+from .lanes_step import fetch_add
+
+
+@kernel
+def orbit_units_queued(queue, n_units, alpha, energy, h, Lz, grid, relative, M, g, k, a, rim, mu,
+                       circ_tol, out_cls, out_f, out_energy):  # fmt: skip
+    """:func:`.batch.orbit_units` over the units ``queue[0]`` (int64[1], shared by the threads
+    and advanced atomically) up to ``n_units``, one at a time. Returns the units this call
+    computed."""
+    done = 0
+    while True:
+        u = fetch_add(queue, 1)
+        if u >= n_units:
+            return done
+        orbit_units(u, u + 1, alpha, energy, h, Lz, grid, relative, M, g, k, a, rim, mu, circ_tol,
+                    out_cls, out_f, out_energy)  # fmt: skip
+        done += 1

@@ -1,0 +1,81 @@
+"""What the benchmarks share: the machine in words, the load, and the serial share of a call.
+
+The serial share is the part of a call that threads cannot shorten: at 1 thread, the wall time
+spent outside its parallel region (validating, allocating, assembling the outputs), as a share
+of the whole. With a serial share s, n threads give at most 1 / (s + (1 - s) / n): 3 % caps 16
+threads at 11.4x.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import platform
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numba
+
+
+def load() -> str:
+    """The load average (1, 5, 15 min)."""
+    return ", ".join(f"{x:.2f}" for x in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
+
+
+def _cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+#: The machine, in words (every figure names it).
+MACHINE = f"{_cpu_model()}, {os.cpu_count()} logical CPUs"
+
+
+class InRegion:
+    """Wall time spent inside ``module.name`` (a call's parallel region) while active: the
+    attribute is wrapped on entry and restored on exit."""
+
+    def __init__(self, module, name: str):
+        self.module, self.name = module, name
+        self.inside = 0.0
+
+    def __enter__(self) -> InRegion:
+        inner = self.original = getattr(self.module, self.name)
+
+        def timed(*args, **kw):
+            t0 = time.perf_counter()
+            try:
+                return inner(*args, **kw)
+            finally:
+                self.inside += time.perf_counter() - t0
+
+        setattr(self.module, self.name, timed)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        setattr(self.module, self.name, self.original)
+
+
+def serial_share(fn: Callable[[], object], module, name: str, rounds: int = 5) -> float:
+    """Lowest share, over ``rounds`` calls at 1 thread, of ``fn``'s wall time spent outside its
+    parallel region ``module.name``. Restores the number of threads."""
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        fn()
+        best = math.inf
+        for _ in range(rounds):
+            with InRegion(module, name) as region:
+                t0 = time.perf_counter()
+                fn()
+                total = time.perf_counter() - t0
+            best = min(best, 1.0 - region.inside / total)
+    finally:
+        numba.set_num_threads(before)
+    return best
