@@ -84,7 +84,7 @@ class DirectChunks:
 
         self._file = h5py.File(path, "r+")
         self._pool = concurrent.futures.ThreadPoolExecutor(
-            threads or os.cpu_count() or 1, thread_name_prefix="conesurvey-deflate"
+            threads or _cores(), thread_name_prefix="conesurvey-deflate"
         )
         self._vars: dict[str, tuple[Any, int, bool]] = {}
         try:
@@ -122,6 +122,14 @@ class DirectChunks:
             jobs.append((start, self._pool.submit(compress_chunk, part, level, shuffled)))
         for start, job in jobs:
             dset.id.write_direct_chunk(start, job.result())
+
+
+def _cores() -> int:
+    """The cores this process may run on (a container's or a batch job's share)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # macOS, Windows
+        return os.cpu_count() or 1
 
 
 def _pipeline(dset: Any) -> tuple[int, bool]:

@@ -215,7 +215,9 @@ def merge(
         try:
             with replacing(out, overwrite=overwrite, tmp_dir=store.root) as tmp:
                 try:
-                    summary = _write_file(tmp, store, survey, attrs, codecs, pending, blocks)
+                    summary = _write_file(
+                        tmp, store, survey, attrs, codecs, pending, blocks, warn or _warn
+                    )
                 except (RuntimeError, OSError) as exc:  # netCDF4 reports HDF5 failures (ENOSPC
                     # too) as RuntimeError, h5py as OSError
                     if upstream and exc is upstream[0]:
@@ -278,21 +280,26 @@ def _write_file(
     codecs: dict[str, dict[str, Any]],
     pending: Collection[int],
     blocks: Iterable[tuple[int, dict[str, np.ndarray]]],
+    warn: Callable[[str], None],
 ) -> Summary:
     """One attempt of :func:`merge` into ``tmp``: define, fill, checksum, close. Deflate
     variables are written as chunks compressed on every core (:mod:`engine.io.deflate`) into
-    the file defined by netCDF4 and closed, then reopened for the checksum."""
+    the file defined by netCDF4 and closed, then reopened for the checksum; where h5py
+    cannot open it, through netCDF4 (``warn`` says so)."""
     direct = all(kw.get("compression") == "zlib" for kw in codecs.values()) and not unavailable()
     nc = netCDF4.Dataset(tmp, "w", format="NETCDF4")
     try:
         hasher = ContentHasher(store.tiling.block)
         variables = _define(nc, store, survey, attrs, codecs, hasher)
-        if direct:
-            nc.close()
-            with DirectChunks(tmp, store.names) as chunks:
+        chunks = _direct(nc, tmp, store, warn) if direct else None
+        if chunks is not None:
+            with chunks:
                 summary = _fill(store, chunks.write, codecs, hasher, pending, blocks)
             nc = netCDF4.Dataset(tmp, "a")
         else:
+            if direct:  # h5py could not open it: netCDF4 writes the values
+                nc = netCDF4.Dataset(tmp, "a")
+                variables = {n: nc[n] for n in store.names}
             summary = _fill(store, _netcdf4_writer(variables), codecs, hasher, pending, blocks)
         nc.setncattr(CHECKSUM_ATTR, hasher.finish(nc))
     except BaseException:
@@ -301,6 +308,17 @@ def _write_file(
         raise
     nc.close()
     return summary
+
+
+def _direct(nc: Any, tmp: Path, store: BlockStore, warn: Callable[[str], None]) -> Any:
+    """Close ``nc`` (defined) and open it for direct chunk writes; None (and a notice) if h5py
+    cannot open the file or finds the filters other than defined."""
+    nc.close()
+    try:
+        return DirectChunks(tmp, store.names)
+    except (OSError, ValueError) as exc:
+        warn(f"zlib is compressed by netCDF4 on one thread, slower: h5py cannot write ({exc})")
+        return None
 
 
 def _define(

@@ -167,3 +167,19 @@ def test_without_h5py_zlib_is_written_by_netcdf4_with_a_notice(files, tmp_path, 
     assert len(notices) == 1 and "h5py is not installed" in notices[0], notices
     ref, got = _values(files[0] / "none.nc"), _values(tmp_path / "a.nc")
     assert all(got[n].tobytes() == ref[n].tobytes() for n in ref)
+
+
+def test_where_h5py_cannot_open_the_file_netcdf4_writes_it_with_a_notice(
+    files, tmp_path, monkeypatch
+):
+    def refuse(path, names):
+        raise OSError("unable to open file (file signature not found)")
+
+    monkeypatch.setattr("engine.io.netcdf.DirectChunks", refuse)
+    notices: list[str] = []
+    run_survey(parse_survey(SURVEY), tmp_path / "a.nc", block_points=70_000, warn=notices.append)
+    assert len(notices) == 1 and "h5py cannot write" in notices[0], notices
+    ref, got = _values(files[0] / "none.nc"), _values(tmp_path / "a.nc")
+    assert all(got[n].tobytes() == ref[n].tobytes() for n in ref)
+    with netCDF4.Dataset(tmp_path / "a.nc") as nc:
+        assert nc["period"].filters()["zlib"] and verify_file(nc)[0]
