@@ -71,6 +71,7 @@ def block_spec(survey: Survey) -> dict[str, Any]:
         circular_tol=survey.circular_tol,
         rtol=survey.rtol,
         horizon=survey.horizon,
+        dtypes=survey.variables(),  # float32 where the survey's precision is single
     )
     return spec
 
@@ -78,8 +79,11 @@ def block_spec(survey: Survey) -> dict[str, Any]:
 def compute_block(
     spec: dict[str, Any], tiling: Tiling, index: int
 ) -> tuple[int, dict[str, np.ndarray]]:
-    """Results of block ``index`` (module-level, so dask can ship it to workers)."""
-    return index, evaluate_block(spec, tiling.slices(index))
+    """Results of block ``index`` (module-level, so dask can ship it to workers), of the
+    survey's dtypes (float32 where its precision is single)."""
+    results = evaluate_block(spec, tiling.slices(index))
+    dtypes = spec.get("dtypes", {})
+    return index, {n: a.astype(dtypes.get(n, a.dtype), copy=False) for n, a in results.items()}
 
 
 def write_block(

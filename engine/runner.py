@@ -213,7 +213,7 @@ def run_survey(
     command: str = "conesurvey",
     warn: Callable[[str], None] | None = None,
     on_block: Callable[[int], None] | None = None,
-    compression: str = DEFAULT_COMPRESSION,
+    compression: str | None = None,
     complevel: int | None = None,
     check_space: bool = True,
 ) -> RunStats:
@@ -226,8 +226,11 @@ def run_survey(
     resume (nothing written), :class:`RunFailed` when it stopped after writing (resumable).
     ``on_block(index)`` is called after each block is safely stored (for tests and hooks).
     ``compression`` / ``complevel``: how the output's variables are compressed
-    (:mod:`engine.io.codecs`; README, "Output and compression").
+    (:mod:`engine.io.codecs`; docs/output.md); None: the format's default (netCDF: zlib;
+    Zarr: blosc_lz4).
     """
+    if compression is None:
+        compression = ZARR_COMPRESSIONS[0] if zarr_io.is_zarr(out) else DEFAULT_COMPRESSION
     try:
         compression_keywords(compression, complevel)
     except ValueError as exc:

@@ -6,6 +6,7 @@ A survey evaluates every point of the grid alpha x energy x h x Lz. Example::
     method = "exact"                         # optional: exact (default), rk45, dop853, symplectic
     rtol = 1e-10                             # optional, relative tolerance of the integrators
     circular_tol = 1e-12                     # optional, relative width of the circular class
+    precision = "double"                     # optional: "single" stores float32 (docs/output.md)
 
     [scene]                                  # optional; any field of engine.Scene
     M = 1.0                                  # mass [kg]
@@ -99,7 +100,10 @@ DEFAULT_METHOD = "exact"
 #: Largest survey file read [bytes] (``values`` lists of ~10^5 numbers fit).
 MAX_SURVEY_BYTES = 4 << 20
 
-_TOP_KEYS = ("title", "method", "rtol", "circular_tol", "scene", "horizon", "axes")
+_TOP_KEYS = ("title", "method", "rtol", "circular_tol", "precision", "scene", "horizon", "axes")
+#: ``precision``: how the float result variables are stored (the axes stay float64; the
+#: integer ones, class, status and fate, are exact either way).
+PRECISIONS = ("double", "single")
 _HORIZON_KEYS = ("time", "revolutions")
 _SCENE_FIELDS = tuple(f.name for f in dataclasses.fields(Scene) if not f.name.startswith("_"))
 
@@ -146,6 +150,7 @@ class Survey:
     v0: np.ndarray | None = None
     w0: np.ndarray | None = None
     horizon: Horizon | None = None
+    precision: str = "double"
 
     @property
     def dims(self) -> tuple[str, ...]:
@@ -169,13 +174,21 @@ class Survey:
         return self.r0 is not None
 
     def variables(self) -> dict[str, np.dtype]:
-        """Names and dtypes of the result variables, in file order (:mod:`engine.schema`)."""
-        return result_variables(self.method, self.scene, self.energy_relative, self.launch)
+        """Names and dtypes of the result variables, in file order (:mod:`engine.schema`); the
+        float ones float32 with ``precision = "single"``."""
+        names = result_variables(self.method, self.scene, self.energy_relative, self.launch)
+        if self.precision == "single":
+            return {n: np.dtype(np.float32) if dt.kind == "f" else dt for n, dt in names.items()}
+        return names
 
     def attrs(self) -> dict[str, Any]:
-        """The global attributes of its results (:func:`engine.schema.survey_attrs`)."""
-        return survey_attrs(self.scene, self.method, self.circular_tol, self.rtol,
-                            self.energy_relative, self.horizon, self.launch)  # fmt: skip
+        """The global attributes of its results (:func:`engine.schema.survey_attrs`), and
+        ``precision`` where it is single."""
+        attrs = survey_attrs(self.scene, self.method, self.circular_tol, self.rtol,
+                             self.energy_relative, self.horizon, self.launch)  # fmt: skip
+        if self.precision == "single":
+            attrs["precision"] = "single: float results stored as float32 (~7 digits)"
+        return attrs
 
     def run(self, progress: Callable[[int, int], None] | None = None) -> xr.Dataset:
         """Evaluate the survey in memory (:func:`engine.survey` or :func:`engine.launch_survey`);
@@ -191,9 +204,14 @@ class Survey:
             progress=progress,
         )
         if self.launch:
-            return api_launch_survey(self.alpha, self.r0, self.v0, self.w0, **kw)
-        return api_survey(self.alpha, self.energy, self.h, self.Lz,
-                          energy_relative=self.energy_relative, **kw)  # fmt: skip
+            ds = api_launch_survey(self.alpha, self.r0, self.v0, self.w0, **kw)
+        else:
+            ds = api_survey(self.alpha, self.energy, self.h, self.Lz,
+                            energy_relative=self.energy_relative, **kw)  # fmt: skip
+        for name, dt in self.variables().items():
+            if name in ds and ds[name].dtype != dt:
+                ds[name] = ds[name].astype(dt)
+        return ds
 
 
 def load_survey(path: str | os.PathLike[str]) -> Survey:
@@ -287,7 +305,9 @@ class _Reader(AxisReader):
         if dims == LAUNCH_DIMS:
             arrays.update(energy=None, h=None, Lz=None)
         energy_relative = "relative_to" in axes.get("energy", {})
+        precision = self.choice(doc.get("precision", "double"), "precision", PRECISIONS)
         return Survey(
+            precision=precision,
             title=title,
             method=method,
             rtol=rtol,

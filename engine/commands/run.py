@@ -81,11 +81,11 @@ def add_arguments(run: argparse.ArgumentParser) -> None:
     run.add_argument(
         "--compression",
         choices=COMPRESSIONS,
-        default=DEFAULT_COMPRESSION,
+        default=None,
         help=f"how the output's variables are compressed (default {DEFAULT_COMPRESSION}: "
-        "fast, read by the netCDF4 Python package and netCDF-C >= 4.9 with its filter "
-        "plugins; zlib: readable by every netCDF-4/HDF5 tool, several times slower to write; "
-        "a Zarr store takes blosc_lz4 or none; README, 'Output and compression')",
+        "deflate with shuffle, read by every netCDF-4/HDF5 tool, compressed on every core; "
+        "blosc_lz4, zstd: need HDF5 filter plugins to read; a Zarr store takes blosc_lz4 "
+        "(its default) or none; docs/output.md)",
     )
     run.add_argument(
         "--complevel",

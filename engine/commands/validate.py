@@ -46,6 +46,9 @@ def _validate(args: argparse.Namespace, command: str) -> int:
     print(f"  grid    {shape} = {survey.size:,} points")
     print(f"  output  about {format_bytes(need)} uncompressed (zlib shrinks it, class maps ~150x)")
     print(f"  time    about {seconds:.3g} s on 2 cores")
+    if survey.precision == "single":
+        print("  precision single: float results stored as float32 (~7 significant digits); "
+              "classes, status and fate exact")  # fmt: skip
     for line in map_summary(survey.method, survey.scene, survey.energy_relative, survey.launch):
         print(f"  {line}")
     return 0

@@ -2,20 +2,26 @@
 
 One list for every output format; each backend maps a name to its own library's settings
 (:func:`compression_keywords` for netCDF-4, here). What each choice costs (MB/s and ratio on
-a shipped survey) and who can read it: README, "Output and compression".
+a shipped survey) and who can read it: docs/output.md.
 
-- ``blosc_lz4`` (default): Blosc with LZ4 and byte shuffle (HDF5 filter 32001): the fastest by
-  far at nearly zlib's ratio; read by the netCDF4 wheels from PyPI (they ship the filter
-  plugins), h5py with ``hdf5plugin``, netCDF-C >= 4.9 with its filter plugins installed.
-  HDF5's blosc filter fails on a chunk it cannot shrink (it has no room for blosc's
-  uncompressed fallback), which small chunks often are: a variable whose chunks are under
-  :data:`SMALL_CHUNK_BYTES` is written with ``zstd`` instead (:func:`variable_keywords`), and
-  the merge rewrites a variable with ``zstd`` if one of its chunks fails all the same
+- ``zlib`` (default): deflate with shuffle, built into every HDF5 and netCDF-4 reader (ncdump,
+  h5dump, xarray with either engine, Panoply, MATLAB, R) with no plugin: the portable one. A
+  streamed run compresses its chunks on every core and writes them directly
+  (:mod:`engine.io.deflate`), at levels 1-3 with ISA-L;
+- ``blosc_lz4``: Blosc with LZ4 and byte shuffle (HDF5 filter 32001); read by the netCDF4
+  wheels from PyPI (they ship the filter plugins), h5py with ``hdf5plugin``, netCDF-C >= 4.9
+  with its filter plugins installed; not by Debian's ncdump nor xarray's h5netcdf engine
+  without them. HDF5's blosc filter fails on a chunk it cannot shrink (it has no room for
+  blosc's uncompressed fallback), which small chunks often are: a variable whose chunks are
+  under :data:`SMALL_CHUNK_BYTES` is written with ``zstd`` instead (:func:`variable_keywords`),
+  and the merge rewrites a variable with ``zstd`` if one of its chunks fails all the same
   (:func:`engine.io.netcdf.merge`);
 - ``zstd``: Zstandard (HDF5 filter 32015), without shuffle (the netCDF4 package adds the
-  shuffle filter to zlib only): slower and larger than blosc_lz4 here; read by the same tools;
-- ``zlib``: deflate with shuffle, built into every HDF5 and netCDF-4 reader: the portable one;
+  shuffle filter to zlib only); read by the same tools as blosc_lz4;
 - ``none``: no filter.
+
+A compression this netCDF library cannot write (a filter plugin missing) is never an error:
+the variables are written with ``zlib`` and :func:`fallback_notice` says so in one line.
 """
 
 from __future__ import annotations
@@ -31,6 +37,8 @@ __all__ = [
     "DEFAULT_LEVELS",
     "FALLBACK",
     "check_compression",
+    "fallback_notice",
+    "written_compression",
     "compression_keywords",
     "SMALL_CHUNK_BYTES",
     "is_blosc",
@@ -38,8 +46,10 @@ __all__ = [
     "variable_keywords",
 ]
 
-COMPRESSIONS = ("blosc_lz4", "zstd", "zlib", "none")
-DEFAULT_COMPRESSION = "blosc_lz4"
+COMPRESSIONS = ("zlib", "blosc_lz4", "zstd", "none")
+DEFAULT_COMPRESSION = "zlib"
+#: What a compression this netCDF library cannot write is replaced by (always writable).
+PORTABLE = "zlib"
 #: Default level of each (``--complevel``; 0 = uncompressed whatever the name): blosc's own
 #: default; zlib 1 (level 4 compresses < 1 % better for 7-26 % more time); zstd 1 (levels 3 and
 #: 9 compress ~6 % better at 0.75x and 0.5x the speed).
@@ -70,8 +80,9 @@ def level(name: str, complevel: int | None) -> int:
 def compression_keywords(name: str = DEFAULT_COMPRESSION, complevel: int | None = None) -> dict:
     """The netCDF4 ``createVariable`` keywords (xarray's encoding takes the same) of compression
     ``name`` (:mod:`engine.io.codecs`) at ``complevel`` (None: its default; 0: uncompressed).
-    ValueError naming the value if it is not a choice or this netCDF library cannot write it
-    (checked by writing a small in-memory file once)."""
+    ValueError naming the value if it is not a choice. Where this netCDF library cannot write
+    it (checked by writing a small in-memory file once), those of ``zlib`` at its default
+    level (:func:`fallback_notice` says why)."""
     lvl = level(name, complevel)
     if name == "none" or lvl == 0:
         return {"compression": None}
@@ -80,14 +91,35 @@ def compression_keywords(name: str = DEFAULT_COMPRESSION, complevel: int | None 
     kw = {"compression": name, "complevel": lvl}
     if name == "blosc_lz4":
         kw["blosc_shuffle"] = 1  # byte shuffle
-    problem = _cannot_write(tuple(kw.items()))
-    if problem:
-        raise ValueError(
-            f"compression {name!r} cannot be written by this netCDF library (netCDF4 "
-            f"{netCDF4.__version__}, netCDF-C {netCDF4.__netcdf4libversion__}: {problem}); "
-            "use --compression zlib"
-        )
+    if _cannot_write(tuple(kw.items())):
+        return compression_keywords(PORTABLE)
     return kw  # zstd: netCDF4 adds the shuffle filter to zlib only
+
+
+def written_compression(name: str) -> str:
+    """The compression the variables are written with when ``name`` (checked) is asked for:
+    ``name``, or ``zlib`` where this netCDF library cannot write it."""
+    check_compression(name)
+    return PORTABLE if fallback_notice(name) else name
+
+
+def fallback_notice(name: str) -> str:
+    """One line saying that ``name`` cannot be written here and ``zlib`` is written instead
+    ("" if it can be written)."""
+    check_compression(name)
+    if name in (PORTABLE, "none"):
+        return ""
+    kw = {"compression": name, "complevel": DEFAULT_LEVELS[name]}
+    if name == "blosc_lz4":
+        kw["blosc_shuffle"] = 1
+    problem = _cannot_write(tuple(kw.items()))
+    if not problem:
+        return ""
+    return (
+        f"compression {name!r} cannot be written by this netCDF library (netCDF4 "
+        f"{netCDF4.__version__}, netCDF-C {netCDF4.__netcdf4libversion__}: {problem}); "
+        f"writing {PORTABLE} (readable by every netCDF-4 tool) instead"
+    )
 
 
 def variable_keywords(name: str, complevel: int | None, chunk_bytes: int) -> dict:

@@ -27,9 +27,9 @@ from ..schema import DIMS, LAUNCH_DIMS
 from . import OutputError, WriteError, netcdf
 from . import zarr as zarr_io
 from .atomic import fsync_path, replacing
+from .cf import history_line
 from .codecs import compression_keywords
 from .contents import BLOCK_SCHEME, CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, SCHEME, ContentHasher
-from .netcdf import history_line
 from .zarrlayout import ZarrView
 
 __all__ = ["Converted", "convert", "output_bytes"]

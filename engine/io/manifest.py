@@ -74,6 +74,8 @@ def fingerprint(survey: Survey) -> str:
         "scene": {k: str(v) for k, v in survey.scene.as_attrs().items()},
         "axes": {d: int(np.size(getattr(survey, d))) for d in survey.dims},
     }
+    if survey.precision != "double":  # float32 results (absent: the fingerprints of before)
+        doc["precision"] = survey.precision
     if survey.horizon is not None:  # fate maps: how long each orbit is followed
         doc["horizon"] = {k: str(v) for k, v in survey.horizon.as_attrs().items()}
     h = hashlib.sha256(json.dumps(doc, sort_keys=True).encode())

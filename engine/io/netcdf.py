@@ -29,28 +29,28 @@ import contextlib
 import math
 import os
 import sys
-from collections.abc import Callable, Collection, Iterable, Iterator, Mapping
-from datetime import UTC, datetime
+from collections.abc import Callable, Collection, Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import netCDF4  # ~9 ms once engine is imported: not worth a lazy import
 import numpy as np
 
-from .._jit import threading_layer
-from .._version import __version__
 from ..schema import FINGERPRINT_ATTR, axis_attrs, map_kind, variable_attrs
 from . import WriteError
 from .atomic import fsync_path, replacing
 from .blocks import BlockStore, Summary
+from .cf import CONVENTIONS, cf_attrs, cf_dataset, history_line, typed_flags
 from .codecs import (
     DEFAULT_COMPRESSION,
     FALLBACK,
     compression_keywords,
+    fallback_notice,
     is_blosc,
     variable_keywords,
 )
 from .contents import CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher
+from .deflate import DirectChunks, unavailable
 from .feed import feed
 from .netcdf_info import read_fingerprint, read_info
 from .space import free_bytes, output_bytes
@@ -58,7 +58,6 @@ from .space import free_bytes, output_bytes
 if TYPE_CHECKING:
     import xarray as xr
 
-    from ..scene import Scene
     from ..surveyfile import Survey
 
 __all__ = [
@@ -75,70 +74,7 @@ __all__ = [
     "write_survey",
 ]
 
-CONVENTIONS = "CF-1.11"
-
-
-# --- attributes and encodings -----------------------------------------------------------------
-
-
-def history_line(command: str, *, now: datetime | None = None) -> str:
-    """One CF history entry: ISO-8601 UTC time, the command and numba's threading layer."""
-    stamp = (now or datetime.now(UTC)).astimezone(UTC)
-    return f"{stamp:%Y-%m-%dT%H:%M:%SZ} {command} (numba threading layer: {threading_layer()})"
-
-
-def cf_attrs(
-    attrs: Mapping[str, Any],
-    *,
-    title: str,
-    survey_definition: str,
-    command: str = "conesurvey",
-    scene: Scene | None = None,
-) -> dict[str, Any]:
-    """The global attributes ``attrs`` with the CF ones a conesurvey output carries: the new
-    history entry first (newest first, CF), the scene's parameters, the definition last."""
-    rest = dict(attrs)
-    if scene is not None:
-        rest.update(scene.as_attrs())
-    old_history = rest.pop("history", "")
-    entry = history_line(command)
-    for key in ("Conventions", "title", "source", "survey_definition"):
-        rest.pop(key, None)
-    return {
-        "Conventions": CONVENTIONS,
-        "title": title,
-        "history": f"{entry}\n{old_history}" if old_history else entry,
-        "source": f"conesurvey {__version__}",
-        **rest,
-        "survey_definition": survey_definition,
-    }
-
-
-def typed_flags(attrs: Mapping[str, Any], dtype: np.dtype) -> dict[str, Any]:
-    """``attrs`` with ``flag_values`` of the variable's own type (CF requires it)."""
-    out = dict(attrs)
-    if "flag_values" in out:
-        out["flag_values"] = np.asarray(out["flag_values"], dtype=dtype)
-    return out
-
-
-def cf_dataset(
-    ds: xr.Dataset,
-    *,
-    title: str,
-    survey_definition: str,
-    command: str = "conesurvey",
-    scene: Scene | None = None,
-) -> xr.Dataset:
-    """A shallow copy of ``ds`` with the CF global attributes (:func:`cf_attrs`); the
-    ``flag_values`` of flag variables (``orbit_class``, ``status``) get the variable's type."""
-    out = ds.copy(deep=False)
-    out.attrs = cf_attrs(
-        ds.attrs, title=title, survey_definition=survey_definition, command=command, scene=scene
-    )
-    for var in out.data_vars.values():
-        var.attrs = typed_flags(var.attrs, var.dtype)
-    return out
+# --- encodings ------------------------------------------------------------------------------
 
 
 def encoding_for(
@@ -178,6 +114,8 @@ def write_netcdf(
     """
     path = Path(path)
     enc = encoding_for(ds, compression, complevel)
+    if notice := fallback_notice(compression):
+        _warn(notice)
     with replacing(path, overwrite=overwrite) as tmp:
         ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=enc)
         fsync_path(tmp)
@@ -244,6 +182,8 @@ def merge(
     WriteError if the netCDF library fails to write (a full disk shows up as "NetCDF: HDF
     error"); nothing is left under ``out`` in any of these cases.
     """
+    for notice in _notices(compression, complevel):
+        (warn or _warn)(notice)
     chunk = math.prod(store.tiling.chunk)
     codecs = {
         n: variable_keywords(compression, complevel, chunk * dt.itemsize)
@@ -265,8 +205,11 @@ def merge(
         try:
             with replacing(out, overwrite=overwrite, tmp_dir=store.root) as tmp:
                 try:
-                    summary = _write_file(tmp, store, survey, attrs, codecs, pending, blocks)
-                except RuntimeError as exc:  # netCDF4 reports HDF5 failures (ENOSPC too) so
+                    summary = _write_file(
+                        tmp, store, survey, attrs, codecs, pending, blocks, warn or _warn
+                    )
+                except (RuntimeError, OSError) as exc:  # netCDF4 reports HDF5 failures (ENOSPC
+                    # too) as RuntimeError, h5py as OSError
                     if upstream and exc is upstream[0]:
                         raise
                     raise WriteError(f"writing {out} failed ({exc})") from None
@@ -281,6 +224,18 @@ def merge(
                 f"then fails); {out.name} is written again with {exc.name} in {FALLBACK}"
             )
             pending, blocks = (), ()
+
+
+def _notices(compression: str, complevel: int | None) -> list[str]:
+    """What :func:`merge` says before writing: a compression written as zlib instead
+    (:func:`engine.io.codecs.fallback_notice`), zlib compressed by netCDF4 on one thread."""
+    if notice := fallback_notice(compression):
+        return [notice]
+    if compression_keywords(compression, complevel).get("compression") == "zlib" and (
+        why := unavailable()
+    ):
+        return [f"zlib is compressed by netCDF4 on one thread here, slower: {why}"]
+    return []
 
 
 class _Refused(Exception):  # noqa: N818 (not an error: the merge's signal to rewrite)
@@ -308,13 +263,27 @@ def _write_file(
     codecs: dict[str, dict[str, Any]],
     pending: Collection[int],
     blocks: Iterable[tuple[int, dict[str, np.ndarray]]],
+    warn: Callable[[str], None],
 ) -> Summary:
-    """One attempt of :func:`merge` into ``tmp``: define, fill, checksum, close."""
+    """One attempt of :func:`merge` into ``tmp``: define, fill, checksum, close. Deflate
+    variables are written as chunks compressed on every core (:mod:`engine.io.deflate`) into
+    the file defined by netCDF4 and closed, then reopened for the checksum; where h5py
+    cannot open it, through netCDF4 (``warn`` says so)."""
+    direct = all(kw.get("compression") == "zlib" for kw in codecs.values()) and not unavailable()
     nc = netCDF4.Dataset(tmp, "w", format="NETCDF4")
     try:
         hasher = ContentHasher(store.tiling.block)
         variables = _define(nc, store, survey, attrs, codecs, hasher)
-        summary = _fill(store, variables, codecs, hasher, pending, blocks)
+        chunks = _direct(nc, tmp, store, warn) if direct else None
+        if chunks is not None:
+            with chunks:
+                summary = _fill(store, chunks.write, codecs, hasher, pending, blocks)
+            nc = netCDF4.Dataset(tmp, "a")
+        else:
+            if direct:  # h5py could not open it: netCDF4 writes the values
+                nc = netCDF4.Dataset(tmp, "a")
+                variables = {n: nc[n] for n in store.names}
+            summary = _fill(store, _netcdf4_writer(variables), codecs, hasher, pending, blocks)
         nc.setncattr(CHECKSUM_ATTR, hasher.finish(nc))
     except BaseException:
         with contextlib.suppress(Exception):  # after a failed write the close fails too
@@ -322,6 +291,17 @@ def _write_file(
         raise
     nc.close()
     return summary
+
+
+def _direct(nc: Any, tmp: Path, store: BlockStore, warn: Callable[[str], None]) -> Any:
+    """Close ``nc`` (defined) and open it for direct chunk writes; None (and a notice) if h5py
+    cannot open the file or finds the filters other than defined."""
+    nc.close()
+    try:
+        return DirectChunks(tmp, store.names)
+    except (OSError, ValueError) as exc:
+        warn(f"zlib is compressed by netCDF4 on one thread, slower: h5py cannot write ({exc})")
+        return None
 
 
 def _define(
@@ -360,23 +340,30 @@ def _define(
     return variables
 
 
+def _netcdf4_writer(variables: dict[str, Any]) -> Callable[[str, tuple, np.ndarray], None]:
+    def put(name: str, slab: tuple, values: np.ndarray) -> None:
+        variables[name][slab] = values
+
+    return put
+
+
 def _fill(
     store: BlockStore,
-    variables: dict[str, Any],
+    put: Callable[[str, tuple, np.ndarray], None],
     codecs: dict[str, dict[str, Any]],
     hasher: ContentHasher,
     pending: Collection[int],
     incoming: Iterable[tuple[int, dict[str, np.ndarray]]],
 ) -> Summary:
-    """Write every block into ``variables`` on a writer thread while ``incoming`` computes the
-    ``pending`` ones (:func:`engine.io.feed.feed`); hash and count them on the way."""
+    """Write every block (``put(name, slab, values)``) on a writer thread while ``incoming``
+    computes the ``pending`` ones (:func:`engine.io.feed.feed`); hash and count them on the way."""
     summary = Summary()
 
     def write(index: int, block: dict[str, np.ndarray]) -> None:
         slab = store.tiling.slices(index)
         for name, arr in block.items():
             try:
-                variables[name][slab] = arr
+                put(name, slab, arr)
             except RuntimeError as exc:
                 if is_blosc(codecs[name]):
                     raise _Refused(name) from exc

@@ -34,9 +34,9 @@ from ..schema import FINGERPRINT_ATTR, axis_attrs, map_kind, variable_attrs
 from . import OutputError, netcdf
 from .atomic import exists_error, fsync_dir, fsync_path
 from .blocks import Summary, check_parts_dir, survey_dims
+from .cf import cf_attrs
 from .contents import BLOCK_SCHEME, CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher, verify_file
 from .manifest import Manifest, parts_dir
-from .netcdf import cf_attrs
 from .netcdf_info import class_counts
 from .space import output_bytes
 from .zarrlayout import (

@@ -33,8 +33,8 @@ from ..grid import Tiling
 from . import OutputError
 from .atomic import NEW_FILE, O_CLOEXEC, O_NOFOLLOW, fsync_dir, fsync_path, read_regular
 from .blocks import Summary
+from .cf import typed_flags
 from .contents import block_digest
-from .netcdf import typed_flags
 
 __all__ = [
     "BLOSC",
@@ -253,8 +253,9 @@ def json_attr(value: Any) -> Any:
 
 def fill_attr(dtype: np.dtype) -> str:
     """The CF ``_FillValue`` (NaN) of a float variable as xarray encodes it in Zarr v3
-    attributes: base64 of its little-endian bytes."""
-    return base64.b64encode(np.array(np.nan, dtype.newbyteorder("<")).tobytes()).decode()
+    attributes: base64 of its little-endian bytes as float64 (xarray decodes 8 bytes whatever
+    the variable's float type)."""
+    return base64.b64encode(np.array(np.nan, "<f8").tobytes()).decode()
 
 
 def _decoded(attrs: Mapping[str, Any], dtype: np.dtype) -> dict[str, Any]:
@@ -264,7 +265,8 @@ def _decoded(attrs: Mapping[str, Any], dtype: np.dtype) -> dict[str, Any]:
     fill = out.get("_FillValue")
     if isinstance(fill, str):
         with contextlib.suppress(ValueError, TypeError):
-            out["_FillValue"] = np.frombuffer(base64.b64decode(fill), dtype.newbyteorder("<"))[0]
+            raw = np.frombuffer(base64.b64decode(fill), "<f8")[0]
+            out["_FillValue"] = np.asarray(raw, dtype.newbyteorder("="))[()]
     return out
 
 

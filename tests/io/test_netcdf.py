@@ -149,13 +149,14 @@ def test_encoding_for_separates_coordinates_and_data(ds):
 
 
 def test_blosc_is_kept_from_variables_smaller_than_a_chunk_it_can_shrink(ds):
-    """blosc_lz4 (the default) for a variable of >= 64 KiB; zstd for a smaller one, where
+    """blosc_lz4 for a variable of >= 64 KiB; zstd for a smaller one, where
     HDF5's blosc filter would fail on a chunk it cannot shrink (engine.io.codecs)."""
     big = ds.isel(alpha=[0] * 512)  # 512 x 7 x 2 x 2 points: 114,688 bytes of float64
     assert big.r_min.nbytes >= 1 << 16 > ds.r_min.nbytes
-    assert encoding_for(big)["r_min"]["compression"] == "blosc_lz4"
-    assert encoding_for(big)["r_min"]["blosc_shuffle"] == 1
-    assert encoding_for(ds)["r_min"]["compression"] == "zstd"
+    assert encoding_for(big, "blosc_lz4")["r_min"]["compression"] == "blosc_lz4"
+    assert encoding_for(big, "blosc_lz4")["r_min"]["blosc_shuffle"] == 1
+    assert encoding_for(ds, "blosc_lz4")["r_min"]["compression"] == "zstd"
+    assert encoding_for(ds)["r_min"]["compression"] == "zlib"  # the default
     assert encoding_for(big, "zstd", 3)["r_min"]["complevel"] == 3
 
 
