@@ -42,7 +42,7 @@ import numpy as np
 
 from .backends import BackendError, block_spec, check_address, open_backend
 from .evaluation import evaluate_block
-from .grid import BLOCK_POINTS, Tiling
+from .grid import BLOCK_POINTS, MAX_BLOCKS, Tiling, grid_too_large
 from .io import OutputError, netcdf
 from .io import zarr as zarr_io
 from .io.atomic import not_regular
@@ -189,6 +189,23 @@ def _check_space(out: Path, survey: Survey, tiling: Tiling, pending: list[int]) 
         )
 
 
+def _check_scale(survey: Survey, block_points: int | None) -> None:
+    """RunError for a grid no run can hold, or one cut into more blocks than a run lists
+    (from the shape alone: constant time and memory)."""
+    if why := grid_too_large(dict(zip(survey.dims, survey.shape, strict=True))):
+        raise RunError(why)
+    try:
+        tiling = Tiling.for_grid(survey.shape, block_points or BLOCK_POINTS)
+    except ValueError as exc:
+        raise RunError(str(exc)) from None
+    if tiling.nblocks > MAX_BLOCKS:
+        fewer = -(-tiling.size // MAX_BLOCKS)
+        raise RunError(
+            f"{tiling.nblocks:,} blocks of {math.prod(tiling.block):,} points: a run lists at "
+            f"most {MAX_BLOCKS:,}; give --block-points {fewer} or more"
+        )
+
+
 def _take_lock(out: Path, command: str) -> OutputLock:
     try:
         return OutputLock.acquire(out, command)
@@ -242,6 +259,7 @@ def run_survey(
             check_address(scheduler)
         except ValueError as exc:
             raise RunError(str(exc)) from None
+    _check_scale(survey, block_points)
     out = Path(out)
     warn = warn or (lambda msg: print(f"conesurvey: warning: {msg}", file=sys.stderr))
     if not out.parent.is_dir():
