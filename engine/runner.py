@@ -309,7 +309,8 @@ def run_survey(
         finally:
             backend.close()
         try:
-            store.remove()
+            if kept := store.remove():
+                warn(f"left {store.root} with the files you put there: {', '.join(kept[:5])}")
         except OSError as exc:
             warn(f"could not remove {store.root} ({exc.strerror}); the next run removes it")
     return RunStats(

@@ -32,7 +32,7 @@ import numpy as np
 from ..grid import Tiling
 from ..schema import FINGERPRINT_ATTR, axis_attrs, map_kind, variable_attrs
 from . import OutputError, netcdf
-from .atomic import exists_error, fsync_dir
+from .atomic import exists_error, fsync_dir, not_regular, refuse_special
 from .blocks import Summary, _dims, check_parts_dir
 from .contents import BLOCK_SCHEME, CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher, verify_file
 from .manifest import Manifest, parts_dir
@@ -135,6 +135,8 @@ def put_in_place(src: Path, out: Path, *, overwrite: bool, aside: Path) -> None:
     if os.path.lexists(out):
         if not overwrite:
             raise exists_error(out)
+        if not_regular(out, follow_links=False) not in (None, "a symbolic link", "a directory"):
+            refuse_special(out)  # a FIFO, a device or a socket is never replaced
         os.rename(out, aside)
     try:
         os.rename(src, out)

@@ -24,12 +24,12 @@ midway is computed again and its chunks replaced.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
 import os
 import secrets
-import shutil
 import stat
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -49,7 +49,7 @@ from .atomic import (
     fsync_dir,
     read_regular,
 )
-from .blocks import Scan, remove_store
+from .blocks import Scan, make_parts_dir, remove_store
 from .manifest import Manifest, read_manifest, write_manifest
 from .zarrcommit import read_record, undo
 from .zarrlayout import RUN_ATTR, STORE, ChunkWriter, _files_digest, chunk_keys, read_meta
@@ -179,7 +179,7 @@ class RunStore:
         """A new run: the directory (mode 0700; FileExistsError if it exists), the store made by
         ``make_store(path, run_id)``, then the manifest (a store without one is debris) and an
         empty journal. Removed again if any of that fails."""
-        os.mkdir(root, 0o700)
+        make_parts_dir(root)
         run_id = secrets.token_hex(16)
         try:
             make_store(root / STORE, run_id)
@@ -188,7 +188,8 @@ class RunStore:
             fsync_dir(root)
             fsync_dir(root.parent)
         except BaseException:
-            shutil.rmtree(root, ignore_errors=True)
+            with contextlib.suppress(OSError):
+                remove_store(root)
             raise
         return cls(root, manifest.tiling, manifest.names, run_id, complevel, warn)
 
@@ -297,9 +298,10 @@ class RunStore:
                 if name.startswith(".") and name.endswith(".tmp"):
                     yield Path(dirpath) / name
 
-    def remove(self) -> None:
-        """Delete the run's directory: the manifest first (what is left is debris)."""
-        remove_store(self.root)
+    def remove(self) -> list[str]:
+        """Delete the run's directory: the manifest first (what is left is debris); returns
+        the names of a user's files left in it."""
+        return remove_store(self.root)
 
 
 def parts_state(root: Path) -> dict[str, Any]:
