@@ -27,7 +27,6 @@ A failure after step 3 (a full disk, a lost dask cluster, a block that changed o
 
 from __future__ import annotations
 
-import contextlib
 import math
 import os
 import shutil
@@ -145,19 +144,21 @@ def _inspect(
         raise AlreadyComplete(f"{out} already holds this survey, complete; nothing to do")
     if not has_store:
         return plan
-    if overwrite:
-        plan.remove_first = "discarded (--overwrite)"
-        return plan
     if is_debris(root, None):
         plan.remove_first = "removed: it has no manifest (left by a killed run)"
         return plan
-    try:
+    try:  # with --overwrite too: a killed run --overwrite resumes when it is run again
         plan.store = (RunStore if zarr_io.is_zarr(out) else BlockStore).open(root, warn)
+        why, problem = read_manifest(root).mismatch(survey), None
     except OutputError as exc:
+        why, problem = None, exc
+    if overwrite and (problem or why):
+        plan.store, plan.remove_first = None, "discarded (--overwrite)"
+        return plan
+    if problem:
         raise RunError(
-            f"cannot resume: {exc}; use --overwrite to discard {root} and start again"
-        ) from None
-    why = read_manifest(root).mismatch(survey)
+            f"cannot resume: {problem}; use --overwrite to discard {root} and start again"
+        )
     if why is not None:
         raise RunError(
             f"cannot resume into {out}: the unfinished run in {root} is of another survey "
@@ -414,6 +415,4 @@ def _merge(store: BlockStore | RunStore, survey: Survey, out: Path, **options: A
 
 
 def _free(directory: Path) -> int:
-    with contextlib.suppress(OSError):
-        return shutil.disk_usage(directory).free
-    return 0
+    return shutil.disk_usage(directory).free if os.path.isdir(directory) else 0
