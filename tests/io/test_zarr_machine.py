@@ -130,9 +130,6 @@ class ZarrMachine(RuleBasedStateMachine):
             return
         from engine.io import zarrcommit
 
-        def kill(*args, **kwargs):
-            raise Killed
-
         target, name = (
             (zarrcommit, "write_atomic")
             if stage == "after the record"
