@@ -123,3 +123,62 @@ def test_a_users_files_in_the_parts_directory_are_left_alone(work, capsys, out):
     assert (parts / "notes.txt").read_text() == "mine\n"
     assert sorted(os.listdir(parts)) == ["notes.txt"]
     assert "notes.txt" in capsys.readouterr().out
+
+
+# --- 13. convert: a source without a checksum; a killed conversion's temporary -----------------
+
+KILL_IN_CONVERT = """
+import os, signal, sys
+import engine.io.convert as c
+from engine.cli import main
+def killed(*args, **kwargs):  # the output is written, not yet renamed
+    os.kill(os.getpid(), signal.SIGKILL)
+c._check_source = killed
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize("out", ["out.zarr", "out2.nc"])
+def test_a_killed_conversions_temporary_is_removed_by_the_next(work, capsys, result, out):
+    import subprocess
+    import sys
+
+    pytest.importorskip("zarr")
+    src = "r.nc" if out.endswith(".zarr") else "r.zarr"
+    if src == "r.nc":
+        (work / "r.nc").write_bytes(result.read_bytes())
+    else:
+        assert runs.here(work, capsys, "convert", str(result), "r.zarr").returncode == 0
+    proc = subprocess.run(
+        [sys.executable, "-c", KILL_IN_CONVERT, "convert", src, out],
+        cwd=work, env=runs.env(), capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert proc.returncode == -9, proc.stderr
+    left = [n for n in os.listdir(work) if n.startswith(out + ".") and n.endswith(".tmp")]
+    assert len(left) == 1, os.listdir(work)
+    r = runs.here(work, capsys, "convert", src, out)
+    assert r.returncode == 0, r.stderr
+    assert not [n for n in os.listdir(work) if n.endswith(".tmp")], os.listdir(work)
+
+
+def test_a_source_without_a_checksum_is_converted_as_unverified(work, capsys, result):
+    import netCDF4
+
+    pytest.importorskip("zarr")
+    (work / "r.nc").write_bytes(result.read_bytes())
+    with netCDF4.Dataset(work / "r.nc", "a") as nc:
+        nc.delncattr("content_checksum")  # stripped: damage could hide behind a fresh one
+    r = runs.here(work, capsys, "convert", "r.nc", "out.zarr")
+    assert r.returncode == 0 and "unverified source" in r.stdout, r
+    r = runs.here(work, capsys, "convert", "out.zarr", "back.nc")  # the state is carried
+    assert r.returncode == 0, r
+    for path in ("out.zarr", "back.nc"):
+        info = runs.here(work, capsys, "info", path)
+        assert "unverified" in info.stdout or _attr(work / path), info.stdout
+
+
+def _attr(path) -> bool:
+    from engine.io.results import open_result
+
+    with open_result(path) as res:
+        return "not verified" in str(res.ds.attrs.get("conesurvey_unverified_source", ""))

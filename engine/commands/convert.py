@@ -109,7 +109,8 @@ def _convert(args: argparse.Namespace, command: str) -> int:
     carried = "carried over" if done.checksum == done.source_checksum else "computed"
     print(f"{PROG}: wrote {out} ({_format(out)}, {done.blocks} blocks)")
     print(f"  content_checksum {done.checksum} ({carried}; the source's was verified)"
-          if done.source_checksum else f"  content_checksum {done.checksum} (new)")  # fmt: skip
+          if done.source_checksum else f"  content_checksum {done.checksum} (new; "
+          "unverified source: it had no content checksum)")  # fmt: skip
     return 0
 
 
