@@ -44,7 +44,7 @@ from .evaluation import evaluate_block
 from .grid import BLOCK_POINTS, MAX_BLOCKS, Tiling, grid_too_large
 from .io import OutputError, netcdf
 from .io import zarr as zarr_io
-from .io.atomic import not_regular
+from .io.atomic import not_regular, output_name_problem
 from .io.blocks import BlockStore, Scan, Summary, block_file_bytes, check_parts_dir, remove_store
 from .io.codecs import DEFAULT_COMPRESSION, compression_keywords, level
 from .io.leftovers import is_debris
@@ -262,6 +262,8 @@ def run_survey(
             raise RunError(str(exc)) from None
     _check_scale(survey, block_points)
     out = Path(out)
+    if why := output_name_problem(out):
+        raise RunError(why)
     warn = warn or (lambda msg: print(f"conesurvey: warning: {msg}", file=sys.stderr))
     if not out.parent.is_dir():
         raise RunError(f"output directory does not exist: {out.parent}")

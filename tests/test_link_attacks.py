@@ -182,3 +182,20 @@ def _attr(path) -> bool:
 
     with open_result(path) as res:
         return "not verified" in str(res.ds.attrs.get("conesurvey_unverified_source", ""))
+
+
+# --- 7. output names checked before anything is written ----------------------------------------
+
+
+@pytest.mark.parametrize("name", [b"out\xff.nc", b"a" * 241 + b".nc", b"b" * 236 + b".zarr"])
+def test_an_output_name_that_cannot_be_written_is_refused_first(work, name):
+    import subprocess
+
+    if name.endswith(b".zarr"):
+        pytest.importorskip("zarr")
+    args = [*map(os.fsencode, runs.cli("run", "s.toml", "-q")), b"-o", name]
+    proc = subprocess.run(args, cwd=work, env=runs.env(), capture_output=True, timeout=300)
+    err = proc.stderr.decode(errors="replace")
+    assert proc.returncode == 2 and "output name" in err, err
+    assert "s.toml:" not in err and "Traceback" not in err, err  # the survey is not blamed
+    assert runs.listing(work) == ["s.toml"]

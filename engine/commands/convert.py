@@ -18,6 +18,7 @@ from pathlib import Path
 
 from ..io import OutputError, WriteError
 from ..io import zarr as zarr_io
+from ..io.atomic import output_name_problem
 from ..io.convert import convert, output_bytes
 from ..io.lock import Locked, LockError, OutputLock, describe_holder
 from ..io.manifest import parts_dir
@@ -65,6 +66,8 @@ def _check_names(source: Path, out: Path) -> None:
         raise InputError(f"{source} and {out} are both {_format(out)}; nothing to convert")
     if not out.parent.is_dir():
         raise InputError(f"output directory does not exist: {out.parent}")
+    if why := output_name_problem(out):
+        raise InputError(why)
 
 
 def _check(source: Path, out: Path, args: argparse.Namespace) -> None:

@@ -43,6 +43,7 @@ __all__ = [
     "fsync_dir",
     "exists_error",
     "not_regular",
+    "output_name_problem",
     "read_regular",
     "refuse_special",
     "rename_no_clobber",
@@ -79,6 +80,32 @@ def create_new(directory: Path, stem: str, mode: int = 0o666) -> tuple[int, Path
         except FileExistsError:  # taken (or a planted link): draw another name
             continue
     raise FileExistsError(errno.EEXIST, "no free temporary name", str(directory / stem))
+
+
+#: Bytes the longest name made from an output's name adds to it (``NAME.<12 hex>.tmp``).
+NAME_OVERHEAD = 17
+
+
+def output_name_problem(path: Path) -> str | None:
+    """Why ``path`` cannot be an output's name (None if it can): a name that is not UTF-8
+    (it is written into the results and their manifest), or one too long for the temporary
+    names made from it (``NAME.<random>.tmp``, ``NAME.parts``)."""
+    name = os.fsencode(Path(path).name)
+    try:
+        name.decode("utf-8")
+    except UnicodeDecodeError:
+        return f"output name {name!r} is not valid UTF-8; give a UTF-8 file name"
+    try:
+        limit = os.pathconf(Path(path).parent, "PC_NAME_MAX")
+    except (OSError, ValueError, AttributeError):
+        limit = 255
+    if len(name) + NAME_OVERHEAD > limit:
+        return (
+            f"output name is {len(name)} bytes long; at most {limit - NAME_OVERHEAD} fit "
+            f"(the temporary names made from it add {NAME_OVERHEAD} to the file system's "
+            f"{limit})"
+        )
+    return None
 
 
 def fsync_path(path: Path) -> None:
