@@ -48,3 +48,16 @@ def test_an_inproc_scheduler_from_the_command_line_is_refused_at_once(work):
     assert "--scheduler 'inproc://x'" in r.stderr and "s.toml" not in r.stderr, r.stderr
     assert time.monotonic() - t0 < 10 + 30  # no 10 s connection timeout (plus start-up)
     assert runs.listing(work) == ["s.toml"]
+
+
+def test_info_escapes_terminal_control_bytes_in_a_title(work, capsys):
+    """A title that would retitle the terminal and clear it is printed as escapes."""
+    from engine.runner import run_survey
+    from engine.surveyfile import parse_survey
+
+    text = SURVEY.replace('"message edges"', '"x\\u001b]0;pwned\\u0007\\u001b[2J\\ry"')
+    run_survey(parse_survey(text), work / "out.nc")
+    r = runs.here(work, capsys, "info", "out.nc")
+    assert r.returncode == 0, r.stderr
+    assert "\x1b" not in r.stdout and "\x07" not in r.stdout and "\r" not in r.stdout
+    assert "x\\x1b]0;pwned\\x07\\x1b[2J\\ry" in r.stdout, r.stdout
