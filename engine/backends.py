@@ -113,11 +113,27 @@ def check_address(address: str) -> str:
             f"--scheduler {address!r}: unknown protocol {scheme!r} (one of {', '.join(_SCHEMES)})"
         )
     if scheme == "inproc":
+        if not _inproc_listening(rest):
+            raise ValueError(
+                f"--scheduler {address!r}: no dask scheduler listens at this in-process "
+                "address (inproc:// reaches only a scheduler started in this very process; "
+                "give tcp://host:port)"
+            )
         return f"{scheme}://{rest}"
     host, colon, port = rest.rpartition(":")
     if not colon or not host.strip("[]") or not port.isdigit() or not 0 < int(port) < 65536:
         raise ValueError(f"--scheduler {address!r} is not an address like tcp://host:8786")
     return f"{scheme}://{rest}"
+
+
+def _inproc_listening(rest: str) -> bool:
+    """Whether a scheduler of this process listens at ``inproc://rest``."""
+    try:
+        from distributed.comm.inproc import global_manager
+
+        return global_manager.get_listener_for(rest) is not None
+    except (ImportError, ValueError):
+        return False
 
 
 class LocalBackend:

@@ -14,6 +14,7 @@ interrupted; 141 (128 + SIGPIPE) when the reader of the output went away (``info
 from __future__ import annotations
 
 import argparse
+import errno
 import os
 import shlex
 import sys
@@ -94,6 +95,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:
         _silence_stdout()
         return BROKEN_PIPE
+    except OSError as exc:  # stdout on a full device (/dev/full), EIO: the work itself is done
+        if not _stdout_fails(exc):
+            raise
+        _silence_stdout()
+        error(f"cannot write the standard output: {exc.strerror or exc}")
+        return 1
+
+
+def _stdout_fails(exc: OSError) -> bool:
+    """Whether ``exc`` is a failed write of the standard output (no file name: the commands
+    name the files they write), or flushing it fails again."""
+    if exc.filename is None and exc.errno in (errno.ENOSPC, errno.EIO, errno.EDQUOT):
+        return True
+    try:
+        sys.stdout.flush()
+    except OSError:
+        return True
+    return False
 
 
 def _silence_stdout() -> None:

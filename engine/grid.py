@@ -18,6 +18,25 @@ import numpy as np
 CHUNK_TARGET = 1 << 16
 #: Default points per computed block (~0.5 s of exact-path work on 2 cores, ~70 MB of results).
 BLOCK_POINTS = 1 << 20
+#: Largest grid a survey may span: 2^40 (1.1e12) points, ~6 days of exact-path work on 2
+#: cores and ~50 TB of results; larger grids are refused before anything is allocated.
+MAX_GRID_POINTS = 1 << 40
+#: Most blocks a run lists (the runner keeps one entry per block in memory).
+MAX_BLOCKS = 1 << 22
+
+
+def grid_too_large(counts: dict[str, int]) -> str | None:
+    """Why a grid of ``counts`` points per axis cannot be run (None if it can): the size and
+    what would fit, computed from the counts alone (constant time and memory)."""
+    points = math.prod(counts.values())
+    if points <= MAX_GRID_POINTS:
+        return None
+    shape = " x ".join(f"{name} {n:,}" for name, n in counts.items())
+    return (
+        f"the grid has {points:.3g} points ({shape}); a survey may span at most "
+        f"{MAX_GRID_POINTS:,} (2^40) points: give fewer points on some axis "
+        f"(by a factor {points / MAX_GRID_POINTS:.3g} at least)"
+    )
 
 
 def storage_chunks(shape: tuple[int, ...], target: int = CHUNK_TARGET) -> tuple[int, ...]:

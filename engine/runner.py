@@ -41,10 +41,10 @@ import numpy as np
 
 from .backends import BackendError, block_spec, check_address, open_backend
 from .evaluation import evaluate_block
-from .grid import BLOCK_POINTS, Tiling
+from .grid import BLOCK_POINTS, MAX_BLOCKS, Tiling, grid_too_large
 from .io import OutputError, netcdf
 from .io import zarr as zarr_io
-from .io.atomic import not_regular
+from .io.atomic import not_regular, output_name_problem
 from .io.blocks import BlockStore, Scan, Summary, block_file_bytes, check_parts_dir, remove_store
 from .io.codecs import DEFAULT_COMPRESSION, compression_keywords, level
 from .io.leftovers import is_debris
@@ -145,19 +145,21 @@ def _inspect(
         raise AlreadyComplete(f"{out} already holds this survey, complete; nothing to do")
     if not has_store:
         return plan
-    if overwrite:
-        plan.remove_first = "discarded (--overwrite)"
-        return plan
     if is_debris(root, None):
         plan.remove_first = "removed: it has no manifest (left by a killed run)"
         return plan
-    try:
+    try:  # with --overwrite too: a killed run --overwrite resumes when it is run again
         plan.store = (RunStore if zarr_io.is_zarr(out) else BlockStore).open(root, warn)
+        why, problem = read_manifest(root).mismatch(survey), None
     except OutputError as exc:
+        why, problem = None, exc
+    if overwrite and (problem or why):
+        plan.store, plan.remove_first = None, "discarded (--overwrite)"
+        return plan
+    if problem:
         raise RunError(
-            f"cannot resume: {exc}; use --overwrite to discard {root} and start again"
-        ) from None
-    why = read_manifest(root).mismatch(survey)
+            f"cannot resume: {problem}; use --overwrite to discard {root} and start again"
+        )
     if why is not None:
         raise RunError(
             f"cannot resume into {out}: the unfinished run in {root} is of another survey "
@@ -186,6 +188,23 @@ def _check_space(out: Path, survey: Survey, tiling: Tiling, pending: list[int]) 
             f"({format_bytes(blocks)} for the blocks still to compute + "
             f"{format_bytes(merged)} for the output merged beside them) but {out.parent} "
             f"has {format_bytes(free)} free ({survey.size:,} points); use --force to run anyway"
+        )
+
+
+def _check_scale(survey: Survey, block_points: int | None) -> None:
+    """RunError for a grid no run can hold, or one cut into more blocks than a run lists
+    (from the shape alone: constant time and memory)."""
+    if why := grid_too_large(dict(zip(survey.dims, survey.shape, strict=True))):
+        raise RunError(why)
+    try:
+        tiling = Tiling.for_grid(survey.shape, block_points or BLOCK_POINTS)
+    except ValueError as exc:
+        raise RunError(str(exc)) from None
+    if tiling.nblocks > MAX_BLOCKS:
+        fewer = -(-tiling.size // MAX_BLOCKS)
+        raise RunError(
+            f"{tiling.nblocks:,} blocks of {math.prod(tiling.block):,} points: a run lists at "
+            f"most {MAX_BLOCKS:,}; give --block-points {fewer} or more"
         )
 
 
@@ -245,7 +264,10 @@ def run_survey(
             check_address(scheduler)
         except ValueError as exc:
             raise RunError(str(exc)) from None
+    _check_scale(survey, block_points)
     out = Path(out)
+    if why := output_name_problem(out):
+        raise RunError(why)
     warn = warn or (lambda msg: print(f"conesurvey: warning: {msg}", file=sys.stderr))
     if not out.parent.is_dir():
         raise RunError(f"output directory does not exist: {out.parent}")
@@ -294,7 +316,8 @@ def run_survey(
         finally:
             backend.close()
         try:
-            store.remove()
+            if kept := store.remove():
+                warn(f"left {store.root} with the files you put there: {', '.join(kept[:5])}")
         except OSError as exc:
             warn(f"could not remove {store.root} ({exc.strerror}); the next run removes it")
     return RunStats(

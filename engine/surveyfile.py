@@ -73,6 +73,7 @@ from .api import launch_survey as api_launch_survey
 from .api import survey as api_survey
 from .errortext import toml_repr, toml_type
 from .fates import Horizon, check_horizon
+from .grid import grid_too_large
 from .io.atomic import read_regular
 from .kernels.geometry import CIRCULAR_TOL as DEFAULT_CIRCULAR_TOL
 from .methods import DEFAULT_RTOL, METHODS, RTOL_RANGE, check_method, check_rtol
@@ -260,6 +261,22 @@ def parse_survey(text: str, *, origin: str = "<string>") -> Survey:
 # --- validation -----------------------------------------------------------------------------
 
 
+def _counts(axes: dict, dims: tuple[str, ...]) -> dict[str, int]:
+    """Points per axis as the tables give them, without building any axis (an axis whose
+    count is not yet known is left out: reading it reports the problem)."""
+    out: dict[str, int] = {}
+    for name in dims:
+        table = axes.get(name)
+        if not isinstance(table, dict):
+            continue
+        values, num = table.get("values"), table.get("num")
+        if isinstance(values, list):
+            out[name] = len(values)
+        elif isinstance(num, int) and not isinstance(num, bool) and 1 <= num <= MAX_AXIS_POINTS:
+            out[name] = num
+    return out
+
+
 class _Reader(AxisReader):
     """Validates a parsed TOML document, raising :class:`SurveyError` at the first problem."""
 
@@ -301,6 +318,8 @@ class _Reader(AxisReader):
             if name not in axes:
                 sets = "alpha, energy, h, Lz (invariants) or alpha, r0, v0, w0 (launch states)"
                 raise self.fail(f"axes.{name}", f"missing; give every axis of {sets}")
+        if why := grid_too_large(_counts(axes, dims)):  # before any axis is built
+            raise self.fail("axes", why)
         arrays: dict[str, Any] = {name: self.axis(axes, name) for name in dims}
         if dims == LAUNCH_DIMS:
             arrays.update(energy=None, h=None, Lz=None)

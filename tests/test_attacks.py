@@ -113,10 +113,13 @@ def assert_refused_and_untouched(work: Path, capsys, *args: str) -> str:
     return proc.stderr
 
 
-def finish_and_compare(work: Path, reference: Path, capsys, *extra: str) -> str:
+def finish_and_compare(work: Path, reference: Path, capsys, *extra: str, kept=()) -> str:
     proc = runs.run(work, *ARGS, *extra)
     assert proc.returncode == 0, proc.stderr
     assert "Traceback" not in proc.stderr
+    if kept:  # files that are not the run's are left alone, with the directory
+        assert sorted(os.listdir(parts(work))) == sorted(kept)
+        shutil.rmtree(parts(work))
     assert runs.listing(work) == ["out.nc", "s.toml"]
     runs.same_content(work / "out.nc", reference)
     verified = runs.here(work, capsys, "info", "out.nc", "--verify")
@@ -205,11 +208,12 @@ def test_swapped_edited_truncated_and_stray_blocks_after_a_kill(work, reference,
     data[len(data) // 2] ^= 0x04  # one flipped bit
     _block(work, 4).write_bytes(bytes(data))
     (parts(work) / "b-0000001.npz").write_bytes(b[5])  # a stray name (the IndexError)
-    err = finish_and_compare(work, reference, capsys)
+    err = finish_and_compare(work, reference, capsys, kept=["b-0000001.npz"])
     for i in range(5):
         assert f"block file b{i:08d}.npz is corrupt" in err, err
     assert "ignoring files that are not blocks of this run" in err and "b-0000001.npz" in err
-    assert "survey" not in err.split("ignoring")[1]  # the stray is not blamed on the survey
+    assert "survey" not in err.split("ignoring")[1].split("\n")[0]  # not blamed on the survey
+    assert "left out.nc.parts with the files you put there: b-0000001.npz" in err
 
 
 MANIFEST_EDITS = [

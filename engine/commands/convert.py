@@ -18,6 +18,7 @@ from pathlib import Path
 
 from ..io import OutputError, WriteError
 from ..io import zarr as zarr_io
+from ..io.atomic import output_name_problem
 from ..io.convert import convert, output_bytes
 from ..io.lock import Locked, LockError, OutputLock, describe_holder
 from ..io.manifest import parts_dir
@@ -65,6 +66,8 @@ def _check_names(source: Path, out: Path) -> None:
         raise InputError(f"{source} and {out} are both {_format(out)}; nothing to convert")
     if not out.parent.is_dir():
         raise InputError(f"output directory does not exist: {out.parent}")
+    if why := output_name_problem(out):
+        raise InputError(why)
 
 
 def _check(source: Path, out: Path, args: argparse.Namespace) -> None:
@@ -109,7 +112,8 @@ def _convert(args: argparse.Namespace, command: str) -> int:
     carried = "carried over" if done.checksum == done.source_checksum else "computed"
     print(f"{PROG}: wrote {out} ({_format(out)}, {done.blocks} blocks)")
     print(f"  content_checksum {done.checksum} ({carried}; the source's was verified)"
-          if done.source_checksum else f"  content_checksum {done.checksum} (new)")  # fmt: skip
+          if done.source_checksum else f"  content_checksum {done.checksum} (new; "
+          "unverified source: it had no content checksum)")  # fmt: skip
     return 0
 
 

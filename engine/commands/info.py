@@ -97,6 +97,14 @@ def _state(info: dict[str, Any], path: Path, verify: bool) -> tuple[str, int]:
     return (f"complete, verified: {found}", 0) if ok else (f"DAMAGED: {found}", 1)
 
 
+def _printable(text: str) -> str:
+    """``text`` with terminal control bytes (escape sequences, carriage returns) written as
+    ``\\xNN`` escapes: a title cannot drive the terminal. Newlines are kept."""
+    return "".join(
+        c if c in "\n\t" or (c.isprintable() and c != "\x7f") else repr(c)[1:-1] for c in text
+    )
+
+
 def _info(args: argparse.Namespace, command: str) -> int:
     path = Path(args.file)
     try:
@@ -115,7 +123,7 @@ def _info(args: argparse.Namespace, command: str) -> int:
     print("  grid        " + " x ".join(f"{d} {n}" for d, n in dims.items()))
     for key in (*_KEYS, "engine"):
         if key in attrs:
-            text = str(attrs[key]).replace("\n", "\n              ")
+            text = _printable(str(attrs[key])).replace("\n", "\n              ")
             print(f"  {key + ' ':<12}{text}")
     if "counts" in info:
         total = max(1, sum(info["counts"].values()))
@@ -128,7 +136,7 @@ def _info(args: argparse.Namespace, command: str) -> int:
     if definition:
         print("  survey definition:")
         for line in str(definition).splitlines():
-            print(f"    {line}")
+            print(f"    {_printable(line)}")
     return status
 
 

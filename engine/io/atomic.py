@@ -9,7 +9,8 @@ power cut. On any error, KeyboardInterrupt included, the temporary file is remov
 new or old, is untouched. Two writers of the same name never share a temporary file.
 
 Renaming either replaces an existing ``NAME`` atomically (``os.replace``; a link at ``NAME`` is
-replaced, its target untouched) or refuses to (:func:`rename_no_clobber`: a hard link, which
+replaced, its target untouched; a FIFO, a device, a socket or a directory never is:
+:func:`refuse_special`) or refuses to (:func:`rename_no_clobber`: a hard link, which
 fails if ``NAME`` appeared meanwhile).
 
 Policy for the directory fsync (:func:`fsync_dir`): skipped on Windows, where a directory cannot
@@ -42,7 +43,9 @@ __all__ = [
     "fsync_dir",
     "exists_error",
     "not_regular",
+    "output_name_problem",
     "read_regular",
+    "refuse_special",
     "rename_no_clobber",
     "replacing",
     "write_atomic",
@@ -77,6 +80,32 @@ def create_new(directory: Path, stem: str, mode: int = 0o666) -> tuple[int, Path
         except FileExistsError:  # taken (or a planted link): draw another name
             continue
     raise FileExistsError(errno.EEXIST, "no free temporary name", str(directory / stem))
+
+
+#: Bytes the longest name made from an output's name adds to it (``NAME.<12 hex>.tmp``).
+NAME_OVERHEAD = 17
+
+
+def output_name_problem(path: Path) -> str | None:
+    """Why ``path`` cannot be an output's name (None if it can): a name that is not UTF-8
+    (it is written into the results and their manifest), or one too long for the temporary
+    names made from it (``NAME.<random>.tmp``, ``NAME.parts``)."""
+    name = os.fsencode(Path(path).name)
+    try:
+        name.decode("utf-8")
+    except UnicodeDecodeError:
+        return f"output name {name!r} is not valid UTF-8; give a UTF-8 file name"
+    try:
+        limit = os.pathconf(Path(path).parent, "PC_NAME_MAX")
+    except (OSError, ValueError, AttributeError):
+        limit = 255
+    if len(name) + NAME_OVERHEAD > limit:
+        return (
+            f"output name is {len(name)} bytes long; at most {limit - NAME_OVERHEAD} fit "
+            f"(the temporary names made from it add {NAME_OVERHEAD} to the file system's "
+            f"{limit})"
+        )
+    return None
 
 
 def fsync_path(path: Path) -> None:
@@ -134,8 +163,17 @@ def rename_no_clobber(src: Path, dst: Path) -> None:
     os.unlink(src)
 
 
+def refuse_special(path: Path) -> None:
+    """NotRegularFile if ``path`` (not followed) is a FIFO, a device, a socket or a directory:
+    what ``--overwrite`` never replaces (a symbolic link is replaced, its target untouched)."""
+    kind = not_regular(path, follow_links=False)
+    if kind not in (None, "a symbolic link"):
+        raise NotRegularFile(errno.EINVAL, f"is {kind}; refusing to replace it", str(path))
+
+
 def _put_in_place(tmp: Path, path: Path, overwrite: bool) -> None:
     if overwrite:
+        refuse_special(path)  # checked again just before the rename
         os.replace(tmp, path)
     else:
         rename_no_clobber(tmp, path)
@@ -157,6 +195,7 @@ def replacing(path: Path, *, overwrite: bool = True, tmp_dir: Path | None = None
     """
     if not overwrite and os.path.lexists(path):
         raise exists_error(path)
+    refuse_special(path)
     fd, tmp = create_new(tmp_dir or path.parent, path.name)
     os.close(fd)
     try:
@@ -175,6 +214,8 @@ def write_atomic(
     ``O_EXCL | O_NOFOLLOW``, fsync it and rename it into place (replacing ``path`` unless not
     ``overwrite``). Returns the size [bytes] and SHA-256 (hex) of what was written, read back
     through the same descriptor before the rename."""
+    if overwrite:
+        refuse_special(path)
     fd, tmp = create_new(path.parent, path.name, mode)
     try:
         with os.fdopen(fd, "w+b") as f:

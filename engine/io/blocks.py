@@ -66,6 +66,7 @@ __all__ = [
     "block_file_bytes",
     "check_parts_dir",
     "estimate_bytes",
+    "make_parts_dir",
     "parts_info",
 ]
 
@@ -178,14 +179,15 @@ class BlockStore:
     ) -> BlockStore:
         """A new store: the directory (mode 0700; FileExistsError if it exists), the manifest
         and an empty journal. Removed again if any of that fails."""
-        os.mkdir(root, 0o700)
+        make_parts_dir(root)
         try:
             write_manifest(root, manifest)
             os.close(os.open(root / JOURNAL, NEW_FILE, 0o600))
             fsync_dir(root)
             fsync_dir(root.parent)
         except BaseException:
-            shutil.rmtree(root, ignore_errors=True)
+            with contextlib.suppress(OSError):
+                remove_store(root)
             raise
         return cls(root, manifest.tiling, manifest.names, warn)
 
@@ -301,17 +303,53 @@ class BlockStore:
         for i in range(self.tiling.nblocks):
             yield self.tiling.slices(i), self.take(i)
 
-    def remove(self) -> None:
-        """Delete the store: the manifest first (what is left is recognisable debris)."""
-        remove_store(self.root)
+    def remove(self) -> list[str]:
+        """Delete the store: the manifest first (what is left is recognisable debris); returns
+        the names of a user's files left in it."""
+        return remove_store(self.root)
 
 
-def remove_store(root: Path) -> None:
-    """Delete the block store ``root`` (a link is not followed): manifest first, then the rest."""
+#: The names a run (netCDF or Zarr) makes in its directory besides the block files and the
+#: temporary files; anything else there is a user's, and left alone.
+RUN_FILES = (MANIFEST, JOURNAL, "store.zarr", "replaced.zarr", "commit.json")
+
+
+def _is_runs(name: str) -> bool:
+    return name in RUN_FILES or bool(_BLOCK.fullmatch(name)) or name.endswith(TMP_SUFFIX)
+
+
+def make_parts_dir(root: Path) -> None:
+    """Create the run's directory ``root`` (mode 0700); an existing one is taken only if it
+    holds no run (its manifest removed: a user's files left in it are kept)."""
+    try:
+        os.mkdir(root, 0o700)
+    except FileExistsError:
+        if not check_parts_dir(root) or os.path.lexists(root / MANIFEST):
+            raise
+        if any(_is_runs(n) for n in os.listdir(root)):
+            raise
+
+
+def remove_store(root: Path) -> list[str]:
+    """Delete the run's directory ``root`` (a link is not followed): manifest first, then the
+    run's own files; files a user put there are left, with the directory (their names are
+    returned)."""
     with contextlib.suppress(FileNotFoundError):
         os.unlink(root / MANIFEST)
     fsync_dir(root)
-    shutil.rmtree(root)
+    kept = []
+    for name in sorted(os.listdir(root)):
+        p = root / name
+        if not _is_runs(name):
+            kept.append(name)
+        elif os.path.isdir(p) and not os.path.islink(p):
+            shutil.rmtree(p)
+        else:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(p)
+    if not kept:
+        os.rmdir(root)
+    return kept
 
 
 def survey_dims(definition: str) -> tuple[str, ...]:

@@ -13,7 +13,10 @@ records the checksum of what it holds, which is the source's own when the conten
 
 from __future__ import annotations
 
+import contextlib
 import os
+import re
+import shutil
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,7 +35,16 @@ from .codecs import compression_keywords
 from .contents import BLOCK_SCHEME, CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, SCHEME, ContentHasher
 from .zarrlayout import ZarrView
 
-__all__ = ["Converted", "convert", "output_bytes"]
+__all__ = ["UNVERIFIED_ATTR", "Converted", "convert", "output_bytes", "remove_temporaries"]
+
+#: Global attribute of a result converted from a source without a content checksum: its
+#: checksum covers what was read, and nothing says the source was sound. Carried by later
+#: conversions.
+UNVERIFIED_ATTR = "conesurvey_unverified_source"
+UNVERIFIED_TEXT = (
+    "converted from {source}, which had no content checksum: the source was not verified "
+    "(its content_checksum covers what was read)"
+)
 
 
 @dataclass(frozen=True)
@@ -131,16 +143,18 @@ def convert(
     FileExistsError if ``out`` exists and not ``overwrite``; nothing is left under ``out``
     in any of these cases."""
     source, out = Path(source), Path(out)
+    remove_temporaries(out)
     src = _Source(source)
     try:
         if "conesurvey_unfinished" in src.attrs:
             raise OutputError(f"{source} is an unfinished run's store; finish the run first")
         recorded = src.attrs.get(CHECKSUM_ATTR)
         scheme = recorded.partition(":")[0] if isinstance(recorded, str) else None
-        if scheme not in (SCHEME, BLOCK_SCHEME):
-            recorded, scheme = None, (BLOCK_SCHEME if zarr_io.is_zarr(out) else SCHEME)
-        hasher = ContentHasher(src.tiling.block, scheme)
         attrs = {k: v for k, v in src.attrs.items() if k != CHECKSUM_ATTR}
+        if scheme not in (SCHEME, BLOCK_SCHEME):  # nothing to verify: the output says so
+            recorded, scheme = None, (BLOCK_SCHEME if zarr_io.is_zarr(out) else SCHEME)
+            attrs.setdefault(UNVERIFIED_ATTR, UNVERIFIED_TEXT.format(source=source.name))
+        hasher = ContentHasher(src.tiling.block, scheme)
         old = attrs.get("history")
         attrs["history"] = history_line(command) + (f"\n{old}" if old else "")
         attrs[CHECKSUM_BLOCK_ATTR] = np.asarray(src.tiling.block, np.int64)
@@ -149,6 +163,25 @@ def convert(
     finally:
         src.close()
     return Converted(recorded, checksum, src.tiling.nblocks)
+
+
+def remove_temporaries(out: Path) -> list[str]:
+    """Remove what a killed conversion to ``out`` left beside it (``OUT.<12 hex>.tmp``, a file
+    or a store of this user; a link is removed, not followed). Call it under ``out``'s lock.
+    Returns the names removed."""
+    pattern = re.compile(re.escape(out.name) + r"\.[0-9a-f]{12}\.tmp")
+    removed = []
+    with contextlib.suppress(OSError):
+        for name in os.listdir(out.parent):
+            p = out.parent / name
+            if not pattern.fullmatch(name) or os.lstat(p).st_uid != os.getuid():
+                continue
+            if os.path.isdir(p) and not os.path.islink(p):
+                shutil.rmtree(p)
+            else:
+                os.unlink(p)
+            removed.append(name)
+    return removed
 
 
 def _axes(src: _Source, hasher: ContentHasher) -> dict[str, tuple[np.ndarray, dict[str, Any]]]:

@@ -26,6 +26,7 @@ import errno
 import json
 import os
 import socket
+import stat
 import time
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -110,6 +111,9 @@ class OutputLock:
                 if exc.errno == errno.ELOOP:
                     raise LockError(f"{path} is a symbolic link; refusing to use it") from None
                 raise LockError(f"cannot create the lock file {path}: {exc.strerror}") from None
+            if problem := _not_own_file(fd):
+                os.close(fd)
+                raise LockError(f"{path} is {problem}; refusing to use it (remove it)")
             if fcntl is None:
                 os.close(fd)
                 raise LockError("locking an output needs flock (POSIX); not available here")
@@ -174,6 +178,17 @@ class OutputLock:
         tb: TracebackType | None,
     ) -> None:
         self.release()
+
+
+def _not_own_file(fd: int) -> str:
+    """What the open lock file is if it is not a plain file of its own ("" if it is): a hard
+    link planted there would have its other name's contents replaced by the holder's record."""
+    st = os.fstat(fd)
+    if not stat.S_ISREG(st.st_mode):
+        return "not a regular file"
+    if st.st_nlink != 1:
+        return f"a hard link ({st.st_nlink} names for one file)"
+    return ""
 
 
 def _same_file(fd: int, path: Path) -> bool:

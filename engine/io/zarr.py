@@ -21,7 +21,6 @@ import functools
 import os
 import shutil
 import sys
-import warnings
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from types import ModuleType
@@ -32,18 +31,18 @@ import numpy as np
 from ..grid import Tiling
 from ..schema import FINGERPRINT_ATTR, axis_attrs, map_kind, variable_attrs
 from . import OutputError, netcdf
-from .atomic import exists_error, fsync_dir, fsync_path
+from .atomic import exists_error, fsync_dir, not_regular, refuse_special
 from .blocks import Summary, check_parts_dir, survey_dims
 from .cf import cf_attrs
 from .contents import BLOCK_SCHEME, CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher, verify_file
 from .manifest import Manifest, parts_dir
 from .netcdf_info import class_counts
 from .space import output_bytes
+from .zarrcommit import check_tree, commit_store, metadata_problem
 from .zarrlayout import (
     UNFINISHED_ATTR,
     ChunkWriter,
     ZarrView,
-    json_attr,
     make_store,
     read_meta,
     zarr_module,
@@ -120,35 +119,16 @@ def create(
 # --- committing a store -------------------------------------------------------------------------
 
 
-def commit_store(path: Path, attrs: Mapping[str, Any], hasher: ContentHasher) -> str:
-    """The final commit of the store ``path``: debris of dead writers removed, the root's
-    attributes replaced by ``attrs`` plus the content checksum (``hasher``, whose values were
-    all added), consolidated metadata, all fsynced. Returns the checksum."""
-    zarr = zarr_module()
-    for dirpath, _, filenames in os.walk(path):
-        for name in filenames:
-            if name.startswith(".") and name.endswith(".tmp"):
-                os.unlink(Path(dirpath) / name)
-    final = {k: json_attr(v) for k, v in attrs.items() if k != CHECKSUM_ATTR}
-    final[CHECKSUM_ATTR] = hasher.finish(ZarrView(path, final))
-    store = zarr.storage.LocalStore(path)
-    group = zarr.open_group(store, mode="r+", zarr_format=3, use_consolidated=False)
-    group.attrs.put(final)
-    with warnings.catch_warnings():  # consolidated metadata is zarr-python's, not in v3 (yet)
-        warnings.simplefilter("ignore", UserWarning)
-        zarr.consolidate_metadata(store)
-    fsync_path(path / "zarr.json")
-    fsync_dir(path)
-    return final[CHECKSUM_ATTR]
-
-
 def put_in_place(src: Path, out: Path, *, overwrite: bool, aside: Path) -> None:
     """Rename the committed store ``src`` to ``out``. An existing ``out`` is refused
     (FileExistsError) unless ``overwrite``; then it is first renamed to ``aside`` (in the
     run's private directory) and deleted after."""
+    _remove(aside)  # the output a killed run had set aside
     if os.path.lexists(out):
         if not overwrite:
             raise exists_error(out)
+        if not_regular(out, follow_links=False) not in (None, "a symbolic link", "a directory"):
+            refuse_special(out)  # a FIFO, a device or a socket is never replaced
         os.rename(out, aside)
     try:
         os.rename(src, out)
@@ -158,10 +138,14 @@ def put_in_place(src: Path, out: Path, *, overwrite: bool, aside: Path) -> None:
         raise exc
     fsync_dir(out.parent)
     fsync_dir(src.parent)
-    if os.path.islink(aside) or os.path.isfile(aside):
-        os.unlink(aside)
-    elif os.path.isdir(aside):
-        shutil.rmtree(aside)
+    _remove(aside)
+
+
+def _remove(path: Path) -> None:
+    if os.path.isdir(path) and not os.path.islink(path):
+        shutil.rmtree(path)
+    elif os.path.lexists(path):
+        os.unlink(path)
 
 
 def _provenance_attrs(survey: Survey, command: str, fingerprint: str, block: tuple[int, ...]):
@@ -203,7 +187,7 @@ def merge(
     made."""
     if os.path.lexists(out) and not overwrite:
         raise exists_error(out)
-    store.check_sizes()
+    store.check_files()
     tiling = store.tiling
     hasher = ContentHasher(tiling.block, BLOCK_SCHEME)
     for d in survey.dims:
@@ -215,7 +199,7 @@ def merge(
             hasher.add_digest(name, bytes.fromhex(receipt["values"][name]))
         summary.add(_receipt_block(receipt))
     attrs = _provenance_attrs(survey, command, fingerprint, tiling.block)
-    commit_store(store.store, attrs, hasher)
+    commit_store(store.store, attrs, hasher, record=(store.root, store.run_id))
     put_in_place(store.store, out, overwrite=overwrite, aside=store.root / "replaced.zarr")
     return summary
 
@@ -332,6 +316,7 @@ def read_info(path: str | os.PathLike[str], *, verify: bool = False) -> dict[str
 
 def _store_info(path: Path, verify: bool) -> dict[str, Any]:
     info: dict[str, Any] = {"notes": []}
+    check_tree(path)  # nothing followed, no FIFO or device opened, no chunk read unbounded
     try:
         view = ZarrView(path)
     except OutputError:
@@ -349,5 +334,6 @@ def _store_info(path: Path, verify: bool) -> dict[str, Any]:
     info["complete"] = FINGERPRINT_ATTR in attrs and UNFINISHED_ATTR not in attrs
     info["checksum"] = CHECKSUM_ATTR in attrs
     if verify:
-        info["verified"] = verify_file(view)
+        problem = metadata_problem(path)
+        info["verified"] = (False, problem) if problem else verify_file(view)
     return info

@@ -24,11 +24,13 @@ midway is computed again and its chunks replaced.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
+import math
 import os
 import secrets
-import shutil
+import stat
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,9 +40,18 @@ import numpy as np
 
 from ..grid import Tiling
 from . import OutputError
-from .atomic import NEW_FILE, O_CLOEXEC, O_NOFOLLOW, NotRegularFile, fsync_dir, read_regular
-from .blocks import Scan, remove_store
+from .atomic import (
+    NEW_FILE,
+    O_CLOEXEC,
+    O_NOFOLLOW,
+    O_NONBLOCK,
+    NotRegularFile,
+    fsync_dir,
+    read_regular,
+)
+from .blocks import Scan, make_parts_dir, remove_store
 from .manifest import Manifest, read_manifest, write_manifest
+from .zarrcommit import read_record, undo
 from .zarrlayout import RUN_ATTR, STORE, ChunkWriter, chunk_keys, files_digest, read_meta
 
 __all__ = ["JOURNAL", "RunStore", "parts_state", "read_journal"]
@@ -147,7 +158,7 @@ class RunStore:
     def writer(self) -> ChunkWriter:
         arrays = tuple((n, dt.str) for n, dt in self.names.items())
         return ChunkWriter(
-            str(self.store.resolve()),
+            os.path.abspath(self.store),  # not resolved: a link there is refused
             self.run_id,
             self.tiling.shape,
             self.tiling.chunk,
@@ -167,7 +178,7 @@ class RunStore:
         """A new run: the directory (mode 0700; FileExistsError if it exists), the store made by
         ``make_store(path, run_id)``, then the manifest (a store without one is debris) and an
         empty journal. Removed again if any of that fails."""
-        os.mkdir(root, 0o700)
+        make_parts_dir(root)
         run_id = secrets.token_hex(16)
         try:
             make_store(root / STORE, run_id)
@@ -176,7 +187,8 @@ class RunStore:
             fsync_dir(root)
             fsync_dir(root.parent)
         except BaseException:
-            shutil.rmtree(root, ignore_errors=True)
+            with contextlib.suppress(OSError):
+                remove_store(root)
             raise
         return cls(root, manifest.tiling, manifest.names, run_id, complevel, warn)
 
@@ -184,12 +196,21 @@ class RunStore:
     def open(cls, root: Path, warn: Callable[[str], None] = lambda msg: None) -> RunStore:
         """The existing run ``root``: manifest, journal, the store's run id and compression."""
         m = read_manifest(root)
-        meta = read_meta(root / STORE / "zarr.json")
+        store = root / STORE
+        if os.path.islink(store) or not os.path.isdir(store):
+            raise OutputError(f"{store} is not a directory (a symbolic link is not followed)")
+        meta = read_meta(store / "zarr.json")
         run_id = meta.get("attributes", {}).get(RUN_ATTR)
+        record = read_record(root)  # a commit that did not finish: undone by discard()
+        if not isinstance(run_id, str) and record is not None:
+            run_id = record["run_id"]
         if not isinstance(run_id, str):
-            raise OutputError(f"{root / STORE} is not the store of an unfinished run")
+            raise OutputError(f"{store} is not the store of an unfinished run")
+        for name in os.listdir(store):  # every array's metadata, never through a link
+            if name != "zarr.json":
+                read_meta(store / name / "zarr.json")
         first = next(iter(m.names))
-        codecs = read_meta(root / STORE / first / "zarr.json").get("codecs", [])
+        codecs = read_meta(store / first / "zarr.json").get("codecs", [])
         level = 0 if len(codecs) < 2 else 1
         journal = read_journal(root, list(m.names), m.tiling.nblocks)
         return cls(root, m.tiling, m.names, run_id, level, warn, journal)
@@ -214,14 +235,23 @@ class RunStore:
             os.close(fd)
         self.journal[index] = receipt
 
+    @property
+    def receipt_limit(self) -> int:
+        """The largest a chunk file can be [bytes] (values, Blosc's header, a margin)."""
+        itemsize = max(np.dtype(dt).itemsize for dt in self.names.values())
+        return itemsize * math.prod(self.tiling.chunk) + 1024
+
     def _digest(self, index: int) -> tuple[int, str] | None:
         entries = []
         for key in self.keys(index):
-            try:
-                fd = os.open(self.store / key, os.O_RDONLY | O_NOFOLLOW | O_CLOEXEC)
+            try:  # never through a link, never blocking on a FIFO
+                fd = os.open(self.store / key, os.O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC)
             except OSError:
                 return None
             with os.fdopen(fd, "rb") as f:
+                st = os.fstat(fd)
+                if not stat.S_ISREG(st.st_mode) or st.st_size > self.receipt_limit:
+                    return None
                 data = f.read()
             entries.append((key, len(data), hashlib.sha256(data).hexdigest()))
         return sum(n for _, n, _ in entries), files_digest(entries)
@@ -240,22 +270,21 @@ class RunStore:
         return found
 
     def discard(self, found: Scan) -> None:
-        """Report the bad blocks (their chunks are replaced when they are computed again)."""
+        """Undo a commit that did not finish (:mod:`engine.io.zarrcommit`); report the bad
+        blocks (their chunks are replaced when they are computed again)."""
+        undo(self.root, self.store)
         for name, why in found.bad.items():
             self.warn(f"{name} of {self.store} is corrupt ({why}); recomputing")
 
-    def check_sizes(self) -> None:
-        """OutputError unless every block is journaled and its chunk files have the recorded
-        total size (a cheap check before the store is committed: no value is read)."""
+    def check_files(self) -> None:
+        """OutputError unless every block is journaled and its chunk files hash to its
+        receipt (read again just before the commit: a chunk changed since the resume scan
+        or since it was written is caught)."""
         for index in range(self.tiling.nblocks):
             receipt = self.journal.get(index)
             if receipt is None:
                 raise OutputError(f"block {index} is not recorded in the journal")
-            try:
-                size = sum(os.lstat(self.store / k).st_size for k in self.keys(index))
-            except OSError:
-                size = -1
-            if size != receipt["bytes"]:
+            if self._digest(index) != (receipt["bytes"], receipt["files"]):
                 raise OutputError(
                     f"the chunk files of block {index} changed since they were written; "
                     "it will be computed again"
@@ -268,9 +297,10 @@ class RunStore:
                 if name.startswith(".") and name.endswith(".tmp"):
                     yield Path(dirpath) / name
 
-    def remove(self) -> None:
-        """Delete the run's directory: the manifest first (what is left is debris)."""
-        remove_store(self.root)
+    def remove(self) -> list[str]:
+        """Delete the run's directory: the manifest first (what is left is debris); returns
+        the names of a user's files left in it."""
+        return remove_store(self.root)
 
 
 def parts_state(root: Path) -> dict[str, Any]:
