@@ -38,7 +38,7 @@ from .blocks import Summary, _dims, check_parts_dir
 from .contents import BLOCK_SCHEME, CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher, verify_file
 from .manifest import Manifest, parts_dir
 from .netcdf import cf_attrs
-from .netcdf_info import class_counts
+from .netcdf_info import class_counts, fate_counts
 from .zarrlayout import (
     UNFINISHED_ATTR,
     ChunkWriter,
@@ -354,6 +354,8 @@ def _store_info(path: Path, verify: bool) -> dict[str, Any]:
     counts = class_counts(view, info["notes"])
     if counts is not None:
         info["counts"] = counts
+    if (fates := fate_counts(view, info["notes"])) is not None:
+        info["fate_counts"] = fates
     info["complete"] = FINGERPRINT_ATTR in attrs and UNFINISHED_ATTR not in attrs
     info["checksum"] = CHECKSUM_ATTR in attrs
     if verify:
