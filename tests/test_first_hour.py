@@ -267,3 +267,25 @@ def test_nan_in_end_r_is_labelled_as_never_ending(slip_map):
         labels = [t.get_text() for leg in fig.legends for t in leg.get_texts()]
     assert any("never ends" in label for label in labels), labels
     assert "undefined (NaN)" not in labels
+
+
+# -- 9. the test suite leaves nothing behind ----------------------------------------------
+
+
+def test_the_store_machine_leaves_no_temporary_directory(tmp_path):
+    """Importing the store-machine tests builds their reference file in a temporary directory;
+    it must be gone afterwards (it was left in /tmp by every run)."""
+    import os
+
+    code = (
+        "import importlib.util, sys\n"
+        "sys.path[:0] = ['tests', 'tests/io']\n"
+        "spec = importlib.util.spec_from_file_location('sm', 'tests/io/test_store_machine.py')\n"
+        "spec.loader.exec_module(importlib.util.module_from_spec(spec))\n"
+    )
+    env = dict(os.environ, TMPDIR=str(tmp_path))
+    done = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert list(tmp_path.iterdir()) == []
