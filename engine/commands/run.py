@@ -126,10 +126,8 @@ def add_arguments(run: argparse.ArgumentParser) -> None:
         "--compression",
         choices=COMPRESSIONS,
         default=DEFAULT_COMPRESSION,
-        help=f"how the output's variables are compressed (default {DEFAULT_COMPRESSION}: "
-        "fast, read by the netCDF4 Python package and netCDF-C >= 4.9 with its filter "
-        "plugins; zlib: readable by every netCDF-4/HDF5 tool, several times slower to write; "
-        "a Zarr store takes blosc_lz4 or none; docs/output.md)",
+        help=f"how the output's variables are compressed (default {DEFAULT_COMPRESSION}); "
+        "docs/output.md says what each choice costs, saves and which tools read it",
     )
     run.add_argument(
         "--complevel",
