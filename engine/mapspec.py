@@ -2,7 +2,7 @@
 two axes drawn, an optional facet axis, the values the other axes are fixed at, and the facts
 read from the file's attributes (flag tables, labels) and coordinates (log spacing).
 
-Used by :mod:`engine.plot` (``conesurvey plot``) and :mod:`engine.report` (README, "Look at
+Used by :mod:`engine.plot` (``conesurvey plot``) and :mod:`engine.report` (docs/surveys.md, "Look at
 the results").
 """
 

@@ -1,4 +1,4 @@
-"""Maps of survey results: any variable over any two survey axes (README, "Look at the results").
+"""Maps of survey results: any variable over any two survey axes (docs/surveys.md).
 
 :func:`engine.mapspec.plan` checks a request against a Dataset (variable, x and y axes, an
 optional facet axis, the values the other axes are fixed at) and :func:`map_figure` draws it.

@@ -1,5 +1,5 @@
-"""``conesurvey report``: one self-contained HTML page about a survey result (README, "Look at
-the results").
+"""``conesurvey report``: one self-contained HTML page about a survey result (docs/surveys.md,
+"Look at the results").
 
 The page holds the survey definition (the stored TOML), the provenance (engine, method,
 tolerances, scene, fingerprint, history), the count and fraction of every flag (orbit classes;

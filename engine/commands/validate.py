@@ -23,7 +23,7 @@ from . import PROG, Command, load
 
 __all__ = ["COMMAND", "EXACT_RATE", "INTEGRATOR_RATE", "compile_seconds", "energy_warning"]
 
-#: Exact-path throughput assumed by ``validate`` [points/s] (2 cores, see the README).
+#: Exact-path throughput assumed by ``validate`` [points/s] (2 cores, docs/performance.md).
 EXACT_RATE = 2.0e6
 #: Integrator throughput assumed by ``validate`` [orbits/s] at rtol 1e-10 on 2 cores.
 INTEGRATOR_RATE = 2.0e4
