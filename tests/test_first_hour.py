@@ -289,3 +289,93 @@ def test_the_store_machine_leaves_no_temporary_directory(tmp_path):
     )
     assert done.returncode == 0, done.stderr[-2000:]
     assert list(tmp_path.iterdir()) == []
+
+
+# -- 6. fate maps are summarised by their fates ---------------------------------------------
+
+_FATE_MAP = """\
+title = "fates"
+method = "rk45"
+rtol = 1e-8
+[scene]
+M = 0.05
+c_rr = 0.02
+rim = 1.0
+mu = 0.45
+[horizon]
+time = 30.0
+[axes.alpha]
+values = [0.6, 1.2, 1.56]
+[axes.r0]
+values = [0.3, 0.5]
+[axes.v0]
+values = [0.2, 1.0, 3.0]
+[axes.w0]
+values = [0.0]
+"""
+
+
+@pytest.fixture(scope="module")
+def fate_map(tmp_path_factory):
+    d = tmp_path_factory.mktemp("fate")
+    (d / "fate.toml").write_text(_FATE_MAP)
+    assert main(["run", str(d / "fate.toml"), "-o", str(d / "fate.nc"), "-q"]) == 0
+    return d / "fate.nc"
+
+
+def test_info_lists_the_fates_of_a_fate_map_first(fate_map, capsys):
+    assert main(["info", str(fate_map)]) == 0
+    out = capsys.readouterr().out
+    with xr.open_dataset(fate_map) as ds:
+        counts = ds.cone.flag_counts("fate")
+    assert sum(counts.values()) == 18 and len([n for n in counts.values() if n]) >= 3
+    assert out.index("  fates") < out.index("  classes")
+    for name, n in counts.items():
+        assert f"    {name:<12}{n:>14,}" in out
+
+
+def test_the_summary_of_a_fate_map_counts_its_fates(fate_map):
+    with xr.open_dataset(fate_map) as ds:
+        text = ds.cone.summary()
+        counts = ds.cone.flag_counts("fate")
+    lines = text.splitlines()
+    assert lines[1].startswith("fates of 18 points: ")
+    for name, n in counts.items():
+        assert (f"{name} {n} (" in lines[1]) == (n > 0)
+    assert lines[2].startswith("launch orbits on the ideal cone of 18 points: ")
+
+
+def test_names_turn_flag_codes_into_names(fate_map):
+    with xr.open_dataset(fate_map) as ds:
+        names = ds.cone.names("fate")
+        codes = ds.fate.values
+        assert names.dims == ds.fate.dims
+    assert (names.values == np.asarray(engine.FATE_NAMES)[codes]).all()
+
+
+def test_the_report_of_a_fate_map_shows_the_fate_first(fate_map, tmp_path):
+    import re
+
+    out = tmp_path / "r.html"
+    assert main(["report", str(fate_map), "-o", str(out)]) == 0
+    page = out.read_text()
+    maps = re.findall(r'<figure id="map-([^"]+)"', page)
+    assert maps[0] == "fate" and maps.index("fate_time") < maps.index("orbit_class")
+    assert page.index('id="flags-fate"') < page.index('id="flags-orbit_class"')
+
+
+def test_long_titles_are_wrapped_to_the_figure(fate_map):
+    from engine.mapspec import plan
+    from engine.plot import CHARS_PER_INCH, map_figure
+
+    with xr.open_dataset(fate_map) as ds:
+        ds.attrs["title"] = "a survey title long enough to be wider than any figure " * 3
+        fig = map_figure(ds, plan(ds, "fate_time"))
+    width = fig.get_size_inches()[0] * CHARS_PER_INCH
+    lines = fig._suptitle.get_text().splitlines()
+    assert len(lines) > 3 and max(map(len, lines)) <= width
+    fig.canvas.draw()  # every text stays inside the figure
+    box = fig.bbox
+    for text in [fig._suptitle, *(t for leg in fig.legends for t in leg.get_texts())]:
+        extent = text.get_window_extent()
+        assert box.x0 - 1 <= extent.x0 and extent.x1 <= box.x1 + 1, text.get_text()
