@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -16,6 +17,7 @@ from .._jit import CACHE_DIR
 from ..api import minimum_energy
 from ..io.blocks import estimate_bytes
 from ..io.codecs import DEFAULT_COMPRESSION
+from ..kernels import batch
 from ..progress import format_bytes
 from ..schema import map_kind, map_summary
 from ..surveyfile import Survey
@@ -41,9 +43,20 @@ def compile_seconds(survey: Survey) -> float:
     seconds, module = COMPILE_SECONDS[map_kind(survey.method, survey.scene)]
     if CACHE_DIR is None:
         return seconds  # no cache: every run compiles
-    if CACHE_DIR.is_dir() and any(CACHE_DIR.rglob(f"{module}.*.nbi")):
+    where = _kernel_cache_dir()
+    if where is not None and any(where.glob(f"{module}.*.nbi")):
         return 0.0
     return seconds
+
+
+def _kernel_cache_dir() -> Path | None:
+    """Where numba caches the kernels of this installation (numba's cache locator decides;
+    None if it cannot be told)."""
+    for value in vars(batch).values():
+        path = getattr(getattr(value, "_cache", None), "_cache_path", None)
+        if isinstance(path, str):
+            return Path(path)
+    return None
 
 
 def _estimates(survey: Survey) -> tuple[int, float]:
