@@ -8,6 +8,7 @@ the helpers work on a Dataset read back from netCDF as well as on a fresh one::
     ds.cone.class_fractions()                 # fraction of points per class
     ds.cone.where_class("bounded")            # other points masked with NaN
     ds.cone.precession_per_revolution()       # 2 psi - 2 pi [degree]
+    ds.cone.names("fate")                     # flag codes as names (orbit_class, fate, ...)
     ds.cone.class_map(x="Lz", y="energy", alpha=0.5, h=0.0)
     print(ds.cone.summary())
 """
@@ -94,6 +95,33 @@ class ConeAccessor:
         if not classes:
             raise ValueError("give at least one class name, e.g. 'bounded'")
         return self._class_var().isin(self._codes_of(classes))
+
+    def names(self, variable: str = "orbit_class") -> xr.DataArray:
+        """The values of a flag variable (``orbit_class``, ``fate``, ``status``, ``event_kind``:
+        CF ``flag_values``/``flag_meanings``) as their names, same dims and coordinates; a
+        masked (NaN) value becomes ``""``."""
+        table = self._flags(variable)
+        da = self._ds[variable]
+        codes = np.asarray(da.values, float)
+        out = np.full(codes.shape, "", dtype=f"<U{max(map(len, table.values()), default=1)}")
+        for code, name in table.items():
+            out[codes == code] = name
+        return xr.DataArray(out, dims=da.dims, coords=da.coords, name=f"{variable}_name")
+
+    def flag_counts(self, variable: str = "orbit_class") -> dict[str, int]:
+        """How many points have each flag of ``variable``, in flag order (zeros included)."""
+        codes = np.asarray(self._ds[variable].values, float)
+        return {name: int((codes == code).sum()) for code, name in self._flags(variable).items()}
+
+    def _flags(self, variable: str) -> dict[int, str]:
+        if variable not in self._ds:
+            raise ValueError(f"the Dataset has no {variable!r} variable")
+        attrs = self._ds[variable].attrs
+        if "flag_meanings" not in attrs:
+            raise ValueError(f"{variable} has no 'flag_meanings' attribute: not a flag variable")
+        names = str(attrs["flag_meanings"]).split()
+        values = np.atleast_1d(np.asarray(attrs.get("flag_values", np.arange(len(names)))))
+        return {int(v): n for v, n in zip(values.tolist(), names, strict=True)}
 
     # -- selections and reductions -----------------------------------------------------------
 
@@ -225,15 +253,18 @@ class ConeAccessor:
         scene = ", ".join(
             f"{k[6:]}={ds.attrs[k]}" for k in ("scene_M", "scene_g", "scene_k") if k in ds.attrs
         )
-        lines = [f"conesurvey result ({dims}); method {ds.attrs.get('method', '?')}; {scene}"]
-        counts = self.class_counts()
+        kind = ds.attrs.get("map_kind")
+        head = f"conesurvey result ({dims}); method {ds.attrs.get('method', '?')}; {scene}"
+        lines = [head + (f"; {kind} map" if kind else "")]
         n = int(cls.notnull().sum())
-        parts = [
-            f"{name} {int(c)} ({100.0 * int(c) / n:.1f}%)"
-            for name, c in zip(counts.class_name.values, counts.values, strict=True)
-            if int(c) > 0
-        ]
-        lines.append(f"classes of {n} points: " + ", ".join(parts))
+        if "fate" in ds:  # a fate map: what happened to each ball comes first
+            lines.append(f"fates of {n} points: " + _shares(self.flag_counts("fate"), n))
+            label = "launch orbits on the ideal cone"
+        else:
+            label = "classes"
+        counts = self.class_counts()
+        found = dict(zip(counts.class_name.values.tolist(), counts.values.tolist(), strict=True))
+        lines.append(f"{label} of {n} points: " + _shares(found, n))
         prec = self.precession_per_revolution("degree")
         for label, da in (
             ("precession per revolution [degree]", prec),
@@ -247,6 +278,12 @@ class ConeAccessor:
             if v.size:
                 lines.append(f"{label}: {v.min():.4g} .. {v.max():.4g} (finite on {v.size})")
         return "\n".join(lines)
+
+
+def _shares(counts: dict[str, Any], n: int) -> str:
+    """``bounded 10823 (76.4%), spills 3352 (23.6%)``: the names with a count above zero."""
+    parts = [f"{k} {int(c)} ({100.0 * int(c) / max(n, 1):.1f}%)" for k, c in counts.items() if c]
+    return ", ".join(parts)
 
 
 def _reduce_dims(da: xr.DataArray, dim: str | Sequence[Hashable] | None) -> list[Hashable]:

@@ -156,7 +156,7 @@ def evaluate(
     radial energy calE (see :func:`engine.radial_energy`). NaN marks an undefined quantity.
 
     What else the map holds depends on the scene and the method (its ``map_kind`` attribute,
-    README "What a map means for each scene"): with a rim or a friction limit the closed form
+    docs/api.md "What a map means for each scene"): with a rim or a friction limit the closed form
     adds where rolling ends (``end_r``, ``end_time``, ``end_theta``); an integrator on the ideal
     cone integrates one radial period; an integrator on a scene with rolling resistance, a rim or
     a friction limit follows each orbit from r_min to its fate (``fate`` and the variables after

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .errortext import install_hint
 from .evaluation import evaluate_block
 from .grid import Tiling
 
@@ -187,7 +188,7 @@ class DaskBackend:
             from dask.distributed import Client, LocalCluster
         except ImportError:
             raise BackendError(
-                "the dask backend needs dask.distributed: pip install 'conesurvey[dask]'"
+                f"the dask backend needs dask.distributed: {install_hint('dask')}"
             ) from None
         # distributed's Nanny writes its pre-spawn environment (NUMBA_NUM_THREADS, ...) into
         # this process's os.environ; numba re-reads it and refuses a thread count that differs

@@ -10,9 +10,16 @@ from __future__ import annotations
 import datetime
 import difflib
 import math
+import sys
 from typing import Any
 
-__all__ = ["TomlChecker", "toml_repr", "toml_type", "suggest", "join_key"]
+__all__ = ["TomlChecker", "install_hint", "toml_repr", "toml_type", "suggest", "join_key"]
+
+
+def install_hint(extra: str) -> str:
+    """How to install an optional extra the way the README installs conesurvey: from the
+    checkout, into the environment that runs this command (conesurvey is not on PyPI)."""
+    return f"in the conesurvey checkout, run: {sys.executable} -m pip install '.[{extra}]'"
 
 
 def toml_repr(value: Any, depth: int = 0) -> str:

@@ -89,7 +89,7 @@ def require_horizon(horizon: Horizon | None) -> Horizon:
     if horizon is None or not horizon.given:
         raise ValueError(
             "a fate map follows each orbit to its first terminal event (spill, slip, rest, "
-            "vertex) or a horizon: give horizon_time [s] and/or horizon_revolutions"
+            "vertex) or a horizon: give horizon_time= [s] and/or horizon_revolutions="
         )
     return horizon
 

@@ -2,7 +2,7 @@
 two axes drawn, an optional facet axis, the values the other axes are fixed at, and the facts
 read from the file's attributes (flag tables, labels) and coordinates (log spacing).
 
-Used by :mod:`engine.plot` (``conesurvey plot``) and :mod:`engine.report` (README, "Look at
+Used by :mod:`engine.plot` (``conesurvey plot``) and :mod:`engine.report` (docs/surveys.md, "Look at
 the results").
 """
 
@@ -133,11 +133,28 @@ def plan(
             continue
         values = np.asarray(ds[d].values, float)
         if d in at:
+            _check_in_range(ds[d], d, at[d])
             i = int(np.argmin(np.abs(values - at[d])))
             spec.fixed[d] = (i, f"nearest to {at[d]:g}")
         else:
             spec.fixed[d] = (values.size // 2, "middle value")
     return spec
+
+
+def _check_in_range(coord: xr.DataArray, name: str, value: float) -> None:
+    """LookError for an ``--at`` value outside the axis' range (the nearest value would be a
+    silent guess), naming the range and the unit; a hint for degrees given as radians."""
+    values = np.asarray(coord.values, float)
+    lo, hi = float(np.min(values)), float(np.max(values))
+    slack = 1e-9 * max(abs(lo), abs(hi), 1e-300)
+    if lo - slack <= value <= hi + slack:
+        return
+    units = str(coord.attrs.get("units", ""))
+    unit = f" {units}" if units and units != "1" else ""
+    text = f"--at {name}={value:g} lies outside the axis {name}: {_fmt(lo)} .. {_fmt(hi)}{unit}"
+    if units == "radian" and lo <= math.radians(value) <= hi:
+        text += f" (in radian: {value:g} degree is {math.radians(value):.4g} radian)"
+    raise LookError(text)
 
 
 def _fmt(value: float) -> str:

@@ -1,4 +1,4 @@
-"""Maps of survey results: any variable over any two survey axes (README, "Look at the results").
+"""Maps of survey results: any variable over any two survey axes (docs/surveys.md).
 
 :func:`engine.mapspec.plan` checks a request against a Dataset (variable, x and y axes, an
 optional facet axis, the values the other axes are fixed at) and :func:`map_figure` draws it.
@@ -10,7 +10,7 @@ axis whose values have a constant ratio is drawn on a log scale; a positive vari
 zero. NaN is drawn as "undefined" (light grey), +-inf in the colour bar's extensions, and
 points of an unfinished run that are not computed yet hatched white.
 
-matplotlib is an optional extra (``pip install 'conesurvey[plot]'``): this module imports it
+matplotlib is an optional extra (``pip install '.[plot]'`` in the checkout): this module imports it
 only when a figure is drawn (:func:`matplotlib_parts`), so importing ``engine`` never does.
 """
 
@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import io
 import os
+import textwrap
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,6 +28,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from .errortext import install_hint
 from .io.atomic import fsync_path, replacing
 from .mapspec import (
     LookError,
@@ -54,7 +56,18 @@ __all__ = [
     "style_for",
 ]
 
-INSTALL_HINT = "pip install 'conesurvey[plot]'"
+INSTALL_HINT = install_hint("plot")
+
+#: Characters of medium-size text per inch of figure width (titles are wrapped to fit).
+CHARS_PER_INCH = 11
+#: Characters per line of a flag legend's title.
+LEGEND_TITLE_CHARS = 26
+
+#: What NaN means where it is not "undefined for that orbit class" (the legend's label).
+NAN_LABELS: dict[str, str] = {
+    name: "NaN: never ends (rolls on without slipping or spilling), or no orbit"
+    for name in ("end_r", "end_time", "end_theta")
+}
 
 #: Colour of each orbit class and integrator status, by flag name (others: FALLBACK_COLORS).
 CLASS_COLORS: dict[str, str] = {
@@ -235,9 +248,11 @@ def draw_map(
     return mesh, seen
 
 
-def legend_handles(style: Style, z: np.ndarray, seen: Mapping[str, bool]) -> list[Any]:
-    """Legend patches: the flags present in ``z`` (flag variables), then undefined,
-    not computed yet and +-inf where they occur."""
+def legend_handles(
+    style: Style, z: np.ndarray, seen: Mapping[str, bool], variable: str = ""
+) -> list[Any]:
+    """Legend patches: the flags present in ``z`` (flag variables), then undefined (what NaN
+    means for ``variable``: :data:`NAN_LABELS`), not computed yet and +-inf where they occur."""
     p = matplotlib_parts().patches
     handles = []
     if style.flags is not None:
@@ -250,7 +265,7 @@ def legend_handles(style: Style, z: np.ndarray, seen: Mapping[str, bool]) -> lis
     extra = [
         ("+inf", OVER_COLOR, None, "+inf"),
         ("-inf", UNDER_COLOR, None, "-inf"),
-        ("undefined", UNDEFINED_COLOR, None, "undefined (NaN)"),
+        ("undefined", UNDEFINED_COLOR, None, NAN_LABELS.get(variable, "undefined (NaN)")),
         ("not computed", NOT_COMPUTED_COLOR, "////", "not computed yet"),
     ]
     for key, color, hatch, label in extra:
@@ -314,21 +329,26 @@ def map_figure(
             unit = f" {units}" if units and units != "1" else ""
             ax.set_title(f"{spec.facet} = {value:.4g}{unit}", fontsize="small")
     used = list(axes[:n])
-    handles = legend_handles(style, np.asarray(da.values, float), seen)
+    handles = legend_handles(style, np.asarray(da.values, float), seen, spec.variable)
+    chars = int(size[0] * CHARS_PER_INCH)  # a line of text as wide as the figure
     if style.flags is None:
         if style.finite:
             fig.colorbar(mesh, ax=used, label=style.label, extend=style.extend)
         if handles:
-            fig.legend(handles=handles, loc="outside lower center", ncols=len(handles))
+            wide = sum(len(h.get_label()) + 6 for h in handles) > chars
+            fig.legend(
+                handles=handles, loc="outside lower center", ncols=1 if wide else len(handles)
+            )
     else:
-        fig.legend(handles=handles, loc="outside right center", title=str(da.attrs.get(
-            "long_name", spec.variable)))  # fmt: skip
+        title = textwrap.fill(str(da.attrs.get("long_name", spec.variable)), LEGEND_TITLE_CHARS)
+        fig.legend(handles=handles, loc="outside right center", title=title)
     lines = [variable_label(da.attrs, spec.variable)]
     if not style.finite:
         lines.append("no finite value in this view")
     if context:
         lines = [str(ds.attrs.get("title", "")), *lines, fixed_text(ds, spec), thinned, note]
-    fig.suptitle("\n".join(line for line in lines if line), fontsize="medium")
+    lines = [textwrap.fill(line, chars) for line in lines if line]  # never wider than the figure
+    fig.suptitle("\n".join(lines), fontsize="medium")
     return fig
 
 

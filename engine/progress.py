@@ -8,16 +8,24 @@ Elsewhere (a log file, a pipe, CI) it prints plain lines, at most one every 2 s 
 one, so logs stay short::
 
     conesurvey: 500,000/1,000,000 points (50.0%), 1.2M points/s, 0:01 left
+
+Before the first point, a run compiles its numba kernels (or loads them from the cache): inside
+:meth:`Progress.compiling` a compile that lasts longer than a cache load is announced, with the
+time it has taken so far, so that a first run does not look like a hang::
+
+    conesurvey: compiling kernels (first run only, cached)  0:12
 """
 
 from __future__ import annotations
 
+import contextlib
 import io
 import os
 import shutil
 import sys
+import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from types import TracebackType
 from typing import TextIO
 
@@ -28,6 +36,10 @@ TTY_INTERVAL = 0.1
 #: Seconds between plain log lines.
 LOG_INTERVAL = 2.0
 BAR_MIN, BAR_MAX = 8, 40
+#: Seconds a compile may take before it is announced (a load from numba's cache takes less).
+COMPILE_DELAY = 1.0
+COMPILE_MESSAGE = "compiling kernels (first run only, cached)"
+LOAD_MESSAGE = "loading the compiled kernels from the cache"
 
 
 def format_duration(seconds: float) -> str:
@@ -90,6 +102,8 @@ class Progress:
         self._shown_state: tuple[int, int] | None = None
         self._drawn = False  # a bar is on the terminal line
         self._closed = False
+        #: Set when the kernels are known to be in numba's cache: the wait is then a load.
+        self.kernels_cached = False
 
     def __call__(self, done: int, total: int) -> None:
         """Record that ``done`` of ``total`` points are finished; show it if it is time."""
@@ -99,6 +113,48 @@ class Progress:
         now = self.clock()
         if done >= total or now - self._last_shown >= self.interval:
             self._show(now)
+
+    @contextlib.contextmanager
+    def compiling(self, delay: float = COMPILE_DELAY) -> Iterator[None]:
+        """Around the kernels' compile: once it has lasted ``delay`` s, say so with the elapsed
+        time (on a terminal redrawn every second; in a log one line), and at the end how long it
+        took. Rates and the time left count from the end of the compile."""
+        stop = threading.Event()
+        began = time.monotonic()
+        shown = threading.Event()
+        message = LOAD_MESSAGE if self.kernels_cached else COMPILE_MESSAGE
+
+        def line() -> str:
+            return f"{self.label}: {message}  {format_duration(time.monotonic() - began)}"
+
+        def tick() -> None:
+            wait = delay
+            while not stop.wait(wait):
+                if self.tty:
+                    self.stream.write("\r" + line())
+                elif not shown.is_set():
+                    self.stream.write(line() + "\n")
+                self.stream.flush()
+                shown.set()
+                wait = 1.0
+
+        thread = threading.Thread(target=tick, name="conesurvey-compiling", daemon=True)
+        thread.start()
+        try:
+            yield
+        finally:
+            stop.set()
+            thread.join()
+            if shown.is_set():
+                took = format_duration(time.monotonic() - began)
+                done = (
+                    f"{self.label}: loaded the kernels in {took}"
+                    if self.kernels_cached
+                    else f"{self.label}: compiled kernels in {took} (cached for later runs)"
+                )
+                self.stream.write(("\r" + done.ljust(len(line())) if self.tty else done) + "\n")
+                self.stream.flush()
+            self.start = self.clock()
 
     def close(self) -> None:
         """Show the last state if it was not shown, and end the terminal line."""

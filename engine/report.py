@@ -1,5 +1,5 @@
-"""``conesurvey report``: one self-contained HTML page about a survey result (README, "Look at
-the results").
+"""``conesurvey report``: one self-contained HTML page about a survey result (docs/surveys.md,
+"Look at the results").
 
 The page holds the survey definition (the stored TOML), the provenance (engine, method,
 tolerances, scene, fingerprint, history), the count and fraction of every flag (orbit classes;
@@ -31,7 +31,7 @@ from .io.results import Result
 from .mapspec import MapSpec, fixed_text, flag_table, plan
 from .plot import figure_png, flag_color, map_figure, matplotlib_parts
 
-__all__ = ["Range", "Stats", "gather", "build_report", "write_report"]
+__all__ = ["Range", "Stats", "gather", "build_report", "scene_first", "write_report"]
 
 #: Integrator diagnostics drawn in their own section, in this order.
 DIAGNOSTICS = ("status", "energy_drift")
@@ -155,9 +155,19 @@ def _maps(result: Result, names: Iterable[str], base: MapSpec) -> list[str]:
     return out
 
 
+def scene_first(names: list[str]) -> list[str]:
+    """The variables of a fate map with ``fate`` and the variables after it (what happened on
+    the scene) first, then the launch orbit's on the ideal cone; other maps as they are."""
+    if "fate" not in names:
+        return list(names)
+    i = names.index("fate")
+    return names[i:] + names[:i]
+
+
 def _flag_tables(stats: Stats, result: Result) -> str:
     parts = []
-    for var, counts in stats.flags.items():
+    for var in scene_first(list(stats.flags)):
+        counts = stats.flags[var]
         colors = _flag_colors(result, var)
         title = result.ds[var].attrs.get("long_name", var)
         rows = []
@@ -240,7 +250,7 @@ def build_report(result: Result, *, now: datetime | None = None) -> str:
     grid = " &times; ".join(f"{_e(d)} {n}" for d, n in ds.sizes.items())
     names = [str(n) for n in ds.data_vars]
     diagnostics = [n for n in DIAGNOSTICS if n in names]
-    others = [n for n in names if n not in diagnostics]
+    others = scene_first([n for n in names if n not in diagnostics])
     where = _e(fixed_text(ds, base)) or "no other axes"
     maps_intro = (
         f"<p>Each map shows <b>{_e(base.x)}</b> (x) against <b>{_e(base.y)}</b> (y), the two "

@@ -289,7 +289,9 @@ def run_survey(
         # written: the engine may still refuse the survey. This also warms the cache before
         # dask workers start (concurrent first compiles race, numba#4807).
         tc = time.perf_counter()
-        evaluate_block(spec, tuple(slice(0, 1) for _ in DIMS))
+        compiling = getattr(progress, "compiling", contextlib.nullcontext)
+        with compiling():  # a first run's compile is announced, not a silent wait
+            evaluate_block(spec, tuple(slice(0, 1) for _ in DIMS))
         t0 = time.perf_counter()
         try:
             backend = open_backend(scheduler, workers)

@@ -79,7 +79,7 @@ from .kernels.geometry import CIRCULAR_TOL as DEFAULT_CIRCULAR_TOL
 from .methods import DEFAULT_RTOL, METHODS, RTOL_RANGE, check_method, check_rtol
 from .scene import Scene
 from .schema import DIMS as AXES
-from .schema import LAUNCH_DIMS, result_variables, survey_attrs
+from .schema import LAUNCH_DIMS, map_kind, result_variables, survey_attrs
 from .surveyaxes import MAX_AXIS_POINTS, RELATIVE_TO, SCALES, AxisReader
 
 if TYPE_CHECKING:
@@ -346,6 +346,13 @@ class _Reader(AxisReader):
         for key, v in values.items():
             if not v > 0.0:
                 raise self.bad_value(f"horizon.{key}", table[key], "must be > 0")
+        if not values and map_kind(method, scene) == "fate":
+            raise self.fail(
+                "horizon",
+                "a fate map follows each orbit to its first terminal event (spill, slip, rest, "
+                "vertex) or a horizon: add a [horizon] table with time = SECONDS and/or "
+                "revolutions = N",
+            )
         try:
             return check_horizon(method, scene, values.get("time"), values.get("revolutions"))
         except ValueError as exc:

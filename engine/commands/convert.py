@@ -27,6 +27,20 @@ from . import PROG, Command, InputError, error
 
 __all__ = ["COMMAND"]
 
+DESCRIPTION = """\
+Copy a finished result to the other format: OUT.nc to OUT.zarr, or OUT.zarr to OUT.nc. The
+output's format follows its name (.zarr: a Zarr store, anything else: netCDF-4).
+
+The copy is exact: the same values bit for bit, the same attributes and chunks, one more
+history line. The source's content checksum is verified while its values are copied, and
+the output records the same checksum, so 'conesurvey info --verify DST' checks the copy
+against the original run.
+
+Refused before anything is written (exit status 2): a missing, unfinished, unreadable or
+damaged source, an output of the source's format, an existing output without --overwrite,
+another run or conversion writing the output, too little disk space. A failed write
+(exit status 1) leaves nothing under the output's name."""
+
 EPILOG = """\
 examples:
   conesurvey convert precession.zarr precession.nc
@@ -120,7 +134,7 @@ def _convert(args: argparse.Namespace, command: str) -> int:
 COMMAND = Command(
     name="convert",
     help="convert a finished result between netCDF and Zarr (checksum verified and kept)",
-    description=__doc__.split("\n\n", 1)[1].strip() if __doc__ else "",
+    description=DESCRIPTION,
     add_arguments=add_arguments,
     run=_convert,
     epilog=EPILOG,

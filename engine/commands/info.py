@@ -125,10 +125,15 @@ def _info(args: argparse.Namespace, command: str) -> int:
         if key in attrs:
             text = _printable(str(attrs[key])).replace("\n", "\n              ")
             print(f"  {key + ' ':<12}{text}")
-    if "counts" in info:
-        total = max(1, sum(info["counts"].values()))
-        print("  classes")
-        for name, n in info["counts"].items():
+    tables = [("fates", info.get("fate_counts")), ("classes", info.get("counts"))]
+    for label, counts in tables:  # a fate map: what happened to each ball first
+        if counts is None:
+            continue
+        if label == "classes" and "fate_counts" in info:
+            label = "classes     (of the launch orbits on the ideal cone)"
+        total = max(1, sum(counts.values()))
+        print(f"  {label}")
+        for name, n in counts.items():
             print(f"    {name:<12}{n:>14,}{n / total:>10.4f}")
     for note in notes:
         print(f"  note        {note}")
@@ -142,7 +147,7 @@ def _info(args: argparse.Namespace, command: str) -> int:
 
 COMMAND = Command(
     name="info",
-    help="show the definition, completion state, class counts and provenance of a result",
+    help="show the definition, completion state, fate and class counts and provenance of a result",
     description="Describe a conesurvey result file (or the unfinished run behind it); "
     "--verify checks every value against the file's content checksum.",
     add_arguments=add_arguments,

@@ -1,4 +1,4 @@
-"""The commands ``conesurvey plot`` and ``conesurvey report`` (README, "Look at the results").
+"""The commands ``conesurvey plot`` and ``conesurvey report`` (docs/surveys.md).
 
 Both are :class:`~engine.commands.Command` objects (:data:`PLOT`, :data:`REPORT`) that
 :mod:`engine.cli` registers. Exit

@@ -9,12 +9,16 @@ output, too little disk); 130 interrupted.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import logging
 import os
+import re
 import sys
+import textwrap
 from pathlib import Path
 from typing import TextIO
 
+from ..errortext import install_hint
 from ..grid import BLOCK_POINTS
 from ..io import zarr as zarr_io
 from ..io.codecs import COMPRESSIONS, DEFAULT_COMPRESSION, DEFAULT_LEVELS
@@ -22,28 +26,68 @@ from ..kernels.fate import FATE_NAMES
 from ..kernels.geometry import CLASS_NAMES
 from ..progress import Progress
 from ..runner import AlreadyComplete, RunError, RunFailed, RunStats, run_survey
+from ..scene import Scene
 from . import PROG, Command, InputError, error, load
+from .validate import compile_seconds, energy_warning
 
 __all__ = ["COMMAND", "print_summary"]
 
-DESCRIPTION = """\
+
+def _scene_keys() -> str:
+    """One line per field of :class:`engine.Scene`, from the dataclass and its docstring (so the
+    list cannot drift from the scene the engine reads)."""
+    doc = {}
+    for line in (Scene.__doc__ or "").splitlines():
+        m = re.match(r"\s*(\w+) : (.*)", line)
+        if m:
+            doc[m.group(1)] = m.group(2).strip()
+    lines = []
+    for f in dataclasses.fields(Scene):
+        if f.name.startswith("_"):
+            continue
+        text = doc.get(f.name, "").rstrip(".")
+        default = f.default
+        if default is None or isinstance(default, bool):  # as TOML would say it
+            default = "absent" if default is None else str(default).lower()
+        text = f"{text}; default {default}" if text else f"default {default}"
+        lines += textwrap.wrap(
+            text, 92, initial_indent=f"  {f.name:<9} ", subsequent_indent=" " * 12
+        )
+    return "\n".join(lines)
+
+
+DESCRIPTION = f"""\
 Run the survey defined in SURVEY.toml and write the results to a netCDF file (or a Zarr
 store: -o OUT.zarr).
 
-The definition names the scene ([scene]: M [kg], g [m s-2], a [m], k, rim [m]), the method
-and the four axes [axes.alpha] [radian], [axes.energy] (radial energy [J], or relative to
-V_min with relative_to = "V_min"), [axes.h] [m s-1] and [axes.Lz] [kg m2 s-1], each either
-values = [...] or start, stop, num with scale = "linear" or "log". See the examples in
-surveys/ and the README's survey format. The TOML text is stored verbatim in the output's
-survey_definition attribute.
+A survey file holds (see the examples in surveys/ and docs/surveys.md):
 
-One run at a time writes an output (a lock file OUT.lock beside it); a killed run resumes
-where it stopped when the same command is run again (README: "Guarantees")."""
+title, method (exact | rk45 | dop853 | symplectic), rtol, circular_tol at the top;
+[scene], any of:
+{_scene_keys()}
+four axes, each values = [...] or start, stop, num with scale = "linear" or "log":
+  [axes.alpha]   half-aperture [radian], in (0, pi/2), and either the invariants
+  [axes.energy]  radial energy [J]; relative_to = "V_min": offsets (energy - V_min)/|V_min|
+  [axes.h]       spin invariant [m s-1]
+  [axes.Lz]      angular momentum about the axis [kg m2 s-1]
+  or the launch states (released with radial speed 0):
+  [axes.r0]      launch radius [m], > 0
+  [axes.v0]      speed along the parallel [m s-1]
+  [axes.w0]      spin a omega_nu [m s-1]
+[horizon], required by a fate map (an integrator on a scene with c_rr, rim or mu):
+  time           how long each orbit is followed [s], and/or
+  revolutions    how many revolutions about the axis
+
+The TOML text is stored verbatim in the output's survey_definition attribute. The first run
+compiles the numba kernels (cached: later runs load them). One run at a time writes an output
+(a lock file OUT.lock beside it); a killed run resumes where it stopped when the same command
+is run again (docs/guarantees.md)."""
 
 EPILOG = """\
 example:
-  conesurvey run surveys/gravity_precession.toml -o precession.nc
-  python -c "import xarray as xr; print(xr.open_dataset('precession.nc'))"
+  conesurvey run surveys/gravity_precession.toml -o gravity_precession.nc
+  conesurvey plot gravity_precession.nc precession_rate --facet alpha
+  python -c "import xarray as xr; print(xr.open_dataset('gravity_precession.nc'))"
 
 exit status: 0 success, 1 stopped after writing began (resumable: run the same command
 again), 2 bad input or usage, nothing written, 130 interrupted"""
@@ -82,10 +126,9 @@ def add_arguments(run: argparse.ArgumentParser) -> None:
         "--compression",
         choices=COMPRESSIONS,
         default=None,
-        help=f"how the output's variables are compressed (default {DEFAULT_COMPRESSION}: "
-        "deflate with shuffle, read by every netCDF-4/HDF5 tool, compressed on every core; "
-        "blosc_lz4, zstd: need HDF5 filter plugins to read; a Zarr store takes blosc_lz4 "
-        "(its default) or none; docs/output.md)",
+        help=f"how the output's variables are compressed (default {DEFAULT_COMPRESSION} for "
+        "netCDF, read by every netCDF-4 tool; a Zarr store takes blosc_lz4, its default, or "
+        "none); docs/output.md says what each choice costs, saves and which tools read it",
     )
     run.add_argument(
         "--complevel",
@@ -148,9 +191,13 @@ def _run(args: argparse.Namespace, command: str) -> int:
     source = Path(args.survey)
     survey = load(args.survey)
     out = _output(args, source)
+    if (warning := energy_warning(survey)) is not None:
+        print(f"{PROG}: warning: {warning}", file=sys.stderr)
     if args.scheduler is not None or args.workers is not None:
-        _quiet_dask()
+        _quiet_dask("--workers" if args.workers is not None else "--scheduler")
     progress = None if args.quiet else Progress(sys.stderr)
+    if progress is not None:
+        progress.kernels_cached = compile_seconds(survey) == 0.0
     try:
         stats = run_survey(
             survey,
@@ -189,14 +236,16 @@ def _run(args: argparse.Namespace, command: str) -> int:
     return 0
 
 
-def _quiet_dask() -> None:
+def _quiet_dask(option: str) -> None:
     """Silence distributed's loggers (they print tracebacks when a cluster goes away): the
     command reports a failed cluster itself, in one line. distributed sets its loggers' levels
-    when it is imported, so it is imported first."""
+    when it is imported, so it is imported first. Without it, ``option`` is a usage error."""
     try:
         import distributed  # noqa: F401
     except ImportError:
-        return  # the backend says how to install it
+        raise InputError(
+            f"{option} needs dask.distributed, which is not installed; {install_hint('dask')}"
+        ) from None
     for name in list(logging.root.manager.loggerDict):
         if name == "distributed" or name.startswith("distributed."):
             logging.getLogger(name).setLevel(logging.CRITICAL)
@@ -214,12 +263,14 @@ def print_summary(stats: RunStats, *, title: str, method: str, file: TextIO | No
     total = stats.points
     shape = " x ".join(f"{d} {n}" for d, n in zip(stats.dims, stats.shape, strict=True))
     lines = [title, f"  grid    {shape} = {total:,} points", f"  method  {method}", ""]
-    lines.append(f"  {'class':<12}{'count':>12}{'fraction':>10}")
-    for name, n in zip(CLASS_NAMES, stats.counts, strict=True):
-        lines.append(f"  {name:<12}{n:>12,}{n / max(total, 1):>10.4f}")
-    if "fate" in stats.flags:
-        lines += ["", f"  {'fate':<12}{'count':>12}{'fraction':>10}"]
-        for name, n in zip(FATE_NAMES, stats.flags["fate"], strict=True):
+    tables = [("class", CLASS_NAMES, stats.counts)]
+    if "fate" in stats.flags:  # a fate map: what happened to each ball first
+        tables.insert(0, ("fate", FATE_NAMES, stats.flags["fate"]))
+        tables[1] = ("class", CLASS_NAMES, stats.counts, "  (the launch orbits on the ideal cone)")
+    for i, (label, names, counts, *note) in enumerate(tables):
+        lines += [""] if i else []
+        lines.append(f"  {label:<12}{'count':>12}{'fraction':>10}" + "".join(note))
+        for name, n in zip(names, counts, strict=True):
             lines.append(f"  {name:<12}{n:>12,}{n / max(total, 1):>10.4f}")
     lines.append("")
     lines.append(f"  {'variable':<16}{'min':>13}{'max':>13}  units  (finite values)")
@@ -235,7 +286,7 @@ def print_summary(stats: RunStats, *, title: str, method: str, file: TextIO | No
     lines.append(
         f"  time    {stats.compute_seconds:.2f} s computing ({rate:,.0f} points/s{reused}; "
         f"the output written meanwhile) + {stats.write_seconds:.2f} s finishing the output + "
-        f"{stats.compile_seconds:.2f} s compiling (numba, cached after the first run)"
+        f"{stats.compile_seconds:.2f} s compiling the kernels (or loading them from the cache)"
     )
     lines.append(f"  output  {stats.path.resolve() if stats.path else '?'}")
     print("\n".join(lines), file=out)

@@ -8,25 +8,79 @@ against the method); exit status 2 when it is invalid.
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
+import numpy as np
+
+from .._jit import CACHE_DIR
+from ..api import minimum_energy
 from ..io.blocks import estimate_bytes
+from ..io.codecs import DEFAULT_COMPRESSION
+from ..kernels import batch
 from ..progress import format_bytes
-from ..schema import map_summary
+from ..schema import map_kind, map_summary
 from ..surveyfile import Survey
-from . import Command, load
+from . import PROG, Command, load
 
-__all__ = ["COMMAND", "EXACT_RATE", "INTEGRATOR_RATE"]
+__all__ = ["COMMAND", "EXACT_RATE", "INTEGRATOR_RATE", "compile_seconds", "energy_warning"]
 
-#: Exact-path throughput assumed by ``validate`` [points/s] (2 cores, see the README).
+#: Exact-path throughput assumed by ``validate`` [points/s] (2 cores, docs/performance.md).
 EXACT_RATE = 2.0e6
 #: Integrator throughput assumed by ``validate`` [orbits/s] at rtol 1e-10 on 2 cores.
 INTEGRATOR_RATE = 2.0e4
+#: CPU seconds of a first run's numba compile, by kind of map, and the kernel module whose
+#: cached entries show that it was done. Closed form and fate map measured on the shipped
+#: surveys (docs/surveys.md, "The first run compiles"); one period: the rk45/dop853 batch's
+#: compile as the integrator benchmark measured it (84-91 s).
+COMPILE_SECONDS = {"closed form": (30.0, "batch"), "one period": (90.0, "lanes"),
+                   "fate": (50.0, "fate")}  # fmt: skip
+
+
+def compile_seconds(survey: Survey) -> float:
+    """Seconds the first run will spend compiling the survey's kernels: 0 when numba's cache
+    holds them already (compiled by an earlier run with these kernel sources)."""
+    seconds, module = COMPILE_SECONDS[map_kind(survey.method, survey.scene)]
+    if CACHE_DIR is None:
+        return seconds  # no cache: every run compiles
+    where = _kernel_cache_dir()
+    if where is not None and any(where.glob(f"{module}.*.nbi")):
+        return 0.0
+    return seconds
+
+
+def _kernel_cache_dir() -> Path | None:
+    """Where numba caches the kernels of this installation (numba's cache locator decides;
+    None if it cannot be told)."""
+    for value in vars(batch).values():
+        path = getattr(getattr(value, "_cache", None), "_cache_path", None)
+        if isinstance(path, str):
+            return Path(path)
+    return None
 
 
 def _estimates(survey: Survey) -> tuple[int, float]:
     """(uncompressed output bytes, estimated run time [s])."""
     rate = EXACT_RATE if survey.method == "exact" else INTEGRATOR_RATE
     return estimate_bytes(survey), survey.size / rate
+
+
+def energy_warning(survey: Survey) -> str | None:
+    """A warning when every energy of the survey lies below the potential minimum V_min of
+    every (alpha, h, Lz): every point would be forbidden (None otherwise, and for relative
+    energies, launch states and grids where V has no minimum somewhere)."""
+    if survey.launch or survey.energy_relative or survey.energy is None:
+        return None
+    a, h, lz = np.meshgrid(survey.alpha, survey.h, survey.Lz, indexing="ij", sparse=True)
+    vmin = minimum_energy(a, h, lz, survey.scene)
+    top = float(np.max(survey.energy))
+    if not (np.all(np.isfinite(vmin)) and top < float(np.min(vmin))):
+        return None
+    return (
+        f"every energy lies below V_min: the largest, {top:g} J, is under the smallest potential "
+        f"minimum of the grid, {float(np.min(vmin)):g} J, so every point is forbidden; for "
+        'offsets from V_min put relative_to = "V_min" in [axes.energy]'
+    )
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -38,14 +92,23 @@ def _validate(args: argparse.Namespace, command: str) -> int:
     need, seconds = _estimates(survey)
     shape = " x ".join(f"{d} {n}" for d, n in zip(survey.dims, survey.shape, strict=True))
     print(f"{args.survey}: valid")
+    if (warning := energy_warning(survey)) is not None:
+        print(f"{PROG}: warning: {warning}", file=sys.stderr)
     print(f"  title   {survey.title}")
     print(
         f"  method  {survey.method}"
         + (f" (rtol {survey.rtol:g})" if survey.method != "exact" else "")
     )
     print(f"  grid    {shape} = {survey.size:,} points")
-    print(f"  output  about {format_bytes(need)} uncompressed (zlib shrinks it, class maps ~150x)")
-    print(f"  time    about {seconds:.3g} s on 2 cores")
+    print(
+        f"  output  about {format_bytes(need)} uncompressed (less on disk: --compression "
+        f"{DEFAULT_COMPRESSION} by default, docs/output.md)"
+    )
+    compiling = compile_seconds(survey)
+    extra = (
+        f" + about {compiling:.0f} s compiling the kernels (first run only)" if compiling else ""
+    )
+    print(f"  time    about {seconds:.3g} s on 2 cores{extra}")
     if survey.precision == "single":
         print("  precision single: float results stored as float32 (~7 significant digits); "
               "classes, status and fate exact")  # fmt: skip

@@ -15,6 +15,7 @@ from typing import Any
 import netCDF4
 import numpy as np
 
+from ..kernels.fate import FATE_NAMES
 from ..kernels.geometry import CLASS_NAMES
 from ..schema import FINGERPRINT_ATTR
 from . import OutputError
@@ -84,6 +85,9 @@ def _file_info(path: Path, verify: bool) -> dict[str, Any]:
             counts = class_counts(nc, info["notes"])
             if counts is not None:
                 info["counts"] = counts
+            fates = fate_counts(nc, info["notes"])
+            if fates is not None:
+                info["fate_counts"] = fates
             info["complete"] = FINGERPRINT_ATTR in info["attrs"]
             info["checksum"] = CHECKSUM_ATTR in info["attrs"]
             if verify:
@@ -105,14 +109,27 @@ def _attributes(nc: Any, notes: list[str]) -> dict[str, Any]:
 
 def class_counts(nc: Any, notes: list[str]) -> dict[str, int] | None:
     """Count of each class code of ``orbit_class`` ("other" for values that are not one)."""
-    v = nc.variables.get("orbit_class")
+    return flag_counts(nc, "orbit_class", CLASS_NAMES, notes)
+
+
+def fate_counts(nc: Any, notes: list[str]) -> dict[str, int] | None:
+    """Count of each fate of a fate map's ``fate`` (None for other maps)."""
+    return flag_counts(nc, "fate", FATE_NAMES, notes)
+
+
+def flag_counts(
+    nc: Any, name: str, names: tuple[str, ...], notes: list[str]
+) -> dict[str, int] | None:
+    """Count of each code 0, 1, ... of the flag variable ``name`` (``names`` in code order;
+    "other" for values that are not a code)."""
+    v = nc.variables.get(name)
     if v is None:
         return None
     if np.dtype(v.dtype).kind not in "iu" or v.ndim == 0:
-        notes.append(f"orbit_class is not an integer array ({v.dtype}); classes not counted")
+        notes.append(f"{name} is not an integer array ({v.dtype}); its flags are not counted")
         return None
     v.set_auto_maskandscale(False)
-    n = len(CLASS_NAMES)
+    n = len(names)
     counts = np.zeros(n + 1, np.int64)
     try:
         for sl in _slabs(v.shape, v.chunking()):
@@ -121,9 +138,9 @@ def class_counts(nc: Any, notes: list[str]) -> dict[str, int] | None:
             counts[:n] += np.bincount(codes[valid], minlength=n)
             counts[n] += int((~valid).sum())
     except Exception as exc:  # a damaged chunk
-        notes.append(f"orbit_class cannot be read ({exc}); classes not counted")
+        notes.append(f"{name} cannot be read ({exc}); its flags are not counted")
         return None
-    out = dict(zip(CLASS_NAMES, counts[:n].tolist(), strict=True))
+    out = dict(zip(names, counts[:n].tolist(), strict=True))
     if counts[n]:
         out["other"] = int(counts[n])
     return out

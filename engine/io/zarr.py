@@ -36,7 +36,7 @@ from .blocks import Summary, check_parts_dir, survey_dims
 from .cf import cf_attrs
 from .contents import BLOCK_SCHEME, CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher, verify_file
 from .manifest import Manifest, parts_dir
-from .netcdf_info import class_counts
+from .netcdf_info import class_counts, fate_counts
 from .space import output_bytes
 from .zarrcommit import check_tree, commit_store, metadata_problem
 from .zarrlayout import (
@@ -331,6 +331,8 @@ def _store_info(path: Path, verify: bool) -> dict[str, Any]:
     counts = class_counts(view, info["notes"])
     if counts is not None:
         info["counts"] = counts
+    if (fates := fate_counts(view, info["notes"])) is not None:
+        info["fate_counts"] = fates
     info["complete"] = FINGERPRINT_ATTR in attrs and UNFINISHED_ATTR not in attrs
     info["checksum"] = CHECKSUM_ATTR in attrs
     if verify:

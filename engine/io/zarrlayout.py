@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errortext import install_hint
 from ..grid import Tiling
 from . import OutputError
 from .atomic import NEW_FILE, O_CLOEXEC, O_NOFOLLOW, fsync_dir, fsync_path, read_regular
@@ -74,9 +75,7 @@ def zarr_module() -> Any:
     try:
         import zarr
     except ImportError:
-        raise OutputError(
-            "Zarr output needs the zarr package: pip install 'conesurvey[zarr]'"
-        ) from None
+        raise OutputError(f"Zarr output needs the zarr package: {install_hint('zarr')}") from None
     return zarr
 
 

@@ -39,16 +39,18 @@ REF_BLOCKS = [compute_block(_SPEC, TILING, i)[1] for i in range(N)]
 assert len({REF_BLOCKS[i]["r_min"].tobytes() for i in range(N)}) > N // 2  # blocks differ
 
 
-def _reference_file() -> Path:
+def _reference_file() -> tuple[bytes, dict]:
+    """The bytes and the contents of the reference output (its directory removed at once: a
+    module-level temporary directory would outlive the test run)."""
     d = Path(tempfile.mkdtemp(prefix="store-machine-ref-"))
-    store = BlockStore.create(parts_dir(d / "ref.nc"), MANIFEST)
-    for i in range(N):
-        store.commit(i, REF_BLOCKS[i])
-    netcdf.merge(store, SURVEY, d / "ref.nc", fingerprint=FP)
-    return d / "ref.nc"
-
-
-REF_FILE = _reference_file()
+    try:
+        store = BlockStore.create(parts_dir(d / "ref.nc"), MANIFEST)
+        for i in range(N):
+            store.commit(i, REF_BLOCKS[i])
+        netcdf.merge(store, SURVEY, d / "ref.nc", fingerprint=FP)
+        return (d / "ref.nc").read_bytes(), _contents(d / "ref.nc")
+    finally:
+        shutil.rmtree(d, ignore_errors=True)
 
 
 def _contents(path: Path) -> dict:
@@ -64,7 +66,7 @@ def _contents(path: Path) -> dict:
     return out
 
 
-REFERENCE = _contents(REF_FILE)
+REF_BYTES, REFERENCE = _reference_file()
 
 
 class StoreMachine(RuleBasedStateMachine):
@@ -115,7 +117,7 @@ class StoreMachine(RuleBasedStateMachine):
     @rule()
     def kill_during_the_merge(self) -> None:
         """A killed merge leaves its temporary netCDF file in the store."""
-        data = REF_FILE.read_bytes()
+        data = REF_BYTES
         (self.root / f"out.nc.{secrets.token_hex(6)}.tmp").write_bytes(data[: len(data) // 2])
 
     # -- corruption behind the store's back --
