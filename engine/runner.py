@@ -27,6 +27,7 @@ A failure after step 3 (a full disk, a lost dask cluster, a block that changed o
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import shutil
