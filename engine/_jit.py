@@ -10,15 +10,25 @@ Environment overrides (read once, at import):
   ``tbb``, then ``workqueue``, whichever loads first). ``omp`` launches a parallel region in a few
   microseconds; ``workqueue`` aborts when two threads call a parallel kernel at once.
 
-The cache directory's name carries a hash of the kernel sources, so editing any kernel module
-(or a tableau) starts a fresh cache: numba's own cache does not notice changes to functions in
-other modules (numba#1833).
+Each cached entry point is keyed on what it compiles (:func:`compile_key`): its own code and the
+code of every kernel it calls, the values of the module-level constants it and they read (the
+tableaux, the effect masks, the parameter slots), the compile options and the numba version;
+numba adds the signature (with the literal method id and effect set) and the Python version.
+Code is compared as bytecode, names and constants without the docstring, so a docstring, a
+comment, a line moved or a change in a kernel it does not call recompiles nothing; and as
+content, not as a path, so one version of the source has one cache whichever way it was
+installed (editable or not, in any directory). numba's own key (the source file's time stamp
+and the function's line) would miss changes in the kernels a function calls (numba#1833) and
+differs between two installs.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
+import inspect
 import os
+import sys
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -27,7 +37,9 @@ from typing import Any
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import numba  # noqa: E402
+import numpy as np  # noqa: E402
 from numba.core import caching, types  # noqa: E402
+from numba.core.dispatcher import Dispatcher  # noqa: E402
 
 CACHE = os.environ.get("CONESURVEY_NO_CACHE", "0") in ("", "0", "false", "False")
 THREADING_LAYER = os.environ.get("CONESURVEY_THREADING_LAYER", "")
@@ -40,21 +52,12 @@ else:
 _PACKAGE = Path(__file__).resolve().parent
 
 
-def _sources_hash() -> str:
-    """Hash of everything the compiled kernels depend on: the kernel modules and this one."""
-    h = hashlib.sha256(numba.__version__.encode())
-    for path in sorted([*(_PACKAGE / "kernels").glob("*.py"), Path(__file__)]):
-        h.update(path.name.encode())
-        h.update(path.read_bytes())
-    return h.hexdigest()[:16]
-
-
 def _cache_root() -> Path:
     base = os.environ.get("CONESURVEY_CACHE_DIR")
     if not base:
         xdg = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
         base = os.path.join(xdg, "conesurvey")
-    return Path(base) / f"numba-{_sources_hash()}"
+    return Path(base) / "numba-keyed"
 
 
 #: Where the compiled kernels are cached (None when caching is off).
@@ -64,17 +67,159 @@ _Locator = getattr(caching, "UserProvidedCacheLocator", None) or caching._UserPr
 _Impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl
 
 
+def _in_package(module_name: str | None) -> bool:
+    """Whether a module is one of this package's (not this one: it decorates, it is not
+    compiled)."""
+    if module_name == __name__:
+        return False
+    module = sys.modules.get(module_name or "")
+    path = getattr(module, "__file__", None)
+    return path is not None and _PACKAGE in Path(path).resolve().parents
+
+
+def _code_digest(code: Any) -> str:
+    """A function's code without its docstring, line numbers or file: the bytecode, names and
+    constants (nested functions and comprehensions included)."""
+    consts = list(code.co_consts)
+    if consts and isinstance(consts[0], str) and not code.co_name.startswith("<"):
+        consts[0] = "<doc>"  # a named function's first constant is its docstring or None
+    parts = [code.co_code.hex(), repr(code.co_names), repr(code.co_varnames)]
+    for c in consts:
+        parts.append(_code_digest(c) if inspect.iscode(c) else f"{type(c).__name__}:{c!r}")
+    return hashlib.sha256("|".join(parts).encode()).hexdigest()
+
+
+def _global_names(code: Any) -> set[str]:
+    names = set(code.co_names)
+    for const in code.co_consts:
+        if inspect.iscode(const):
+            names |= _global_names(const)
+    return names
+
+
+class _Keys:
+    """Digests of kernels and values, memoised for the process (the sources do not change
+    under a running interpreter: a changed file is a new process)."""
+
+    def __init__(self) -> None:
+        self.done: dict[int, str] = {}
+        self.modules: dict[str, str] = {}
+
+    def function(self, fn: Any) -> str:
+        """A kernel's own code and everything it reads: the kernels it calls, recursively, and
+        the values of the module-level names it uses."""
+        key = id(fn)
+        if key in self.done:
+            return self.done[key]
+        self.done[key] = f"cycle:{fn.__qualname__}"
+        h = hashlib.sha256(_code_digest(fn.__code__).encode())
+        glob = fn.__globals__
+        for name in sorted(_global_names(fn.__code__)):
+            if name in glob:
+                h.update(f"{name}={self.value(glob[name])};".encode())
+        self.done[key] = h.hexdigest()
+        return self.done[key]
+
+    def module(self, name: str) -> str:
+        """A package module's whole namespace (for the jit-only stubs whose ``@overload`` there
+        generates code from the module's data and helpers)."""
+        if name not in self.modules:
+            self.modules[name] = f"cycle:{name}"
+            h = hashlib.sha256()
+            for key, obj in sorted(vars(sys.modules[name]).items()):
+                if not key.startswith("__"):
+                    h.update(f"{key}={self.value(obj)};".encode())
+            self.modules[name] = h.hexdigest()
+        return self.modules[name]
+
+    def value(self, obj: Any) -> str:
+        """A digest of what numba would freeze or compile from a module-level object."""
+        if isinstance(obj, Dispatcher):
+            return self.function(obj.py_func) + repr(sorted(obj.targetoptions.items()))
+        if hasattr(obj, "__wrapped__") and callable(obj):
+            return self.value(obj.__wrapped__)
+        if inspect.isfunction(obj) or hasattr(obj, "_defn"):  # plain functions and intrinsics
+            fn = getattr(obj, "_defn", obj)
+            if not _in_package(fn.__module__):
+                return f"{fn.__module__}.{fn.__qualname__}"
+            return _code_digest(fn.__code__) + self.module(fn.__module__)
+        if isinstance(obj, np.ndarray):
+            return hashlib.sha256(
+                repr((obj.dtype.str, obj.shape)).encode() + obj.tobytes()
+            ).hexdigest()
+        if isinstance(obj, tuple | list):
+            return type(obj).__name__ + "(" + ",".join(self.value(x) for x in obj) + ")"
+        if isinstance(obj, dict):
+            items = sorted((self.value(k), self.value(v)) for k, v in obj.items())
+            return "{" + ",".join(f"{k}:{v}" for k, v in items) + "}"
+        if isinstance(obj, set | frozenset):
+            return "{" + ",".join(sorted(self.value(x) for x in obj)) + "}"
+        if obj is None or isinstance(obj, bool | int | float | complex | str | bytes | np.generic):
+            return f"{type(obj).__name__}:{obj!r}"
+        if inspect.ismodule(obj) and _in_package(obj.__name__):  # read as module.NAME
+            return self.module(obj.__name__)
+        if inspect.ismodule(obj) or inspect.isclass(obj):
+            return f"{obj.__name__}"
+        return type(obj).__qualname__
+
+
+_KEYS = _Keys()
+
+
+def compile_key(py_func: Any) -> str:
+    """What a cached entry point's compiled code depends on (module docstring), as a hex digest:
+    its own code and the kernels it calls, the constants they read, the compile options and the
+    numba version."""
+    h = hashlib.sha256(f"numba {numba.__version__}; {sorted(_COMMON.items())};".encode())
+    h.update(_KEYS.function(py_func).encode())
+    return h.hexdigest()
+
+
+class _LazyKey:
+    """The source stamp numba stores in a cache index: :func:`compile_key`, computed when numba
+    first compares or saves it (a function's callees may be defined after it), pickled as the
+    plain string."""
+
+    def __init__(self, py_func: Any) -> None:
+        self._py_func = py_func
+
+    @functools.cached_property
+    def value(self) -> str:
+        return compile_key(self._py_func)
+
+    def __eq__(self, other: object) -> bool:
+        return self.value == (other.value if isinstance(other, _LazyKey) else other)
+
+    def __ne__(self, other: object) -> bool:
+        return not self == other
+
+    def __hash__(self) -> int:
+        return hash(self.value)
+
+    def __reduce__(self) -> tuple:
+        return (str, (self.value,))
+
+
 class _EngineCacheLocator(_Locator):
     """numba cache locator for this package's kernels: :data:`CACHE_DIR` (or, if that cannot be
-    written, a per-user directory under the system's temporary directory), never the package."""
+    written, a per-user directory under the system's temporary directory), never the package;
+    files named by module and function (not by line or install path), stamped with
+    :func:`compile_key` (not the source file's time stamp)."""
 
     def __init__(self, py_func: Any, py_file: str, root: Path) -> None:
         self._py_file = py_file
-        self._lineno = py_func.__code__.co_firstlineno
-        self._cache_path = str(root / self.get_suitable_cache_subpath(py_file))
+        self._py_func = py_func
+        rel = Path(py_file).resolve().parent.relative_to(_PACKAGE)
+        self._cache_path = str(root / "_".join(("engine", *rel.parts)))
 
     def get_cache_path(self) -> str:
         return self._cache_path
+
+    def get_source_stamp(self) -> Any:
+        return _LazyKey(self._py_func)
+
+    def get_disambiguator(self) -> str:
+        return "k"
 
     @classmethod
     def from_function(cls, py_func: Any, py_file: str) -> Any:

@@ -23,6 +23,7 @@ from .schema import (
     axis_attrs,
     map_kind,
     result_attrs,
+    result_variables,
     survey_attrs,
     variable_attrs,
 )
@@ -182,8 +183,10 @@ def evaluate(
     flat = [np.ascontiguousarray(a).reshape(-1) for a in arrays]
     res = evaluate_flat(*flat, scene, method, circular_tol=circular_tol, rtol=rtol, horizon=horizon)
     kind = map_kind(method, scene)
+    order = [name for name in result_variables(method, scene) if name in res]  # as in a file
+    assert len(order) == len(res), (sorted(res), order)
     data_vars = {
-        name: (dims, col.reshape(shape), variable_attrs(name, kind)) for name, col in res.items()
+        name: (dims, res[name].reshape(shape), variable_attrs(name, kind)) for name in order
     }
     coords = {}
     for (name, value), arr in zip(inputs.items(), arrays, strict=True):

@@ -10,9 +10,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._jit import call_specialized
+from .kernels.effects import REVOLUTIONS
 from .kernels.fate import FATE_ROWS, fate_points
 from .kernels.geometry import BOUNDED, CIRCULAR, HYPERBOLIC, RADIAL
-from .kernels.model import P_THETA_MAX, REVOLUTIONS
+from .kernels.model import P_THETA_MAX
 from .methods import check_method
 from .scene import Scene
 from .schema import map_kind

@@ -1,8 +1,12 @@
 """The method registry: every way conesurvey can compute an orbit, and which effects each honours.
 
 The API, the survey file, the command line and ``conesurvey validate`` all take their list of
-methods and their "method X cannot honour effect Y" answers from :data:`METHODS`. The
-Runge-Kutta rows are made from :data:`engine.kernels.tableaux.RK_TABLEAUX`, so a new pair of
+methods and their "method X cannot honour effect Y" answers from :data:`METHODS`. A method
+declares which of the :data:`engine.kernels.effects.CAPABILITIES` it has and, for each it lacks,
+why (opt-in, as an ODE solver declares the term structure it accepts); an effect of the effects
+table that needs a capability a method lacks is refused with that reason. A method that does not
+declare every capability is an error at import, so a new capability cannot be silently ignored.
+The Runge-Kutta rows are made from :data:`engine.kernels.tableaux.RK_TABLEAUX`, so a new pair of
 tableaux is a new method with no other change.
 """
 
@@ -12,9 +16,9 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from .kernels.model import EFFECT_BITS
+from .kernels.effects import CAPABILITIES, EFFECTS, mask_of
+from .kernels.symplectic import SUPPORTS as SYMPLECTIC_SUPPORTS
 from .kernels.symplectic import SYMPLECTIC
-from .kernels.symplectic import UNSUPPORTED_EFFECTS as _SYMPLECTIC_UNSUPPORTED
 from .kernels.tableaux import RK_TABLEAUX
 
 if TYPE_CHECKING:
@@ -41,15 +45,31 @@ class Method:
     """A way to compute orbits.
 
     ``kernel_id`` is the literal id of its run kernel (None for the closed form); ``family`` is
-    "closed form", "runge-kutta" or "splitting"; ``refuses`` maps each effect the method cannot
-    honour to the reason.
+    "closed form", "runge-kutta" or "splitting"; ``supports`` names the capabilities
+    (:data:`engine.kernels.effects.CAPABILITIES`) it has and ``lacks`` maps each other one to
+    the reason; together they must name every capability exactly once.
     """
 
     name: str
     kernel_id: int | None
     family: str
     title: str
-    refuses: tuple[tuple[str, str], ...] = ()
+    supports: tuple[str, ...]
+    lacks: tuple[tuple[str, str], ...] = ()
+
+    def __post_init__(self) -> None:
+        lacked = [c for c, _ in self.lacks]
+        declared = [*self.supports, *lacked]
+        missing = [c for c in CAPABILITIES if c not in declared]
+        unknown = [c for c in declared if c not in CAPABILITIES]
+        twice = sorted({c for c in declared if declared.count(c) > 1})
+        unexplained = [c for c, why in self.lacks if not why.strip()]
+        if missing or unknown or twice or unexplained:
+            raise ValueError(
+                f"method {self.name!r} must declare each capability once, supported or lacked "
+                f"with a reason: missing {missing}, unknown {unknown}, twice {twice}, "
+                f"no reason {unexplained}"
+            )
 
     @property
     def integrates(self) -> bool:
@@ -57,12 +77,25 @@ class Method:
         return self.kernel_id is not None
 
     @property
+    def refuses(self) -> tuple[tuple[str, str], ...]:
+        """(effect, reason) for each effect of the effects table this method cannot honour: the
+        effects needing a capability it lacks, with its reasons."""
+        why = dict(self.lacks)
+        out = []
+        for effect in EFFECTS:
+            reasons = [why[c] for c in effect.needs if c not in self.supports]
+            if reasons:
+                out.append((effect.name, "; ".join(reasons)))
+        return tuple(out)
+
+    def honours(self, effect: str) -> bool:
+        """Whether this method honours the effect named ``effect``."""
+        return effect not in dict(self.refuses)
+
+    @property
     def refused_mask(self) -> int:
         """The refused effects as a kernel bit mask."""
-        mask = 0
-        for name, _ in self.refuses:
-            mask |= EFFECT_BITS[name]
-        return mask
+        return mask_of(name for name, _ in self.refuses)
 
     def refused_effects(self, scene: Scene) -> list[str]:
         """The effects of ``scene`` this method cannot honour."""
@@ -70,15 +103,14 @@ class Method:
         return [e for e in scene.effects if e in refused]
 
 
+#: What the Runge-Kutta pairs can do: they integrate the scene's full state and right-hand side.
+RK_SUPPORTS = ("dissipative forces", "rigid-body state", "terminal events")
+
+
 def _rk_row(kernel_id: int) -> Method:
     tb = RK_TABLEAUX[kernel_id]
-    return Method(tb.name, kernel_id, "runge-kutta", tb.title)
+    return Method(tb.name, kernel_id, "runge-kutta", tb.title, RK_SUPPORTS)
 
-
-_SYMPLECTIC_REASONS = {
-    "rolling_resistance": "it integrates the conservative radial Hamiltonian",
-    "attitude": "it does not carry the sphere's orientation",
-}
 
 #: Every method by name, in the order users see them.
 METHODS: dict[str, Method] = {
@@ -87,12 +119,13 @@ METHODS: dict[str, Method] = {
         None,
         "closed form",
         "closed form (elliptic integrals)",
+        ("terminal events",),
         (
             (
-                "rolling_resistance",
-                "the closed form describes lossless orbits; a fate map integrates the resistance",
+                "dissipative forces",
+                "the closed form describes lossless orbits; a fate map integrates the losses",
             ),
-            ("attitude", "the closed form does not follow the sphere's orientation"),
+            ("rigid-body state", "the closed form does not follow the sphere's orientation"),
         ),
     ),
     **{tb.name: _rk_row(i) for i, tb in enumerate(RK_TABLEAUX)},
@@ -101,10 +134,10 @@ METHODS: dict[str, Method] = {
         SYMPLECTIC,
         "splitting",
         "time-transformed leapfrog with Yoshida's 6th-order composition",
-        tuple(
-            (name, _SYMPLECTIC_REASONS[name])
-            for name, bit in EFFECT_BITS.items()
-            if bit & _SYMPLECTIC_UNSUPPORTED
+        SYMPLECTIC_SUPPORTS,
+        (
+            ("dissipative forces", "it integrates the conservative radial Hamiltonian"),
+            ("rigid-body state", "it does not carry the sphere's orientation"),
         ),
     ),
 }

@@ -27,7 +27,6 @@ A failure after step 3 (a full disk, a lost dask cluster, a block that changed o
 
 from __future__ import annotations
 
-import contextlib
 import math
 import os
 import shutil
@@ -51,6 +50,7 @@ from .io.codecs import DEFAULT_COMPRESSION, compression_keywords, level
 from .io.leftovers import is_debris
 from .io.lock import Locked, LockError, OutputLock, describe_holder
 from .io.manifest import Manifest, fingerprint, parts_dir, read_manifest, survey_variables
+from .io.space import free_bytes
 from .io.zarrstore import RunStore
 from .progress import format_bytes
 from .schema import DIMS
@@ -387,14 +387,8 @@ def _merge(store: BlockStore | RunStore, survey: Survey, out: Path, **options: A
             f"output file exists: {out} (created while this run computed; use --overwrite)"
         ) from None
     except OSError as exc:
-        free = format_bytes(_free(out.parent))
+        free = format_bytes(free_bytes(out.parent))
         raise RunFailed(f"{_cannot_write(exc, out)} ({free} free)") from None
     except OutputError as exc:
-        free = format_bytes(_free(out.parent))
+        free = format_bytes(free_bytes(out.parent))
         raise RunFailed(f"{exc} ({free} free on {out.parent})") from None
-
-
-def _free(directory: Path) -> int:
-    with contextlib.suppress(OSError):
-        return shutil.disk_usage(directory).free
-    return 0

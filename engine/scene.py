@@ -1,14 +1,22 @@
-"""The physical scene: the sphere, the cone's surroundings and which effects are simulated."""
+"""The physical scene: the sphere, the cone's surroundings and which effects are simulated.
+
+The fields after ``k`` each call for an effect of the effects table
+(:data:`engine.kernels.effects.EFFECTS`): the row names the field, how it switches the effect on
+(its ``switch``: a coefficient, a limit or a flag, which also says how the field is checked) and
+the parameter slots it fills; :attr:`Scene.effects`, :attr:`Scene.effects_mask` and
+:meth:`Scene.params` derive from the rows."""
 
 from __future__ import annotations
 
 import math
 import numbers
 from dataclasses import dataclass, fields
+from typing import Any
 
 import numpy as np
 
-from .kernels.model import EFFECT_BITS, make_params
+from .kernels.effects import EFFECTS, mask_of
+from .kernels.model import PARAM_SLOTS, make_params
 
 __all__ = ["Scene"]
 
@@ -28,6 +36,16 @@ def _check_positive(name: str, value: float, *, allow_zero: bool = False) -> flo
         bound = ">= 0" if allow_zero else "> 0"
         raise ValueError(f"Scene.{name} must be {bound}, got {value!r}")
     return v
+
+
+def _switched_on(switch: str, value: Any) -> bool:
+    """Whether a scene field's value calls for its effect (``switch``: see
+    :data:`engine.kernels.effects.SWITCHES`)."""
+    if switch == "coefficient":
+        return value > 0
+    if switch == "limit":
+        return value is not None
+    return bool(value)
 
 
 @dataclass(frozen=True)
@@ -62,41 +80,40 @@ class Scene:
         set_(self, "g", _check_positive("g", self.g, allow_zero=True))
         set_(self, "a", _check_positive("a", self.a))
         set_(self, "k", _check_positive("k", self.k, allow_zero=True))
-        if self.rim is not None:
-            set_(self, "rim", _check_positive("rim", self.rim))
-        if self.mu is not None:
-            set_(self, "mu", _check_positive("mu", self.mu))
-        set_(self, "c_rr", _check_positive("c_rr", self.c_rr, allow_zero=True))
-        if not isinstance(self.attitude, bool):
-            raise ValueError(f"Scene.attitude must be true or false, got {self.attitude!r}")
+        for effect in EFFECTS:
+            name = effect.scene_field
+            value = getattr(self, name)
+            if effect.switch == "flag":
+                if not isinstance(value, bool):
+                    raise ValueError(f"Scene.{name} must be true or false, got {value!r}")
+            elif effect.switch == "coefficient":
+                set_(self, name, _check_positive(name, value, allow_zero=True))
+            elif value is not None:  # a limit
+                set_(self, name, _check_positive(name, value))
 
     @property
     def effects(self) -> tuple[str, ...]:
-        """Names of the effects beyond the ideal cone that this scene calls for."""
-        on = []
-        if self.c_rr > 0:
-            on.append("rolling_resistance")
-        if self.rim is not None:
-            on.append("rim")
-        if self.mu is not None:
-            on.append("slip_check")
-        if self.attitude:
-            on.append("attitude")
-        return tuple(on)
+        """Names of the effects beyond the ideal cone that this scene calls for (in the order of
+        the effects table)."""
+        on = (e for e in EFFECTS if _switched_on(e.switch, getattr(self, e.scene_field)))
+        return tuple(e.name for e in on)
 
     @property
     def effects_mask(self) -> int:
-        """The effects as the bit mask the kernels compile in (``engine.kernels.model``)."""
-        mask = 0
-        for name in self.effects:
-            mask |= EFFECT_BITS[name]
-        return mask
+        """The effects as the bit mask the kernels compile in (``engine.kernels.effects``)."""
+        return mask_of(self.effects)
 
     def params(self, alpha: float = math.pi / 4) -> np.ndarray:
         """The float64 parameter array of the kernels (layout ``engine.kernels.model.P_*``) on a
         cone of half-aperture ``alpha`` [rad] (batch kernels replace alpha per point)."""
+        slots, values = [], []
+        for effect in EFFECTS:
+            value = getattr(self, effect.scene_field)
+            for slot in effect.params:
+                slots.append(PARAM_SLOTS[slot])
+                values.append(math.inf if value is None else float(value))
         return make_params(
-            alpha, self.M, self.g, self.k, self.a, self.rim_or_inf, self.mu_or_inf, self.c_rr
+            alpha, self.M, self.g, self.k, self.a, np.array(slots, np.int64), np.array(values)
         )
 
     @property

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ._version import __version__
+from .kernels.effects import BY_NAME, EFFECTS
 from .kernels.fate import FATE_NAMES
 from .kernels.geometry import CLASS_NAMES
 from .kernels.protocol import EVENT_NAMES, STATUS_FLAGS
@@ -133,9 +134,8 @@ RESULTS: dict[str, Variable] = {
     "energy_loss": _f("J", "total energy lost over the first radial period"),
 }
 #: The closed form's variables (every map holds them).
-CLOSED_FORM = tuple(RESULTS)[:8]
-#: Where rolling ends on a cone with a rim or a friction limit (closed-form maps).
-ENDING = ("end_r", "end_time", "end_theta")
+CLOSED_FORM = ("orbit_class", "r_min", "r_max", "r_circ", "period", "apsidal_angle",
+               "precession_rate", "mu_required")  # fmt: skip
 #: What a one-period integrator map adds; it also replaces period, apsidal angle and precession.
 INTEGRATED = ("n_steps", "energy_drift", "status")
 #: Closed-form variables a one-period map replaces by the integrator's own values.
@@ -192,6 +192,17 @@ TRAJECTORY: dict[str, Variable] = {
 }
 
 
+def _check_effect_variables() -> None:
+    for e in EFFECTS:
+        for out, names in e.variables:
+            table = TRAJECTORY if out == "trajectory" else RESULTS
+            unknown = [n for n in names if n not in table]
+            assert not unknown, f"effect {e.name}: no {out} variable {unknown} in engine.schema"
+
+
+_check_effect_variables()
+
+
 def axis_attrs(name: str, energy_relative: bool = False) -> dict[str, Any]:
     """``units`` and ``long_name`` of a survey axis (the energy axis may be relative)."""
     if name == "energy" and energy_relative:
@@ -209,18 +220,28 @@ def variable_attrs(name: str, kind: str | None = None) -> dict[str, Any]:
     return attrs
 
 
+def effect_variables(scene: Scene, output: str) -> tuple[str, ...]:
+    """The variables the effects of ``scene`` add to ``output`` ("closed form", "period" or
+    "trajectory": :data:`engine.kernels.effects.OUTPUTS`), from the effects table, each once."""
+    names: list[str] = []
+    for name in scene.effects:
+        for out, added in BY_NAME[name].variables:
+            names += [v for v in added if out == output and v not in names]
+    return tuple(names)
+
+
 def period_variables(scene: Scene) -> tuple[str, ...]:
     """What one integrated radial period reports (``engine.integrated.evaluate_integrated``)."""
-    names = (*REPLACED_BY_INTEGRATION, "energy_drift")
-    return (*names, "energy_loss") if "rolling_resistance" in scene.effects else names
+    return (*REPLACED_BY_INTEGRATION, "energy_drift", *effect_variables(scene, "period"))
 
 
 def map_kind(method: str, scene: Scene) -> str:
     """What a map of ``scene`` by ``method`` is (:data:`MAP_KINDS`): integrators follow a scene
-    with terminal or dissipative effects to each orbit's fate; otherwise over one period."""
+    with a dissipative effect or one that brings terminal events (the effects table) to each
+    orbit's fate; otherwise over one period."""
     if not get_method(method).integrates:
         return "closed form"
-    if any(e in scene.effects for e in ("rolling_resistance", "rim", "slip_check")):
+    if any(BY_NAME[e].dissipative or BY_NAME[e].events for e in scene.effects):
         return "fate"
     return "one period"
 
@@ -232,8 +253,8 @@ def result_variables(
     (``launch``: a survey over launch states, which stores the invariants too)."""
     kind = map_kind(method, scene)
     names = list(CLOSED_FORM)
-    if kind == "closed form" and ("rim" in scene.effects or "slip_check" in scene.effects):
-        names += ENDING
+    if kind == "closed form":
+        names += effect_variables(scene, "closed form")
     elif kind == "one period":
         names += INTEGRATED
     elif kind == "fate":
@@ -253,7 +274,7 @@ def map_summary(
     variables."""
     lines = []
     for effect in scene.effects:
-        able = [m.name for m in METHODS.values() if effect not in dict(m.refuses)]
+        able = [m.name for m in METHODS.values() if m.honours(effect)]
         lines.append(f"effect {effect}: honoured by {', '.join(able)}")
     kind = map_kind(method, scene)
     lines.append(f"map    {kind}: {MAP_KINDS[kind]}")

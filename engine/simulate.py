@@ -15,7 +15,6 @@ from .kernels.geometry import BOUNDED, CIRCULAR, CIRCULAR_TOL, CLASS_NAMES, HYPE
 from .kernels.model import (
     ATTITUDE,
     P_V_REST,
-    SLIP_CHECK,
     coefficients,
     contact_forces_of,
     contact_velocity,
@@ -41,7 +40,7 @@ from .kernels.protocol import (
 from .kernels.roots import free_fall_r_min
 from .methods import DEFAULT_RTOL, check_method, check_rtol
 from .scene import Scene
-from .schema import TRAJECTORY
+from .schema import TRAJECTORY, effect_variables
 
 __all__ = ["simulate", "DEFAULT_MAX_STEPS"]
 
@@ -307,7 +306,7 @@ def _dataset(scene, effects, p, method, rtol, alpha, energy, h, Lz, cls_name, y0
         "Lz_drift": Lz_t - Lz0,
         "h_drift": h_t - h0,
     }
-    if effects & SLIP_CHECK:
+    if "friction_ratio" in effect_variables(scene, "trajectory"):
         F, N = contact_forces_of.py_func(r, v, w, s, c, c / s, M, g, k / (1 + k))
         columns["friction_ratio"] = np.abs(F) / N
     if effects & ATTITUDE:

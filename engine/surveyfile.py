@@ -177,10 +177,6 @@ class Survey:
         return survey_attrs(self.scene, self.method, self.circular_tol, self.rtol,
                             self.energy_relative, self.horizon, self.launch)  # fmt: skip
 
-    def to_toml_text(self) -> str:
-        """The definition as TOML: the source text verbatim (comments included)."""
-        return self.source_text
-
     def run(self, progress: Callable[[int, int], None] | None = None) -> xr.Dataset:
         """Evaluate the survey in memory (:func:`engine.survey` or :func:`engine.launch_survey`);
         ``progress(done, total)`` per block."""

@@ -8,6 +8,7 @@ import xarray as xr
 
 import engine
 from engine.kernels.geometry import ideal_orbit
+from engine.schema import result_variables
 
 VARS = ("r_min", "r_max", "r_circ", "period", "apsidal_angle", "precession_rate", "mu_required")
 
@@ -127,3 +128,10 @@ def test_integrator_method_outputs_and_status_flags():
     assert np.isnan(ds.period.values[0])  # forbidden: not integrated, and the status says so
     assert ds.status.attrs["flag_meanings"].split()[ds.status.values[0]] == "not_bounded"
     assert ds.apsidal_angle.values[1] == pytest.approx(exact.apsidal_angle.values[1], rel=1e-8)
+
+
+def test_evaluate_orders_variables_as_a_survey_file_does():
+    """evaluate's Dataset lists its variables in the order a survey file stores them."""
+    scene = engine.Scene(rim=3.0, mu=0.5)
+    ds = engine.evaluate(0.6, 20.0, 1.0, 0.8, scene=scene)
+    assert list(ds.data_vars) == list(result_variables("exact", scene))

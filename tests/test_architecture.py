@@ -19,8 +19,15 @@ ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "engine"
 #: Function-level imports of package modules that are allowed, with the reason.
 LAZY_ALLOWED: dict[str, str] = {}
-#: Largest module, in lines (the issue's "~400").
-MAX_LINES = 420
+#: Longest module, in lines, for a new module (the house's "~400").
+MAX_LINES = 400
+#: The ratchet: modules longer than MAX_LINES when the hard cap became this ratchet, with their
+#: length then. They may shrink (then lower the number here), never grow.
+LONGER: dict[str, int] = {
+    "engine/kernels/tableaux.py": 407,
+    "engine/kernels/model.py": 405,
+    "engine/kernels/batch.py": 413,
+}
 
 
 def _modules() -> dict[str, Path]:
@@ -111,10 +118,38 @@ def test_no_function_level_imports_of_package_modules():
 
 
 def test_modules_stay_readable():
-    long = {
-        m: n for m, p in _modules().items() if (n := len(p.read_text().splitlines())) > MAX_LINES
+    """No module grows past MAX_LINES, or past its recorded length if it was longer (a ratchet:
+    a module that shrank records its new length)."""
+    lengths = {
+        str(p.relative_to(ROOT)): len(p.read_text().splitlines()) for p in _modules().values()
     }
-    assert not long, long
+    grown = {m: n for m, n in lengths.items() if n > LONGER.get(m, MAX_LINES)}
+    assert not grown, f"modules past their length (split them, or shorten): {grown}"
+    shrunk = {m: (cap, lengths.get(m)) for m, cap in LONGER.items() if lengths.get(m) != cap}
+    assert not shrunk, f"lower (or drop) the ratchet's entries: {shrunk}"
+
+
+def _private_imports() -> list[str]:
+    """``from engine.x import _name`` anywhere in the package (a module's private name used by
+    another module)."""
+    found = []
+    mods = _modules()
+    for name, path in mods.items():
+        tree = ast.parse(path.read_text())
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.ImportFrom) or not _resolve(name, node, False):
+                continue
+            for alias in node.names:
+                target = _resolve(name, node, path.name == "__init__.py")[0]
+                is_module = f"{target}.{alias.name}" in mods
+                dunder = alias.name.startswith("__") and alias.name.endswith("__")
+                if alias.name.startswith("_") and not (is_module or dunder):
+                    found.append(f"{name}:{node.lineno} imports {target}.{alias.name}")
+    return found
+
+
+def test_no_module_imports_another_modules_private_names():
+    assert not _private_imports()
 
 
 # --- the recipe: a new Runge-Kutta pair ----------------------------------------------------------

@@ -314,7 +314,7 @@ def remove_store(root: Path) -> None:
     shutil.rmtree(root)
 
 
-def _dims(definition: str) -> tuple[str, ...]:
+def survey_dims(definition: str) -> tuple[str, ...]:
     """The axes named in a survey definition (launch states or invariants)."""
     return LAUNCH_DIMS if "r0" in _axes_table(definition) else DIMS
 
@@ -336,7 +336,7 @@ def parts_info(root: Path) -> dict[str, Any]:
     return {
         "complete": False,
         "attrs": {"survey_definition": m.survey_definition, "engine": m.engine},
-        "dims": dict(zip(_dims(m.survey_definition), m.tiling.shape, strict=True)),
+        "dims": dict(zip(survey_dims(m.survey_definition), m.tiling.shape, strict=True)),
         "blocks_done": len({i for i in done if i < m.tiling.nblocks}),
         "blocks_total": m.tiling.nblocks,
     }

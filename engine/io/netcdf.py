@@ -28,7 +28,6 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-import shutil
 import sys
 from collections.abc import Callable, Collection, Iterable, Iterator, Mapping
 from datetime import UTC, datetime
@@ -54,6 +53,7 @@ from .codecs import (
 from .contents import CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher
 from .feed import feed
 from .netcdf_info import read_fingerprint, read_info
+from .space import free_bytes, output_bytes
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -114,7 +114,7 @@ def cf_attrs(
     }
 
 
-def _typed_flags(attrs: Mapping[str, Any], dtype: np.dtype) -> dict[str, Any]:
+def typed_flags(attrs: Mapping[str, Any], dtype: np.dtype) -> dict[str, Any]:
     """``attrs`` with ``flag_values`` of the variable's own type (CF requires it)."""
     out = dict(attrs)
     if "flag_values" in out:
@@ -137,7 +137,7 @@ def cf_dataset(
         ds.attrs, title=title, survey_definition=survey_definition, command=command, scene=scene
     )
     for var in out.data_vars.values():
-        var.attrs = _typed_flags(var.attrs, var.dtype)
+        var.attrs = typed_flags(var.attrs, var.dtype)
     return out
 
 
@@ -211,15 +211,6 @@ def _provenance(survey: Survey, command: str) -> dict[str, Any]:
     }
 
 
-def output_bytes(names: Mapping[str, np.dtype], shape: tuple[int, ...]) -> int:
-    """Upper bound [bytes] of the netCDF file :func:`merge` writes: the values uncompressed
-    (zlib and zstd grow incompressible data by < 0.5 %; blosc never stores it), the axes, 1 %
-    and 1 MB for HDF5's metadata (chunk indices, attributes, the survey definition)."""
-    points = math.prod(shape)
-    data = sum(np.dtype(dt).itemsize for dt in names.values()) * points + 8 * sum(shape)
-    return int(data * 1.01) + (1 << 20)
-
-
 def merge(
     store: BlockStore,
     survey: Survey,
@@ -282,7 +273,7 @@ def merge(
                 fsync_path(tmp)
             return summary
         except _Refused as exc:  # the file is gone: rewritten, that variable with zstd
-            if _free(store.root) < _ROOM:  # a full disk: the same error as any other codec's
+            if free_bytes(store.root) < _ROOM:  # a full disk: the same error as any other codec's
                 raise WriteError(f"writing {out} failed ({exc.__cause__})") from None
             codecs[exc.name] = variable_keywords(FALLBACK, complevel, 0)
             (warn or _warn)(
@@ -303,13 +294,6 @@ class _Refused(Exception):  # noqa: N818 (not an error: the merge's signal to re
 #: Free bytes below which a failed blosc write is taken for a full disk, not a chunk blosc
 #: cannot shrink (HDF5 reports both as "NetCDF: HDF error").
 _ROOM = 1 << 26
-
-
-def _free(directory: Path) -> int:
-    try:
-        return shutil.disk_usage(directory).free
-    except OSError:
-        return 0
 
 
 def _warn(msg: str) -> None:
@@ -365,7 +349,7 @@ def _define(
         v = nc.createVariable(
             name, dt, survey.dims, chunksizes=store.tiling.chunk, fill_value=fill, **codecs[name]
         )
-        v.setncatts(_typed_flags(variable_attrs(name, kind), dt))
+        v.setncatts(typed_flags(variable_attrs(name, kind), dt))
         variables[name] = v
     # Blocks fill whole chunks: no chunk is read back, so none needs caching. Without a cache
     # each chunk is compressed and written as its block is, not all at the close. The cache

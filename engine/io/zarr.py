@@ -18,7 +18,6 @@ the content checksum, then zarr's consolidated metadata, fsynced) and renamed in
 from __future__ import annotations
 
 import functools
-import math
 import os
 import shutil
 import sys
@@ -34,11 +33,12 @@ from ..grid import Tiling
 from ..schema import FINGERPRINT_ATTR, axis_attrs, map_kind, variable_attrs
 from . import OutputError, netcdf
 from .atomic import exists_error, fsync_dir, fsync_path
-from .blocks import Summary, _dims, check_parts_dir
+from .blocks import Summary, check_parts_dir, survey_dims
 from .contents import BLOCK_SCHEME, CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher, verify_file
 from .manifest import Manifest, parts_dir
 from .netcdf import cf_attrs
 from .netcdf_info import class_counts
+from .space import output_bytes
 from .zarrlayout import (
     UNFINISHED_ATTR,
     ChunkWriter,
@@ -115,14 +115,6 @@ def create(
         make_store, **_layout(survey, manifest.names), tiling=tiling, complevel=complevel
     )
     return RunStore.create(root, manifest, make, complevel, warn)
-
-
-def output_bytes(names: Mapping[str, np.dtype], shape: tuple[int, ...]) -> int:
-    """Upper bound [bytes] of a store: the values uncompressed (Blosc adds at most 16 bytes a
-    chunk), the axes, 1 % and 1 MB for file system blocks and metadata."""
-    points = math.prod(shape)
-    data = sum(np.dtype(dt).itemsize for dt in names.values()) * points + 8 * sum(shape)
-    return int(data * 1.01) + (1 << 20)
 
 
 # --- committing a store -------------------------------------------------------------------------
@@ -328,7 +320,7 @@ def read_info(path: str | os.PathLike[str], *, verify: bool = False) -> dict[str
         try:
             check_parts_dir(parts)
             state = parts_state(parts)
-            state["dims"] = dict(zip(_dims(state["attrs"]["survey_definition"]),
+            state["dims"] = dict(zip(survey_dims(state["attrs"]["survey_definition"]),
                                      state.pop("shape"), strict=True))  # fmt: skip
             info.update(state)
         except (OutputError, OSError) as exc:

@@ -34,7 +34,7 @@ from . import OutputError
 from .atomic import NEW_FILE, O_CLOEXEC, O_NOFOLLOW, fsync_dir, fsync_path, read_regular
 from .blocks import Summary
 from .contents import block_digest
-from .netcdf import _typed_flags
+from .netcdf import typed_flags
 
 __all__ = [
     "BLOSC",
@@ -108,7 +108,7 @@ def chunk_keys(name: str, slab: tuple[slice, ...], chunk: tuple[int, ...]) -> li
     return out
 
 
-def _files_digest(entries: list[tuple[str, int, str]]) -> str:
+def files_digest(entries: list[tuple[str, int, str]]) -> str:
     text = "".join(f"{k} {n} {h}\n" for k, n, h in sorted(entries))
     return hashlib.sha256(text.encode()).hexdigest()
 
@@ -162,7 +162,7 @@ class ChunkWriter:
         return {
             "i": index,
             "bytes": sum(n for _, n, _ in entries),
-            "files": _files_digest(entries),
+            "files": files_digest(entries),
             "values": digests,
             "summary": {
                 "flags": {n: c.tolist() for n, c in stats.flags.items()},
@@ -260,7 +260,7 @@ def fill_attr(dtype: np.dtype) -> str:
 def _decoded(attrs: Mapping[str, Any], dtype: np.dtype) -> dict[str, Any]:
     """Variable attributes as the netCDF file gives them: ``flag_values`` of the variable's
     type, ``_FillValue`` as a number."""
-    out = _typed_flags(attrs, dtype)
+    out = typed_flags(attrs, dtype)
     fill = out.get("_FillValue")
     if isinstance(fill, str):
         with contextlib.suppress(ValueError, TypeError):
@@ -293,7 +293,7 @@ def make_store(
         )  # fmt: skip
         arr[:] = values
     for name, (dt, a) in variables.items():
-        attrs = {k: json_attr(v) for k, v in _typed_flags(a, dt).items()}
+        attrs = {k: json_attr(v) for k, v in typed_flags(a, dt).items()}
         if dt.kind == "f":
             attrs["_FillValue"] = fill_attr(dt)
         zarr.create_array(

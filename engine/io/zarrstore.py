@@ -41,13 +41,12 @@ from . import OutputError
 from .atomic import NEW_FILE, O_CLOEXEC, O_NOFOLLOW, NotRegularFile, fsync_dir, read_regular
 from .blocks import Scan, remove_store
 from .manifest import Manifest, read_manifest, write_manifest
-from .zarrlayout import RUN_ATTR, STORE, ChunkWriter, _files_digest, chunk_keys, read_meta
+from .zarrlayout import RUN_ATTR, STORE, ChunkWriter, chunk_keys, files_digest, read_meta
 
 __all__ = ["JOURNAL", "RunStore", "parts_state", "read_journal"]
 
 JOURNAL = "journal"
 _MAX_JOURNAL_BYTES = 1 << 30
-_RECEIPT = ("i", "bytes", "files", "values", "summary")
 
 
 # --- the journal ------------------------------------------------------------------------------
@@ -225,7 +224,7 @@ class RunStore:
             with os.fdopen(fd, "rb") as f:
                 data = f.read()
             entries.append((key, len(data), hashlib.sha256(data).hexdigest()))
-        return sum(n for _, n, _ in entries), _files_digest(entries)
+        return sum(n for _, n, _ in entries), files_digest(entries)
 
     def scan(self) -> Scan:
         """Hash the chunk files of every journaled block against its receipt (changes

@@ -29,6 +29,7 @@ from .geometry import (
     BOUNDED,
     FAMILY_FIELDS,
     FORBIDDEN,
+    Family,
     cel_args,
     family,
     family_head,
@@ -59,7 +60,10 @@ LANES = 32
 BLOCKS_PER_CHUNK = 16
 #: Energies per unit of parallel work on a grid (each unit computes its triples' families).
 GRID_ENERGY_CHUNK = 64
-NF = len(FAMILY_FIELDS)
+#: Rows of a family table (row i: field i of geometry.Family; the well's five from F_WELL on).
+F_KIND, F_S, F_A, F_B, F_C, F_K, F_RC, F_WELL, F_VMIN, F_C3, F_IGAM, F_NOISE, F_KK = (
+    FAMILY_FIELDS.index(n) for n in ("kind", "s", "A", "B", "C", "K", "r_c", "a", "V_min", "c3",
+                                     "igam", "noise", "kk"))  # fmt: skip
 
 #: Rows of the float output of :func:`orbit_units`.
 BATCH_ROWS = ("r_min", "r_max", "r_circ", "period", "apsidal_angle", "precession_rate",
@@ -75,10 +79,10 @@ _OUTROWS = np.array([_R1, _R2, _RCOUT, _T, _PSI, _PREC, _MU])
 
 @kernel
 def family_at(F, col):
-    """The :func:`.geometry.family` tuple stored in column ``col`` of a family table."""
+    """The :class:`.geometry.Family` stored in column ``col`` of a family table (row i: field i)."""
     f = F[:, col]
-    return (int(f[0]), f[1], f[2], f[3], f[4], f[5], f[6], f[7], f[8], f[9], f[10], f[11], f[12],
-            f[13], f[14], f[15], f[16], f[17], f[18], f[19], f[20])  # fmt: skip
+    return Family(int(f[0]), f[1], f[2], f[3], f[4], f[5], f[6], f[7], f[8], f[9], f[10], f[11],
+                  f[12], f[13], f[14], f[15], f[16], f[17], f[18], f[19], f[20])  # fmt: skip
 
 
 @kernel
@@ -89,37 +93,30 @@ def _store(F, col, row, values):
 
 
 @kernel
-def _store_family(F, col, fam):
-    """Store a :func:`.geometry.family` tuple in column ``col`` of F."""
-    F[0, col] = fam[0]
-    _store(F, col, 1, fam[1:])
-
-
-@kernel
 def families(AL, HH, LZ, m, M, g, k, eager, F, R):
     """:func:`.geometry.family` of (AL[j], HH[j], LZ[j]) into column j of F, j < m, with r_c
     over the lanes (RC_STEPS Halley steps side by side). ``R``: float64[3, >= m] scratch."""
     r, dr, ok = R[0], R[1], R[2]
     for j in range(m):
         head = family_head(AL[j], HH[j], LZ[j], M, g, k, eager)
-        A, B, C = head[3], head[4], head[5]
-        F[0, j] = head[0]
-        _store(F, j, 1, head[1:7])
-        _store(F, j, 13, head[7:])
+        A, B, C = head.A, head.B, head.C
+        F[F_KIND, j] = head.kind
+        _store(F, j, F_S, head[F_S:F_RC])  # the head is the family but r_c and the well
+        _store(F, j, F_KK, head[F_RC:])
         ok[j] = 1.0 if LZ[j] != 0.0 and rc_eligible(A, C) else 0.0
         r[j] = rc_start(A, B, C) if ok[j] != 0.0 else 1.0
         dr[j] = math.inf
     for _ in range(RC_STEPS):
         for j in range(m):
-            r[j], dr[j] = rc_step(r[j], F[3, j], F[4, j], F[5, j])
+            r[j], dr[j] = rc_step(r[j], F[F_A, j], F[F_B, j], F[F_C, j])
     for j in range(m):
-        A, B, C = F[3, j], F[4, j], F[5, j]
+        A, B, C = F[F_A, j], F[F_B, j], F[F_C, j]
         if ok[j] != 0.0:
             rc = rc_finish(r[j], dr[j], A, B, C)
         else:
             rc = math.nan if LZ[j] == 0.0 else circular_radius(A, B, C)
-        F[7, j] = rc
-        _store(F, j, 8, well_or_nan(A, B, C, rc))
+        F[F_RC, j] = rc
+        _store(F, j, F_WELL, well_or_nan(A, B, C, rc))
 
 
 @kernel
@@ -128,14 +125,14 @@ def select_lanes(F, m, g, circ_tol, S):
     others."""
     for j in range(m):
         e = S[_E, j]
-        vmin = F[9, j]
+        vmin = F[F_VMIN, j]
         delta = e - vmin
-        reg = (F[0, j] == 0.0 and F[5, j] > 0.0 and g != 0.0 and delta >= 0.0
-               and not abs(e - vmin) <= circ_tol * F[12, j])  # fmt: skip
+        reg = (F[F_KIND, j] == 0.0 and F[F_C, j] > 0.0 and g != 0.0 and delta >= 0.0
+               and not abs(e - vmin) <= circ_tol * F[F_NOISE, j])  # fmt: skip
         S[_REG, j] = 1.0 if reg else 0.0
-        S[_RC, j] = F[7, j]
-        S[_CC, j] = F[5, j]
-        S[_AA, j] = F[8, j]
+        S[_RC, j] = F[F_RC, j]
+        S[_CC, j] = F[F_C, j]
+        S[_AA, j] = F[F_WELL, j]
         S[_DEL, j] = delta if reg else 1.0
         if not reg:
             S[_RC, j] = 1.0
@@ -148,7 +145,7 @@ def turning_lanes(F, m, S):
     """Turning points of the lanes (roots.turning_points_in, side by side)."""
     for j in range(m):
         reg = S[_REG, j] != 0.0
-        g1, g2 = tp_starts(S[_RC, j], S[_AA, j], S[_DEL, j], F[10, j], F[11, j])
+        g1, g2 = tp_starts(S[_RC, j], S[_AA, j], S[_DEL, j], F[F_C3, j], F[F_IGAM, j])
         S[_G1, j] = g1 if reg else 0.5
         S[_G2, j] = g2 if reg else 2.0
         S[_R1, j] = S[_G1, j]
@@ -172,7 +169,9 @@ def turning_lanes(F, m, S):
         if not tp_accept(r2, S[_D2, j] != 0.0, rc, False):
             r2 = tp_safe(S[_G2, j], rc, C, a, delta, False)
         e = S[_E, j]
-        S[_R1, j], S[_R2, j] = tp_final(r1, r2, e, F[3, j], F[4, j], C, rc, abs(e) + F[12, j])
+        S[_R1, j], S[_R2, j] = tp_final(
+            r1, r2, e, F[F_A, j], F[F_B, j], C, rc, abs(e) + F[F_NOISE, j]
+        )
 
 
 @kernel
@@ -182,7 +181,7 @@ def elliptic_lanes(F, m, M, S):
     for j in range(m):
         r1, r2 = S[_R1, j], S[_R2, j]
         reg = S[_REG, j] != 0.0
-        kc, sc = cel_args(F[3, j], F[5, j], M, r1, r2)
+        kc, sc = cel_args(F[F_A, j], F[F_C, j], M, r1, r2)
         S[_KC, j] = kc if reg else 1.0
         S[_P2, j] = r2 / r1 if reg else 1.0
         S[_A1, j] = r1 if reg else 1.0
@@ -194,20 +193,21 @@ def elliptic_lanes(F, m, M, S):
     cel_pair_lanes(m, S[_KC], S[_P1], S[_A1], S[_B1], S[_P2], S[_A2], S[_B2], S[_ST:_ST + 4],
                    S[_C1], S[_C2])  # fmt: skip
     for j in range(m):
-        T, psi = period_and_angle(S[_T, j], S[_C1, j], S[_C2, j], F[6, j], S[_R1, j])
+        T, psi = period_and_angle(S[_T, j], S[_C1, j], S[_C2, j], F[F_K, j], S[_R1, j])
         S[_T, j] = T
         S[_PSI, j] = psi
         S[_PREC, j] = precession(psi, T)
         S[_CLS, j] = BOUNDED
-        S[_RCOUT, j] = F[7, j]
+        S[_RCOUT, j] = F[F_RC, j]
 
 
 @kernel
 def friction_lanes(F, m, S):
     """mu_required of the bounded lanes."""
     for j in range(m):
-        S[_MU, j] = mu_required_of(S[_R1, j], S[_R2, j], F[13, j], F[14, j], F[15, j], F[16, j],
-                                   F[17, j], F[18, j], F[19, j], F[20, j])  # fmt: skip
+        fr = F[F_KK:, j]  # kk, p0, p2, p3, q0, q3, rs3, fstar
+        S[_MU, j] = mu_required_of(S[_R1, j], S[_R2, j], fr[0], fr[1], fr[2], fr[3], fr[4], fr[5],
+                                   fr[6], fr[7])  # fmt: skip
 
 
 @kernel
@@ -277,7 +277,7 @@ def profile_batch(alpha, energy, h, Lz, M, g, k, circ_tol, out_cls, out_f, upto)
     """:func:`orbit_units` on flat points, one thread, stopping after stage ``upto`` of
     :data:`STAGES` (a benchmark times each prefix: the stages' cost per point)."""
     n = alpha.shape[0]
-    F = np.empty((NF, LANES))
+    F = np.empty((len(FAMILY_FIELDS), LANES))
     S = np.empty((_NS, LANES))
     R = np.empty((3, LANES))
     oidx = np.empty(LANES, np.int64)
@@ -300,7 +300,7 @@ def profile_batch(alpha, energy, h, Lz, M, g, k, circ_tol, out_cls, out_f, upto)
             store_lanes(m, M, g, k, 0.0, math.inf, math.inf, S, out_cls, out_f, oidx)
         else:  # keep the stages' results live
             for j in range(m):
-                out_f[0, i0 + j] = S[_R1, j] + S[_T, j] + S[_MU, j] + F[9, j]
+                out_f[0, i0 + j] = S[_R1, j] + S[_T, j] + S[_MU, j] + F[F_VMIN, j]
 
 
 @kernel
@@ -323,7 +323,7 @@ def _grid_energy(energy, ie, relative, nhl, m, F, S, base, oidx, out_energy):
     for j in range(m):
         e = energy[ie]
         if relative:
-            vmin = F[9, j]
+            vmin = F[F_VMIN, j]
             e = vmin + e * abs(vmin)
         S[_E, j] = e
         o = base[j] + ie * nhl
@@ -370,7 +370,7 @@ def orbit_units(u0, u1, alpha, energy, h, Lz, grid, relative, M, g, k, a, rim, m
     ntri = alpha.size * nhl
     nec = (energy.size + GRID_ENERGY_CHUNK - 1) // GRID_ENERGY_CHUNK
     nblk = (n + LANES - 1) // LANES
-    F = np.empty((NF, LANES))
+    F = np.empty((len(FAMILY_FIELDS), LANES))
     S = np.empty((_NS, LANES))
     R = np.empty((3, LANES))
     oidx = np.empty(LANES, np.int64)
@@ -405,7 +405,7 @@ def minimum_energy_batch(alpha, h, Lz, M, g, k, out):
     """V_min [J] for each (alpha, h, Lz); NaN where V has no minimum."""
     n = alpha.shape[0]
     for i in prange(n):
-        out[i] = math.nan if Lz[i] == 0.0 else family(alpha[i], h[i], Lz[i], M, g, k, False)[9]
+        out[i] = math.nan if Lz[i] == 0.0 else family(alpha[i], h[i], Lz[i], M, g, k, False).V_min
 
 
 def empty_outputs(n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -24,7 +24,9 @@ import numpy as np
 from numba import literally, prange
 
 from .._jit import kernel, parallel_kernel
+from .effects import DISSIPATIVE
 from .model import (
+    P_COT,
     P_CRR,
     P_G,
     P_GC,
@@ -36,11 +38,10 @@ from .model import (
     P_V_REST,
     ROLLING_RESISTANCE,
     SLIP_CHECK,
-    holds_at_rest,
+    dissipated_power,
     invariants,
     kinetic_energy,
     motion_rates,
-    resistance_power,
     set_alpha,
     slip_margin,
     state_size,
@@ -88,6 +89,13 @@ def _fate_of_status(status):
 
 
 @kernel
+def holds_at_rest(p):
+    """Whether rolling resistance can hold a sphere at rest on this cone's slope: the slope's
+    pull g cos(alpha) against the most the resistance gives, c_rr N = c_rr M g sin(alpha)."""
+    return p[P_COT] <= p[P_CRR]
+
+
+@kernel
 def come_to_rest(y, p, effects):
     """Carry a stop by rolling resistance from the rest threshold to zero speed, in place: the
     speed falls at the deceleration d|V|/dt of y, so it reaches 0 after dt = |V| / (-d|V|/dt)
@@ -106,8 +114,8 @@ def come_to_rest(y, p, effects):
         decel = -(u * rates[2] + v * rates[3]) / speed
         dt = speed / decel if decel > 0.0 else 0.0
         half = 0.5 * dt
-        if effects & ROLLING_RESISTANCE:
-            y[state_size(effects) - 1] += resistance_power(y[0], u, v, p) * half
+        if effects & DISSIPATIVE:
+            y[state_size(effects) - 1] += dissipated_power(y[0], u, v, p, effects) * half
         y[0] += u * half
         y[1] += rates[1] * half
         y[4] += rates[4] * half
@@ -170,7 +178,7 @@ def fate_of(method, effects, p, energy, h, Lz, r_start, rtol, t_horizon, max_ste
     which it leaves (module docstring).
 
     Returns (fate, time [s], r [m], theta [rad], revolutions, energy lost [J], drift of the
-    energy balance E + W_resistance [1], steps).
+    energy balance E + W [1], W the work of the dissipative forces, steps).
     """
     nan = math.nan
     if not (r_start >= 0.0 and math.isfinite(energy) and math.isfinite(Lz)):
@@ -201,7 +209,7 @@ def fate_of(method, effects, p, energy, h, Lz, r_start, rtol, t_horizon, max_ste
                                  t_horizon - t0, max_steps)  # fmt: skip
     E0 = invariants(y0, p)[0] + work0  # the energy at the start (the vertex for radial orbits)
     E1 = invariants(y, p)[0]
-    work = y[state_size(effects) - 1] if effects & ROLLING_RESISTANCE else 0.0
+    work = y[state_size(effects) - 1] if effects & DISSIPATIVE else 0.0
     scale = max(abs(E0), kinetic_energy(y0, p))
     drift = abs(E1 + work - E0) / scale
     return fate, t0 + t, y[0], y[1], abs(y[1]) / (2.0 * math.pi), E0 - E1, drift, steps

@@ -20,6 +20,8 @@ the e -> 1 and B -> 0 singularities).
 from __future__ import annotations
 
 import math
+from collections import namedtuple
+from typing import NamedTuple
 
 from .._jit import kernel
 from .carlson import cel_pair
@@ -67,14 +69,44 @@ CIRCULAR_TOL = 1e-12
 NAN = math.nan
 
 
-#: Fields of a :func:`family` (its tuple, and the rows of the batch kernels' family tables).
-FAMILY_FIELDS = ("kind", "s", "c", "A", "B", "C", "K", "r_c", "a", "V_min", "c3", "igam", "noise",
-                 "kk", "p0", "p2", "p3", "q0", "q3", "rs3", "fstar")  # fmt: skip
+class Family(NamedTuple):
+    """What :func:`family` returns: everything of (alpha, h, L_z) that does not depend on the
+    energy. The batch kernels keep it in the rows of a table (row i: field i)."""
+
+    kind: int  # AXIS (L_z = 0), OUT_OF_RANGE or 0
+    s: float  # sin(alpha)
+    c: float  # cos(alpha)
+    A: float  # coefficients of V(r) = A/r^2 + B/r + C r
+    B: float
+    C: float
+    K: float  # |L_z| / (M sin^2 alpha): thetadot = K / r^2
+    r_c: float  # circular radius (NaN: none)
+    a: float  # the well (.roots.well): its a, V_min, c3, igam, noise
+    V_min: float
+    c3: float
+    igam: float
+    noise: float
+    kk: float  # the friction terms (.ending.friction_terms): kk, p0, p2, p3, q0, q3
+    p0: float
+    p2: float
+    p3: float
+    q0: float
+    q3: float
+    rs3: float  # .ending.critical_cube
+    fstar: float  # .ending.critical_ratio (eager families only; NaN otherwise)
+
+
+#: Fields of a :class:`Family`.
+FAMILY_FIELDS = Family._fields
+#: The fields of the well (:func:`.roots.well`) in a :class:`Family`.
+WELL_FIELDS = ("a", "V_min", "c3", "igam", "noise")
+#: What :func:`family_head` returns: the family's fields but r_c and the well.
+FamilyHead = namedtuple("FamilyHead", [f for f in FAMILY_FIELDS if f not in ("r_c", *WELL_FIELDS)])
 
 
 @kernel
 def family_head(alpha, h, Lz, M, g, k, eager):
-    """:func:`family` up to r_c: (kind, s, c, A, B, C, K, kk, p0, p2, p3, q0, q3, rs3, fstar)."""
+    """:func:`family` but r_c and the well: a :data:`FamilyHead`."""
     s = math.sin(alpha)
     c = math.cos(alpha)
     A, B, C = coefficients_sc(s, c, h, Lz, M, g, k)
@@ -87,7 +119,7 @@ def family_head(alpha, h, Lz, M, g, k, eager):
         kind = AXIS
     elif not (A >= A_MIN and A < math.inf and abs(B) < math.inf and C < math.inf):
         kind = OUT_OF_RANGE  # r_c and V_min are still reported (minimum_energy)
-    return kind, s, c, A, B, C, Kang, kk, p0, p2, p3, q0, q3, rs3, fstar
+    return FamilyHead(kind, s, c, A, B, C, Kang, kk, p0, p2, p3, q0, q3, rs3, fstar)
 
 
 @kernel
@@ -103,8 +135,8 @@ def family_from(head, rc):
     """:func:`family` from :func:`family_head` and r_c (NaN: none)."""
     kind, s, c, A, B, C, Kang, kk, p0, p2, p3, q0, q3, rs3, fstar = head
     a, vmin, c3, igam, noise = well_or_nan(A, B, C, rc)
-    return (kind, s, c, A, B, C, Kang, rc, a, vmin, c3, igam, noise, kk, p0, p2, p3, q0, q3, rs3,
-            fstar)  # fmt: skip
+    return Family(kind, s, c, A, B, C, Kang, rc, a, vmin, c3, igam, noise, kk, p0, p2, p3, q0, q3,
+                  rs3, fstar)  # fmt: skip
 
 
 @kernel
@@ -115,34 +147,33 @@ def family(alpha, h, Lz, M, g, k, eager):
     computes it once per (alpha, h, L_z) for all its energies (``eager``: with |F|/N at the
     interior critical point too); :func:`orbit_in` takes it.
 
-    Returns the tuple :data:`FAMILY_FIELDS`; kind is AXIS (L_z = 0), OUT_OF_RANGE or 0; NaN
-    where undefined.
+    Returns a :class:`Family`; kind is AXIS (L_z = 0), OUT_OF_RANGE or 0; NaN where undefined.
     """
     head = family_head(alpha, h, Lz, M, g, k, eager)
-    rc = NAN if Lz == 0.0 else circular_radius(head[3], head[4], head[5])
+    rc = NAN if Lz == 0.0 else circular_radius(head.A, head.B, head.C)
     return family_from(head, rc)
 
 
 @kernel
 def _mu(fam, r1, r2):
     """mu_required on [r1, r2] from the family's friction terms."""
-    return mu_required_of(r1, r2, fam[13], fam[14], fam[15], fam[16], fam[17], fam[18], fam[19],
-                          fam[20])  # fmt: skip
+    return mu_required_of(r1, r2, fam.kk, fam.p0, fam.p2, fam.p3, fam.q0, fam.q3, fam.rs3,
+                          fam.fstar)  # fmt: skip
 
 
 @kernel
 def _turning(fam, energy):
     """Turning points from the family's well (the closed form when C = 0)."""
-    A, B, C, rc = fam[3], fam[4], fam[5], fam[7]
+    A, B, C, rc = fam.A, fam.B, fam.C, fam.r_c
     if C == 0.0:
         return turning_points(energy, A, B, C, rc)
-    return turning_points_in(energy, A, B, C, rc, fam[8], fam[9], fam[10], fam[11], fam[12])
+    return turning_points_in(energy, A, B, C, rc, fam.a, fam.V_min, fam.c3, fam.igam, fam.noise)
 
 
 @kernel
 def orbit_in(fam, energy, M, g, k, circ_tol):
     """:func:`ideal_orbit` at one energy of a :func:`family`."""
-    kind, s, A, B, C, Kang, rc = fam[0], fam[1], fam[3], fam[4], fam[5], fam[6], fam[7]
+    kind, s, A, B, C, Kang, rc = fam.kind, fam.s, fam.A, fam.B, fam.C, fam.K, fam.r_c
     cls = FORBIDDEN
     r1 = r2 = T = psi = prec = mu = NAN
     if kind == AXIS:
@@ -157,8 +188,8 @@ def orbit_in(fam, energy, M, g, k, circ_tol):
         return OUT_OF_RANGE, r1, r2, NAN, T, psi, prec, mu
     has_min = not math.isnan(rc)
     if has_min:
-        Vmin = fam[9]
-        if abs(energy - Vmin) <= circ_tol * fam[12]:  # scaled by the size of V's terms
+        Vmin = fam.V_min
+        if abs(energy - Vmin) <= circ_tol * fam.noise:  # scaled by the size of V's terms
             omega_r = math.sqrt(2.0 * (A + C * rc * rc * rc) / (M * rc * rc * rc * rc))
             T = 2.0 * math.pi / omega_r
             psi = math.pi * Kang / (rc * rc * omega_r)

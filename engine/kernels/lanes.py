@@ -10,7 +10,7 @@ is the scalar rest, per lane and only where needed:
 - the start of an orbit (:func:`.orbit.orbit_start`, :func:`.orbit.initial_state`,
   :func:`.orbit.tolerance_scales`, :func:`.rk.initial_step`: as :func:`.orbit.one_period`);
 - the events of a step (:func:`.rk_events.step_events` on a scalar copy of the lane: apsides,
-  rim, slip) and the result (:func:`.orbit._reduce`);
+  rim, slip) and the result (:func:`.orbit.reduce_period`);
 - the queue: a lane whose orbit ends takes the next point from a queue the threads share, so
   no lane idles until the points run out, and a thread slowed by other work takes fewer.
 
@@ -38,7 +38,7 @@ from .lanes_step import (
     lanes_layout,
 )
 from .model import N_PARAMS, rhs, set_alpha
-from .orbit import _reduce, initial_state, orbit_start, store_period, tolerance_scales
+from .orbit import initial_state, orbit_start, reduce_period, store_period, tolerance_scales
 from .protocol import (
     APOCENTRE,
     BUFFER_FULL,
@@ -154,7 +154,7 @@ def _lane_finish(method, effects, l, status, n_apsides, W, I, LY0, p, ev_t, ev_k
     y0 = LY0[l]
     n_acc = np.int64(W[ly[_NACC] * L + l])
     res = (status, n_acc, np.int64(W[ly[_NREJ] * L + l]), W[ly[_T] * L + l], y0, n_ev, 0)
-    st, T, psi, prec, nst, drift, loss = _reduce(effects, p, y0, res, ev_t, ev_kind, ev_y)
+    st, T, psi, prec, nst, drift, loss = reduce_period(effects, p, y0, res, ev_t, ev_kind, ev_y)
     if n_apsides == 1:
         nan = math.nan
         st, T, psi, prec, drift, loss = status, nan, nan, nan, nan, nan

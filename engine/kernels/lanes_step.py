@@ -31,7 +31,7 @@ from numba.extending import intrinsic, overload
 from .model import N_PARAMS, rates5, rates6, rates9, rates10, state_size_of
 from .protocol import OK, TERMINAL_EFFECTS, terminal_between
 from .rk import step_allowed, step_decide, step_error
-from .rk_codegen import _GEN_OPTS, _literal, _rk_method, unrolled_step_lines
+from .rk_codegen import GEN_OPTS, literal_int, rk_method_id, unrolled_step_lines
 from .rk_events import apsis_crossed
 from .tableaux import RK_TABLEAUX
 
@@ -199,7 +199,7 @@ def _compiled(kind: str, method: int, n: int, terminal: bool):
 
 
 def _effects(effects) -> tuple[int, bool]:
-    e = _literal(effects, "effects")
+    e = literal_int(effects, "effects")
     return state_size_of(e), bool(e & TERMINAL_EFFECTS)
 
 
@@ -218,19 +218,19 @@ def lanes_layout(method, effects):
     raise NotImplementedError("lanes_layout runs inside numba kernels only")
 
 
-@overload(lanes_attempt, jit_options=_GEN_OPTS)
+@overload(lanes_attempt, jit_options=GEN_OPTS)
 def _ol_lanes_attempt(method, effects, W, rtol):
-    return _compiled("attempt", _rk_method(method), _effects(effects)[0], False)
+    return _compiled("attempt", rk_method_id(method), _effects(effects)[0], False)
 
 
-@overload(lanes_control, jit_options=_GEN_OPTS)
+@overload(lanes_control, jit_options=GEN_OPTS)
 def _ol_lanes_control(method, effects, W, max_steps):
-    return _compiled("control", _rk_method(method), *_effects(effects))
+    return _compiled("control", rk_method_id(method), *_effects(effects))
 
 
-@overload(lanes_layout, jit_options=_GEN_OPTS)
+@overload(lanes_layout, jit_options=GEN_OPTS)
 def _ol_lanes_layout(method, effects):
-    consts = tuple(layout(_rk_method(method), _effects(effects)[0]))
+    consts = tuple(layout(rk_method_id(method), _effects(effects)[0]))
 
     def impl(method, effects):
         return consts

@@ -5,18 +5,19 @@
 - the invariants E, L_z, h and the contact forces (F, N) of a state;
 - the scene's right-hand side, with the effects compiled in or out.
 
-A scene's structure is an ``effects`` bit mask (:data:`ROLLING_RESISTANCE`, :data:`RIM`,
-:data:`SLIP_CHECK`, :data:`ATTITUDE`) that reaches every kernel as a numba *literal* integer
-(the entry points call ``numba.literally(effects)``), so each effect set is its own compiled,
-disk-cached specialisation and an effect that is off costs no branch, no state and no time: the
-tests ``effects & FLAG`` fold to constants and LLVM drops the dead code. Gravity (g = 0 is free
-fall) and the spin coupling (k = 0) are runtime parameters. All physical parameters travel in
-one float64 array (layout ``P_*`` below, built by :func:`make_params`), so sweeping a grid never
-recompiles.
+A scene's structure is an ``effects`` bit mask (the bits of the effects table, :mod:`.effects`:
+:data:`ROLLING_RESISTANCE`, :data:`RIM`, :data:`SLIP_CHECK`, :data:`ATTITUDE`) that reaches
+every kernel as a numba *literal* integer (the entry points call ``numba.literally(effects)``),
+so each effect set is its own compiled, disk-cached specialisation and an effect that is off
+costs no branch, no state and no time: the tests ``effects & FLAG`` fold to constants and LLVM
+drops the dead code. Gravity (g = 0 is free fall) and the spin coupling (k = 0) are runtime
+parameters. All physical parameters travel in one float64 array (layout ``P_*`` below, built
+by :func:`make_params`), so sweeping a grid never recompiles.
 
 State y (length :func:`state_size`): r [m], theta [rad], u = rdot [m/s], v = r sin(alpha)
 thetadot [m/s], w = a omega_nu [m/s]; with :data:`ATTITUDE` also the unit quaternion
-(q0, q1, q2, q3) (scalar first) rotating body axes to the fixed frame (identity at t = 0).
+(q0, q1, q2, q3) (scalar first) rotating body axes to the fixed frame (identity at t = 0); with
+a dissipative effect (:data:`DISSIPATIVE`) last the work done by the dissipative forces [J].
 
 The scalar formulas (:func:`invariants_of`, :func:`contact_forces_of`, :func:`radial_energy`)
 use arithmetic only, so their ``.py_func`` also evaluates them on numpy arrays (trajectories).
@@ -27,24 +28,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba.np.unsafe.ndarray import to_fixed_tuple
 
 from .._jit import kernel
+from .effects import DISSIPATIVE, EFFECT_BITS, EFFECTS
 
-# Effect bits (combine with |). Gravity and spin coupling are parameters, not effects.
-ROLLING_RESISTANCE = 1
-RIM = 2
-SLIP_CHECK = 4
-ATTITUDE = 8
-ALL_EFFECTS = ROLLING_RESISTANCE | RIM | SLIP_CHECK | ATTITUDE
-#: Run option (not a scene effect): stop after ``P_THETA_MAX`` radians of azimuth (fate maps).
-REVOLUTIONS = 16
-#: Effect name (as in :attr:`engine.Scene.effects`) -> bit.
-EFFECT_BITS = {
-    "rolling_resistance": ROLLING_RESISTANCE,
-    "rim": RIM,
-    "slip_check": SLIP_CHECK,
-    "attitude": ATTITUDE,
-}
+# Effect bits (combine with |), from the effects table. Gravity and spin coupling are parameters.
+ROLLING_RESISTANCE = EFFECT_BITS["rolling_resistance"]
+RIM = EFFECT_BITS["rim"]
+SLIP_CHECK = EFFECT_BITS["slip_check"]
+ATTITUDE = EFFECT_BITS["attitude"]
 
 # Parameter array layout.
 P_ALPHA = 0  # half-aperture [rad]
@@ -66,13 +59,15 @@ P_R_VERTEX = 15  # the vertex region: r below this [m] ends a run (VERTEX_FRACTI
 P_V_REST = 16  # speed [m/s] below which rolling resistance has stopped the sphere (per orbit)
 P_THETA_MAX = 17  # azimuth [rad] after which a fate run stops (inf: none; REVOLUTIONS runs)
 N_PARAMS = 18
+#: Parameter slot name -> index (the slots an effect's row names in ``params``).
+PARAM_SLOTS = {name: value for name, value in globals().items() if name.startswith("P_")}
+assert all(s in PARAM_SLOTS for e in EFFECTS for s in e.params), "unknown parameter slot"
 
 #: The vertex region, in units of the sphere's radius a: the centre within this of its lowest
 #: point (r = 0, where the sphere touches the cone all around and the single-contact model ends).
 VERTEX_FRACTION = 1e-2
 
 N_BASE = 5
-N_ATTITUDE = 9
 
 
 # ------------------------------------------------------------------------ the radial problem
@@ -112,12 +107,6 @@ def potential_d1(r, A, B, C):
     return -2.0 * A / (r * r * r) - B / (r * r) + C
 
 
-@kernel
-def potential_d2(r, A, B, C):
-    """V''(r) [J/m^2]."""
-    return 6.0 * A / (r * r * r * r) + 2.0 * B / (r * r * r)
-
-
 # ----------------------------------------------------------------- invariants and forces
 @kernel
 def invariants_of(r, u, v, w, s, c, M, g, k):
@@ -141,17 +130,20 @@ def contact_forces_of(r, v, w, s, c, cot, M, g, kk):
 
 # ------------------------------------------------------------------------ the scene's params
 @kernel
-def make_params(alpha, M, g, k, a, rim, mu, c_rr):
-    """The float64 parameter array (``P_*`` layout) of a scene on a cone of half-aperture alpha."""
-    p = np.empty(N_PARAMS)
+def make_params(alpha, M, g, k, a, slots, values):
+    """The float64 parameter array (``P_*`` layout) of a scene on a cone of half-aperture alpha:
+    the sphere's M, g, k, a, then ``values[i]`` into slot ``slots[i]`` (the effects' slots,
+    :attr:`.effects.Effect.params`; the rim slot defaults to +inf, the others to 0)."""
+    p = np.zeros(N_PARAMS)
     p[P_M] = M
     p[P_G] = g
     p[P_K] = k
     p[P_KK] = k / (1.0 + k)
     p[P_RADIUS] = a
-    p[P_RIM_SLANT] = rim
-    p[P_MU] = mu
-    p[P_CRR] = c_rr
+    p[P_RIM_SLANT] = math.inf
+    p[P_MU] = math.inf
+    for i in range(slots.shape[0]):
+        p[slots[i]] = values[i]
     p[P_INV_M1K] = 1.0 / (M * (1.0 + k))
     p[P_R_VERTEX] = VERTEX_FRACTION * a
     p[P_V_REST] = 0.0
@@ -186,15 +178,14 @@ def rim_on_centre_cone(rim, a, cot):
 def param_tuple(p):
     """The parameter array as a tuple: the hot loops index it with constants and keep the values
     in registers (an array is re-read after every store that might alias it)."""
-    return (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p[12],
-            p[13], p[14], p[15], p[16], p[17])  # fmt: skip
+    return to_fixed_tuple(p, N_PARAMS)
 
 
 def state_size_of(effects: int) -> int:
     """Length of the state vector of an effect set: r, theta, u, v, w; then the attitude
-    quaternion (4) with ATTITUDE; then the work done against rolling resistance [J] with
-    ROLLING_RESISTANCE (always the last component)."""
-    return N_BASE + (4 if effects & ATTITUDE else 0) + (1 if effects & ROLLING_RESISTANCE else 0)
+    quaternion (4) with ATTITUDE; then the work done by the dissipative forces [J] with a
+    dissipative effect (:data:`DISSIPATIVE`; always the last component)."""
+    return N_BASE + (4 if effects & ATTITUDE else 0) + (1 if effects & DISSIPATIVE else 0)
 
 
 @kernel
@@ -203,7 +194,7 @@ def state_size(effects):
     n = N_BASE
     if effects & ATTITUDE:
         n += 4
-    if effects & ROLLING_RESISTANCE:
+    if effects & DISSIPATIVE:
         n += 1
     return n
 
@@ -219,16 +210,15 @@ def motion_rates(r, u, v, w, p, effects):
     udot = v * vir + p[P_KK] * kappa * v * w - p[P_GC]
     vdot = -u * vir
     if effects & ROLLING_RESISTANCE:
-        # A force c_rr N opposing the CM velocity (u, v); at zero speed, the pull (static).
+        # A force c_rr N opposing the CM velocity (u, v).
         speed = math.sqrt(u * u + v * v)
         N = p[P_M] * (p[P_G] * p[P_SIN] + v * vir * p[P_COT])
         f = p[P_CRR] * N * p[P_INV_M1K]
         if speed > 0.0:
             udot -= f * u / speed
             vdot -= f * v / speed
-        else:
-            pull = math.sqrt(udot * udot + vdot * vdot)
-            held = min(f, pull) / pull if pull > 0.0 else 0.0
+        else:  # at rest: it opposes the pull, up to f
+            held = min(f / max(math.sqrt(udot * udot + vdot * vdot), 1e-300), 1.0)
             udot -= held * udot
             vdot -= held * vdot
     return u, vir / p[P_SIN], udot, vdot, -kappa * u * v
@@ -265,10 +255,14 @@ def quaternion_rate(theta, u, v, w, q0, q1, q2, q3, p):
 
 
 @kernel
-def resistance_power(r, u, v, p):
-    """Power [W] dissipated by rolling resistance, c_rr N |V| (the rate of the work state)."""
-    N = p[P_M] * (p[P_G] * p[P_SIN] + v * v * p[P_COT] / r)
-    return p[P_CRR] * N * math.sqrt(u * u + v * v)
+def dissipated_power(r, u, v, p, effects):
+    """Power [W] the dissipative effects take from the sphere (the rate of the work state):
+    rolling resistance c_rr N |V|."""
+    power = 0.0
+    if effects & ROLLING_RESISTANCE:
+        N = p[P_M] * (p[P_G] * p[P_SIN] + v * v * p[P_COT] / r)
+        power += p[P_CRR] * N * math.sqrt(u * u + v * v)
+    return power
 
 
 @kernel
@@ -279,9 +273,9 @@ def rates5(y0, y1, y2, y3, y4, p, effects):
 
 @kernel
 def rates6(y0, y1, y2, y3, y4, y5, p, effects):
-    """dy/dt of the state with the work done against rolling resistance (y5)."""
+    """dy/dt of the state with the work done by the dissipative forces (y5)."""
     a, b, c, d, e = motion_rates(y0, y2, y3, y4, p, effects)
-    return a, b, c, d, e, resistance_power(y0, y2, y3, p)
+    return a, b, c, d, e, dissipated_power(y0, y2, y3, p, effects)
 
 
 @kernel
@@ -294,10 +288,10 @@ def rates9(y0, y1, y2, y3, y4, y5, y6, y7, y8, p, effects):
 
 @kernel
 def rates10(y0, y1, y2, y3, y4, y5, y6, y7, y8, y9, p, effects):
-    """dy/dt of the state with the attitude quaternion and the work against resistance."""
+    """dy/dt of the state with the attitude quaternion and the work of the dissipative forces."""
     a, b, c, d, e = motion_rates(y0, y2, y3, y4, p, effects)
     q0, q1, q2, q3 = quaternion_rate(y1, y2, y3, y4, y5, y6, y7, y8, p)
-    return a, b, c, d, e, q0, q1, q2, q3, resistance_power(y0, y2, y3, p)
+    return a, b, c, d, e, q0, q1, q2, q3, dissipated_power(y0, y2, y3, p, effects)
 
 
 @kernel
@@ -315,8 +309,8 @@ def rhs(y, p, effects, out, row):
         out[row, 6] = q1
         out[row, 7] = q2
         out[row, 8] = q3
-    if effects & ROLLING_RESISTANCE:
-        out[row, state_size(effects) - 1] = resistance_power(y[0], y[2], y[3], p)
+    if effects & DISSIPATIVE:
+        out[row, state_size(effects) - 1] = dissipated_power(y[0], y[2], y[3], p, effects)
 
 
 # ----------------------------------------------------------- quantities of a state vector
@@ -334,8 +328,8 @@ def slip_margin(y, p, effects):
 
     F is the whole friction force at the contact. With rolling resistance (a couple c_rr N a
     opposing the rolling) it adds -c_rr N/(1+k) along the velocity (u, v) to the conservative
-    part F e1 (docs/physics.md "Effects beyond the ideal cone"); at zero speed, what holds the
-    sphere against the pull down the generatrix, up to c_rr N/(1+k) (:func:`motion_rates`)."""
+    part F e1 (docs/physics.md "Effects beyond the ideal cone"); at zero speed, up to c_rr N/(1+k)
+    against the pull (:func:`motion_rates`)."""
     F, N = forces(y, p)
     if effects & ROLLING_RESISTANCE:
         u = y[2]
@@ -361,13 +355,6 @@ def rim_margin(y, p):
 def invariants(y, p):
     """(E [J], L_z [kg m^2/s], h [m/s]) of the state y (:func:`invariants_of`)."""
     return invariants_of(y[0], y[2], y[3], y[4], p[P_SIN], p[P_COS], p[P_M], p[P_G], p[P_K])
-
-
-@kernel
-def holds_at_rest(p):
-    """Whether rolling resistance can hold a sphere at rest on this cone's slope: the slope's
-    pull g cos(alpha) against the most the resistance gives, c_rr N = c_rr M g sin(alpha)."""
-    return p[P_COT] <= p[P_CRR]
 
 
 @kernel

@@ -22,6 +22,7 @@ from numba.core import errors, types
 from numba.extending import overload
 
 from .._jit import kernel, parallel_kernel
+from .effects import DISSIPATIVE
 from .model import (
     ATTITUDE,
     P_COS,
@@ -29,7 +30,6 @@ from .model import (
     P_K,
     P_M,
     P_SIN,
-    ROLLING_RESISTANCE,
     coefficients,
     invariants,
     kinetic_energy,
@@ -136,7 +136,7 @@ def tolerance_scales(p, effects, y0, energy, h, Lz, r1, r2, rc):
     v: its smallest size |v(r2)| (v r is L_z/(M sin a), so v must stay relatively accurate for L_z
     to be conserved near the axis, where r2/r1 is huge); w: max |w| over [r1, r2]; quaternion: 1.
     Velocities are floored at sqrt(eps) times the speed, so an exactly circular orbit still has a
-    usable absolute tolerance. The work against rolling resistance: the orbit's energy scale.
+    usable absolute tolerance. The work of the dissipative forces: the orbit's energy scale.
     """
     n = y0.shape[0]
     sc = np.ones(n)
@@ -161,14 +161,14 @@ def tolerance_scales(p, effects, y0, energy, h, Lz, r1, r2, rc):
     w1 = abs(h + Lz * c / (M * r1 * s * s))
     w2 = abs(h + Lz * c / (M * r2 * s * s)) if math.isfinite(r2) else abs(h)
     sc[4] = max(max(w1, w2), floor)
-    if effects & ROLLING_RESISTANCE:  # the work against resistance: the orbit's energy scale
+    if effects & DISSIPATIVE:  # the work of the dissipative forces: the orbit's energy scale
         sc[n - 1] = max(abs(energy), 0.5 * M * vel * vel)
     return sc
 
 
 # ------------------------------------------------------------------------- one radial period
 @kernel
-def _reduce(effects, p, y0, res, ev_t, ev_kind, ev_y):
+def reduce_period(effects, p, y0, res, ev_t, ev_kind, ev_y):
     """(status, T, psi, precession, steps, drift, loss) from a run that stopped at the second
     apsis."""
     nan = math.nan
@@ -185,7 +185,7 @@ def _reduce(effects, p, y0, res, ev_t, ev_kind, ev_y):
     E1 = invariants(ev_y[1], p)[0]
     scale = max(abs(E0), kinetic_energy(y0, p))
     drift = abs(E1 - E0) / scale
-    loss = E0 - E1 if effects & ROLLING_RESISTANCE else nan
+    loss = E0 - E1 if effects & DISSIPATIVE else nan
     return OK, T, psi, (2.0 * psi - 2.0 * math.pi) / T, n_acc, drift, loss
 
 
@@ -209,7 +209,7 @@ def one_period(method, effects, p, energy, h, Lz, rtol, max_steps):
     res = run(method, effects, y0, p, (energy, h, Lz), rtol, atol, math.inf, np.int64(2),
               max_steps, np.int64(RECORD_NONE), 0.0, ev_t, ev_kind, ev_y, ev_t, ev_y,
               ev_y)  # fmt: skip
-    return _reduce(effects, p, y0, res, ev_t, ev_kind, ev_y)
+    return reduce_period(effects, p, y0, res, ev_t, ev_kind, ev_y)
 
 
 @parallel_kernel

@@ -10,7 +10,7 @@ root finder in reverse communication (the caller evaluates the function on its o
 output or partial step).
 
 ``effects`` reaches these helpers as a numba literal from the run kernel, so the tests
-``effects & RIM`` fold to constants here as in the caller.
+``effects & SPILL_EFFECTS`` fold to constants here as in the caller.
 """
 
 from __future__ import annotations
@@ -20,17 +20,8 @@ import math
 import numpy as np
 
 from .._jit import kernel
-from .model import (
-    P_R_VERTEX,
-    P_THETA_MAX,
-    P_V_REST,
-    REVOLUTIONS,
-    RIM,
-    ROLLING_RESISTANCE,
-    SLIP_CHECK,
-    rim_margin,
-    slip_margin,
-)
+from .effects import EFFECTS, REVOLUTIONS, bringing
+from .model import P_R_VERTEX, P_THETA_MAX, P_V_REST, rim_margin, slip_margin
 
 EPS = 2.220446049250313e-16
 SQRT_EPS = 1.4901161193847656e-08
@@ -84,8 +75,14 @@ EVENT_NAMES = ("pericentre", "apocentre", "spill", "slip", "rest", "vertex", "ho
 #: The terminal event kinds, in the order they are checked (an apsis is not terminal).
 FIRST_TERMINAL = SPILL
 LAST_TERMINAL = HORIZON
+#: The effects that bring each terminal event (the effects table's ``events``); the horizon is
+#: brought by the run option REVOLUTIONS.
+SPILL_EFFECTS = bringing("spill")
+SLIP_EFFECTS = bringing("slip")
+REST_EFFECTS = bringing("rest")
+VERTEX_EFFECTS = bringing("vertex")
 #: Effects (and run options) that bring terminal events into a run.
-TERMINAL_EFFECTS = RIM | SLIP_CHECK | ROLLING_RESISTANCE | REVOLUTIONS
+TERMINAL_EFFECTS = SPILL_EFFECTS | SLIP_EFFECTS | REST_EFFECTS | VERTEX_EFFECTS | REVOLUTIONS
 
 # ------------------------------------------------------------------ what a run records
 RECORD_NONE = 0
@@ -99,6 +96,9 @@ RUN_RESULT = ("status", "n_accepted", "n_rejected", "t", "y", "n_events", "n_rec
 def _check_tables() -> None:
     for code, (c, _, _) in enumerate(STATUSES):
         assert c == code, "STATUSES must be listed in code order"
+    terminal = EVENT_NAMES[FIRST_TERMINAL:LAST_TERMINAL]
+    for e in EFFECTS:
+        assert set(e.events) <= set(terminal), f"{e.name}: events {e.events} not in {terminal}"
 
 
 _check_tables()
@@ -166,13 +166,13 @@ def kind_enabled(effects, kind):
     """Whether the terminal event ``kind`` is compiled into runs of ``effects`` (folds to a
     constant: ``effects`` is a literal)."""
     if kind == SPILL:
-        return effects & RIM != 0
+        return effects & SPILL_EFFECTS != 0
     if kind == SLIP:
-        return effects & SLIP_CHECK != 0
+        return effects & SLIP_EFFECTS != 0
     if kind == REST:
-        return effects & ROLLING_RESISTANCE != 0
-    if kind == VERTEX:  # any orbit of small enough L_z reaches it, with or without c_rr
-        return effects & TERMINAL_EFFECTS != 0
+        return effects & REST_EFFECTS != 0
+    if kind == VERTEX:
+        return effects & VERTEX_EFFECTS != 0
     if kind == HORIZON:
         return effects & REVOLUTIONS != 0
     return False

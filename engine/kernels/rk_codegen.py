@@ -27,7 +27,7 @@ from numba.extending import overload
 from .model import N_BASE, rates5, rates6, rates9, rates10, rhs, state_size, state_size_of
 from .tableaux import RK_TABLEAUX
 
-_GEN_OPTS = {"error_model": "numpy", "fastmath": False, "nogil": True}
+GEN_OPTS = {"error_model": "numpy", "fastmath": False, "nogil": True}
 
 
 def _lincomb(coefs, term: str) -> str:
@@ -209,14 +209,14 @@ def _generated(kind: str, method: int, n: int):
     return namespace["impl"]
 
 
-def _literal(arg, name: str) -> int:
+def literal_int(arg, name: str) -> int:
     if not isinstance(arg, types.IntegerLiteral):
         raise errors.TypingError(f"{name} must be a numba literal here (use numba.literally)")
     return int(arg.literal_value)
 
 
-def _rk_method(arg) -> int:
-    m = _literal(arg, "method")
+def rk_method_id(arg) -> int:
+    m = literal_int(arg, "method")
     if not 0 <= m < len(RK_TABLEAUX):
         raise errors.TypingError(f"no Runge-Kutta tableau with id {m}")
     return m
@@ -268,33 +268,33 @@ def _inline_unrolled(expr, caller_info, callee_info) -> bool:
     return isinstance(method, types.IntegerLiteral) and RK_TABLEAUX[method.literal_value].unroll
 
 
-@overload(tableau, jit_options=_GEN_OPTS)
+@overload(tableau, jit_options=GEN_OPTS)
 def _ol_tableau(method):
-    return _generated("tableau", _rk_method(method), 0)
+    return _generated("tableau", rk_method_id(method), 0)
 
 
-@overload(controller, jit_options=_GEN_OPTS)
+@overload(controller, jit_options=GEN_OPTS)
 def _ol_controller(method):
-    return _generated("controller", _rk_method(method), 0)
+    return _generated("controller", rk_method_id(method), 0)
 
 
-@overload(rk_attempt, jit_options=_GEN_OPTS, inline=_inline_unrolled)
+@overload(rk_attempt, jit_options=GEN_OPTS, inline=_inline_unrolled)
 def _ol_rk_attempt(method, effects, y, h, pt, K, ynew, rtol, atol):
-    m = _rk_method(method)
-    n = state_size_of(_literal(effects, "effects"))
+    m = rk_method_id(method)
+    n = state_size_of(literal_int(effects, "effects"))
     return _generated("attempt", m, n)
 
 
-@overload(rk_stages, jit_options=_GEN_OPTS)
+@overload(rk_stages, jit_options=GEN_OPTS)
 def _ol_rk_stages(method, effects, y, h, pt, K, ynew):
-    return _generated("stages", _rk_method(method), 0)
+    return _generated("stages", rk_method_id(method), 0)
 
 
-@overload(rk_dense_stages, jit_options=_GEN_OPTS)
+@overload(rk_dense_stages, jit_options=GEN_OPTS)
 def _ol_rk_dense_stages(method, effects, y, h, p, K, ytmp):
-    return _generated("dense_stages", _rk_method(method), 0)
+    return _generated("dense_stages", rk_method_id(method), 0)
 
 
-@overload(rk_dense_poly, jit_options=_GEN_OPTS)
+@overload(rk_dense_poly, jit_options=GEN_OPTS)
 def _ol_rk_dense_poly(method, K, j):
-    return _generated("dense_poly", _rk_method(method), 0)
+    return _generated("dense_poly", rk_method_id(method), 0)

@@ -20,8 +20,8 @@ secular drift. The fixed step in s follows from rtol: h = STEP_SCALE[order] rtol
 
 Events (apsides: p = 0; the rim; slip onset) and output times are located by Brent's method on
 the partial step, i.e. by re-taking the composed step with a shorter s-step, which keeps the
-method's order. Rolling resistance (dissipative) and the attitude (needs the full rigid-body
-state) are refused with status UNSUPPORTED (:data:`UNSUPPORTED_EFFECTS`).
+method's order. Dissipative effects and the attitude (needs the full rigid-body state) are
+refused with status UNSUPPORTED (:data:`UNSUPPORTED_EFFECTS`).
 
 Phase-space vector z: (r [m], p = M u [kg m/s], theta [rad], t [s], W [1/s]).
 """
@@ -33,16 +33,8 @@ import math
 import numpy as np
 
 from .._jit import kernel
-from .model import (
-    ATTITUDE,
-    P_COS,
-    P_G,
-    P_K,
-    P_M,
-    P_SIN,
-    ROLLING_RESISTANCE,
-    coefficients,
-)
+from .effects import CAPABILITIES, needing_any
+from .model import P_COS, P_G, P_K, P_M, P_SIN, coefficients
 from .protocol import (
     BUFFER_FULL,
     EPS,
@@ -72,9 +64,12 @@ from .tableaux import LEAPFROG, YOSHIDA4, YOSHIDA6
 
 #: Kernel id of the method (Runge-Kutta pairs take the ids 0, 1, ... of their tableaux).
 SYMPLECTIC = 100
-#: Effects this method cannot honour: it integrates the conservative radial Hamiltonian, which
-#: rolling resistance breaks, and it does not carry the rigid body's attitude.
-UNSUPPORTED_EFFECTS = ROLLING_RESISTANCE | ATTITUDE
+#: What this method can do (:data:`.effects.CAPABILITIES`; ``engine.methods`` says why not the
+#: rest): it integrates the conservative radial Hamiltonian, which dissipative forces break, and
+#: it does not carry the rigid body's attitude.
+SUPPORTS = ("terminal events",)
+#: Effects this method cannot honour (those needing what it cannot do): runs return UNSUPPORTED.
+UNSUPPORTED_EFFECTS = needing_any(set(CAPABILITIES) - set(SUPPORTS))
 
 #: Default composition order of the "symplectic" method.
 DEFAULT_ORDER = 6

@@ -5,10 +5,11 @@ import math
 import mpmath as mp
 import numpy as np
 import pytest
+from carlson_ref import rc, rd, rf, rj
 from hypothesis import given
 from hypothesis import strategies as st
 
-from engine.kernels.carlson import cel, cel_pair, cel_pair_lanes, rc, rd, rf, rj
+from engine.kernels.carlson import cel, cel_pair, cel_pair_lanes
 
 # The duplication algorithm with TOL = 2^-53 promises ~1e-16 truncation plus the rounding of
 # a few dozen operations: 1e-14 relative is a generous but meaningful bound (errors of a wrong

@@ -320,12 +320,12 @@ def test_outer_root_that_plain_halley_steps_miss_takes_the_safe_path():
     )
     M, g, k = 1e3, 50.0, 2.0 / 3.0
     fam = family(alpha, h, Lz, M, g, k, False)
-    rc, a, vmin, c3, igam = fam[7], fam[8], fam[9], fam[10], fam[11]
+    rc, a, vmin, c3, igam = fam.r_c, fam.a, fam.V_min, fam.c3, fam.igam
     delta = energy - vmin
     r1, r2 = tp_starts(rc, a, delta, c3, igam)
     for _ in range(TP_STEPS):
-        r1, d1 = tp_step(r1, rc, fam[5], a, delta)
-        r2, d2 = tp_step(r2, rc, fam[5], a, delta)
+        r1, d1 = tp_step(r1, rc, fam.C, a, delta)
+        r2, d2 = tp_step(r2, rc, fam.C, a, delta)
     assert tp_accept(r1, d1, rc, True) and not tp_accept(r2, d2, rc, False)
     got, vals, _ = _check_against_oracle(alpha, energy, h, Lz, M=M, g=g, k=k)
     assert got[2] / got[1] > 1e10

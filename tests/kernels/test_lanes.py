@@ -16,9 +16,9 @@ from engine.kernels.lanes import integrate_points_lanes
 from engine.kernels.lanes_step import LANES, lanes_attempt, layout
 from engine.kernels.model import RIM, SLIP_CHECK, coefficients
 from engine.kernels.orbit import (
-    _reduce,
     initial_state,
     orbit_start,
+    reduce_period,
     solve,
     tolerance_scales,
 )
@@ -79,7 +79,7 @@ def scalar(alpha, energy, h, Lz, scene, method, rtol=RTOL, max_steps=10**6, n_ap
                 math.inf, n_apsides, max_steps, RECORD_NONE, 0.0, ev_t, ev_kind, ev_y, tr_t, tr_y,
                 tr_rate)  # fmt: skip
         res = call_specialized(solve, args, (0, 1))
-        out = _reduce(eff, p, y0, res, ev_t, ev_kind, ev_y)
+        out = reduce_period(eff, p, y0, res, ev_t, ev_kind, ev_y)
         if n_apsides == 1:  # half a period: T = twice the time to r_max
             out = (res[0], math.nan, math.nan, math.nan, res[1], math.nan, math.nan)
             if res[0] == OK and (res[5] < 1 or ev_kind[0] != APOCENTRE):

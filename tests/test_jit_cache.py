@@ -1,0 +1,64 @@
+"""The compile cache (engine/_jit.py) is keyed per entry point on what it compiles: two installs
+of the same source at different paths share it; a docstring, a moved line or a change in a
+kernel the entry point does not call keeps it; a change in a kernel it calls does not."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PKG = ROOT / "engine"
+
+#: Compile (or load) model.coefficients, which calls model.coefficients_sc; print (hits, misses).
+PROBE = """
+from engine.kernels import model
+A, B, C = model.coefficients(0.5, 1.0, 1.0, 1.0, 9.81, 0.4)
+st = model.coefficients.stats
+print(sum(st.cache_hits.values()), sum(st.cache_misses.values()), repr(C))
+"""
+
+
+def _copy(dest: Path) -> Path:
+    shutil.copytree(PKG, dest / "engine", ignore=shutil.ignore_patterns("__pycache__"))
+    return dest / "engine" / "kernels" / "model.py"
+
+
+def _probe(where: Path, cache: Path) -> tuple[int, int, str]:
+    env = dict(os.environ, PYTHONPATH=str(where), CONESURVEY_CACHE_DIR=str(cache))
+    env.pop("CONESURVEY_NO_CACHE", None)
+    res = subprocess.run(
+        [sys.executable, "-c", PROBE], env=env, cwd=where, capture_output=True, text=True
+    )
+    assert res.returncode == 0, res.stderr[-3000:]
+    hits, misses, c = res.stdout.split()
+    return int(hits), int(misses), c
+
+
+def _edit(path: Path, old: str, new: str) -> None:
+    src = path.read_text()
+    assert src.count(old) == 1, old
+    path.write_text(src.replace(old, new))
+
+
+def test_cache_is_shared_by_content_and_keyed_on_what_an_entry_point_compiles(tmp_path):
+    cache = tmp_path / "cache"
+    a, b = tmp_path / "a", tmp_path / "site-packages"
+    _copy(a)
+    model_b = _copy(b)
+    assert _probe(a, cache)[:2] == (0, 1)  # compiled
+    assert _probe(b, cache)[:2] == (1, 0)  # the same source installed elsewhere: loaded
+    # A docstring of the callee, a line moved (every line below shifts) and an unrelated kernel.
+    _edit(model_b, "(arithmetic only).", "(arithmetic only; edited).")
+    _edit(model_b, "\nimport math\n", "\n# a comment\n\nimport math\n")
+    _edit(model_b, "return A / (r * r) + B / r + C * r", "return A / (r * r) + B / r + r * C")
+    assert _probe(b, cache)[:2] == (1, 0)
+    # The callee's code: the caller is compiled again, and computes the new formula.
+    old = _probe(b, cache)[2]
+    _edit(model_b, "    C = M * g * c / (1.0 + k)", "    C = 2.0 * M * g * c / (1.0 + k)")
+    hits, misses, new = _probe(b, cache)
+    assert (hits, misses) == (0, 1)
+    assert float(new) == 2.0 * float(old)
