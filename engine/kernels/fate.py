@@ -26,6 +26,7 @@ from numba import literally, prange
 from .._jit import kernel, parallel_kernel
 from .effects import DISSIPATIVE
 from .model import (
+    P_COT,
     P_CRR,
     P_G,
     P_GC,
@@ -38,7 +39,6 @@ from .model import (
     ROLLING_RESISTANCE,
     SLIP_CHECK,
     dissipated_power,
-    holds_at_rest,
     invariants,
     kinetic_energy,
     motion_rates,
@@ -86,6 +86,13 @@ def _fate_of_status(status):
     if status == AT_VERTEX:
         return FATE_VERTEX
     return FAILED
+
+
+@kernel
+def holds_at_rest(p):
+    """Whether rolling resistance can hold a sphere at rest on this cone's slope: the slope's
+    pull g cos(alpha) against the most the resistance gives, c_rr N = c_rr M g sin(alpha)."""
+    return p[P_COT] <= p[P_CRR]
 
 
 @kernel

@@ -210,16 +210,15 @@ def motion_rates(r, u, v, w, p, effects):
     udot = v * vir + p[P_KK] * kappa * v * w - p[P_GC]
     vdot = -u * vir
     if effects & ROLLING_RESISTANCE:
-        # A force c_rr N opposing the CM velocity (u, v); at zero speed, the pull (static).
+        # A force c_rr N opposing the CM velocity (u, v).
         speed = math.sqrt(u * u + v * v)
         N = p[P_M] * (p[P_G] * p[P_SIN] + v * vir * p[P_COT])
         f = p[P_CRR] * N * p[P_INV_M1K]
         if speed > 0.0:
             udot -= f * u / speed
             vdot -= f * v / speed
-        else:
-            pull = math.sqrt(udot * udot + vdot * vdot)
-            held = min(f, pull) / pull if pull > 0.0 else 0.0
+        else:  # at rest: it opposes the pull, up to f
+            held = min(f / max(math.sqrt(udot * udot + vdot * vdot), 1e-300), 1.0)
             udot -= held * udot
             vdot -= held * vdot
     return u, vir / p[P_SIN], udot, vdot, -kappa * u * v
@@ -329,8 +328,8 @@ def slip_margin(y, p, effects):
 
     F is the whole friction force at the contact. With rolling resistance (a couple c_rr N a
     opposing the rolling) it adds -c_rr N/(1+k) along the velocity (u, v) to the conservative
-    part F e1 (docs/physics.md "Effects beyond the ideal cone"); at zero speed, what holds the
-    sphere against the pull down the generatrix, up to c_rr N/(1+k) (:func:`motion_rates`)."""
+    part F e1 (docs/physics.md "Effects beyond the ideal cone"); at zero speed, up to c_rr N/(1+k)
+    against the pull (:func:`motion_rates`)."""
     F, N = forces(y, p)
     if effects & ROLLING_RESISTANCE:
         u = y[2]
@@ -356,13 +355,6 @@ def rim_margin(y, p):
 def invariants(y, p):
     """(E [J], L_z [kg m^2/s], h [m/s]) of the state y (:func:`invariants_of`)."""
     return invariants_of(y[0], y[2], y[3], y[4], p[P_SIN], p[P_COS], p[P_M], p[P_G], p[P_K])
-
-
-@kernel
-def holds_at_rest(p):
-    """Whether rolling resistance can hold a sphere at rest on this cone's slope: the slope's
-    pull g cos(alpha) against the most the resistance gives, c_rr N = c_rr M g sin(alpha)."""
-    return p[P_COT] <= p[P_CRR]
 
 
 @kernel
