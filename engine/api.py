@@ -176,7 +176,9 @@ def evaluate(
         dims = das[0].dims
         arrays = [np.asarray(d.transpose(*dims).values, np.float64) for d in das]
     else:
-        arrays = list(np.broadcast_arrays(*[np.asarray(v, np.float64) for v in inputs.values()]))
+        # Copies, not broadcast views: numba warns (FutureWarning) when handed a broadcast view.
+        views = np.broadcast_arrays(*[np.asarray(v, np.float64) for v in inputs.values()])
+        arrays = [np.array(a) for a in views]
         dims = tuple(f"dim_{i}" for i in range(arrays[0].ndim))
     validate_inputs(*arrays)
     shape = arrays[0].shape
@@ -206,7 +208,8 @@ def minimum_energy(alpha: Any, h: Any, Lz: Any, scene: Scene | None = None) -> n
     scene = Scene() if scene is None else scene
     for name, value in (("alpha", alpha), ("h", h), ("Lz", Lz)):
         _check_numeric(name, value)
-    a, hh, lz = np.broadcast_arrays(*[np.asarray(v, np.float64) for v in (alpha, h, Lz)])
+    views = np.broadcast_arrays(*[np.asarray(v, np.float64) for v in (alpha, h, Lz)])
+    a, hh, lz = (np.array(x) for x in views)  # copies: numba warns on broadcast views
     validate_inputs(a, 0.0, hh, lz)
     flat = (np.ascontiguousarray(x).reshape(-1) for x in (a, hh, lz))
     return minimum_energy_flat(*flat, scene).reshape(a.shape)

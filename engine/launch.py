@@ -29,7 +29,7 @@ def _arrays(names: tuple[str, ...], values: tuple[Any, ...]) -> list[np.ndarray]
         if bad.any():
             raise ValueError(f"{name} must be finite; got {arr[bad].flat[0]!r}")
         out.append(arr)
-    return list(np.broadcast_arrays(*out))
+    return [np.array(a) for a in np.broadcast_arrays(*out)]  # copies: numba warns on views
 
 
 def _check_cone(alpha: np.ndarray, r: np.ndarray) -> None:

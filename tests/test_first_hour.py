@@ -398,3 +398,16 @@ def test_the_cf_checker_test_raises_no_warning():
     )  # fmt: skip
     assert done.returncode == 0, done.stdout[-3000:]
     assert "1 passed" in done.stdout and "warning" not in done.stdout, done.stdout[-3000:]
+
+
+def test_broadcast_arguments_raise_no_warning():
+    """evaluate, minimum_energy and invariants broadcast their arguments; numba warned
+    (FutureWarning) on every call that handed it a broadcast view."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for n in (1, 2):  # one point: a broadcast view numpy calls contiguous
+            engine.evaluate(0.5, [20.0] * n, 1.0, 0.8)
+            engine.minimum_energy(0.5, [1.0] * n, 0.8)
+            engine.invariants(0.5, [1.0] * n, 0.0, 1.0, 0.0)
