@@ -246,7 +246,12 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--rtol", type=float, default=1e-10)
     ap.add_argument("--threads", type=int, default=1, help="numba threads (1: least noise)")
+    ap.add_argument(
+        "--tiny", action="store_true", help="a seconds-long smoke run (tests/test_scripts.py)"
+    )
     args = ap.parse_args()
+    if args.tiny:
+        args.points, args.repeats = 40, 1
     numba.set_num_threads(args.threads)
     # One thread: the CPU time of the calling thread (it runs the kernel), robust to the other
     # work of a shared machine; more threads: wall time.

@@ -292,7 +292,12 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
     parser.add_argument("-r", "--rounds", type=int, default=3, help="interleaved rounds (3)")
     parser.add_argument("--no-compile", action="store_true", help="skip the compile-time probe")
     parser.add_argument("--doc", action="store_true", help="rewrite docs/performance.md's table")
+    parser.add_argument(
+        "--tiny", action="store_true", help="a seconds-long smoke run (tests/test_scripts.py)"
+    )
     args = parser.parse_args(argv)
+    if args.tiny:
+        args.n, args.rounds, args.no_compile, args.doc = 2000, 1, True, False
     import scipy
 
     t_start = time.perf_counter()

@@ -46,7 +46,12 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", type=int, default=400)
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument(
+        "--tiny", action="store_true", help="a seconds-long smoke run (tests/test_scripts.py)"
+    )
     args = ap.parse_args()
+    if args.tiny:
+        args.points, args.repeats = 16, 1
     pts = sample(args.points)
     fate_scene = engine.Scene(c_rr=0.02, rim=4.0)
 

@@ -440,7 +440,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--doc", action="store_true", help="rewrite docs/performance.md's table")
     parser.add_argument("--compile", action="store_true", help="time the first call, cold/cached")
+    parser.add_argument(
+        "--tiny", action="store_true", help="a seconds-long smoke run (tests/test_scripts.py)"
+    )
     args = parser.parse_args(argv)
+    if args.tiny:
+        args.n, args.rounds, args.min_time, args.doc, args.compile = 2, 1, 0.0, False, False
     import scipy
 
     hy_version = peers.heyoka_version()
@@ -462,7 +467,7 @@ def main(argv: list[str] | None = None) -> int:
     kern = EngineKernel(o, "dop853", r853)
     kern()
     prof = {"steps": float(np.mean(kern.steps)), "step": step_cost("dop853", r853)}
-    thr = two_threads(max(args.n, 2000), r853, args.rounds, args.min_time)
+    thr = two_threads(args.n if args.tiny else max(args.n, 2000), r853, args.rounds, args.min_time)
     gl = goals(rows, thr, tol, hy)
     print_report(o, rows, thr, tol, gl, prof, hy)
     compiled = None

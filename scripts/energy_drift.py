@@ -24,7 +24,12 @@ def main() -> None:
     ap.add_argument("--out", default="docs/figures/energy_drift.png", help="PNG to write")
     ap.add_argument("--periods", type=int, default=10_000, help="radial periods (default 1e4)")
     ap.add_argument("--rtol", type=float, default=1e-8, help="integrator tolerance")
+    ap.add_argument(
+        "--tiny", action="store_true", help="a seconds-long smoke run (tests/test_scripts.py)"
+    )
     args = ap.parse_args()
+    if args.tiny:
+        args.periods = 20
 
     import matplotlib
 

@@ -17,6 +17,7 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from figure_cli import TINY_HELP, shrunk  # noqa: E402
 from figure_cli import conesurvey as _cli  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -25,12 +26,20 @@ ROOT = Path(__file__).resolve().parents[1]
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "figures")
-    out = parser.parse_args().out
+    parser.add_argument("--tiny", action="store_true", help=TINY_HELP)
+    args = parser.parse_args()
+    out = args.out
     with tempfile.TemporaryDirectory() as tmp:
         fate = Path(tmp) / "fate.nc"
         slip = Path(tmp) / "slip.nc"
-        _cli("run", ROOT / "surveys" / "fate_rolling_resistance.toml", "-o", fate, "-q")
-        _cli("run", ROOT / "surveys" / "slip_map.toml", "-o", slip, "-q")
+        surveys = [
+            ROOT / "surveys" / "fate_rolling_resistance.toml",
+            ROOT / "surveys" / "slip_map.toml",
+        ]
+        if args.tiny:
+            surveys = [shrunk(s, Path(tmp)) for s in surveys]
+        _cli("run", surveys[0], "-o", fate, "-q")
+        _cli("run", surveys[1], "-o", slip, "-q")
         common = ("--x", "v0", "--y", "r0", "--facet", "alpha", "--overwrite")
         _cli("plot", fate, "fate", *common, "-o", out / "fate_map.png")
         _cli("plot", fate, "fate_time", *common, "-o", out / "fate_time.png")

@@ -3,9 +3,13 @@ script naming the command and its exit status)."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from engine import cli
+
+#: The help of every script's --tiny flag.
+TINY_HELP = "a seconds-long smoke run (tests/test_scripts.py)"
 
 
 def conesurvey(*args: str | Path) -> None:
@@ -13,3 +17,11 @@ def conesurvey(*args: str | Path) -> None:
     status = cli.main([str(a) for a in args])
     if status != 0:
         raise SystemExit(f"conesurvey {args[0]} failed with status {status}")
+
+
+def shrunk(survey: Path, dest: Path, num: int = 3) -> Path:
+    """A copy of ``survey`` in the folder ``dest`` with every ranged axis cut to ``num`` values
+    (the scripts' --tiny runs)."""
+    out = dest / survey.name
+    out.write_text(re.sub(r"(?m)^num\s*=\s*\d+", f"num = {num}", survey.read_text()))
+    return out

@@ -422,7 +422,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("docs/figures"), help="output folder")
     parser.add_argument("--dpi", type=int, default=DPI, help="resolution (default %(default)s)")
     parser.add_argument("--only", nargs="+", choices=sorted(FIGURES), help="figures to draw")
+    parser.add_argument(
+        "--tiny", action="store_true", help="a seconds-long smoke run (tests/test_scripts.py)"
+    )
     args = parser.parse_args(argv)
+    if args.tiny:
+        args.dpi = 20
     args.out.mkdir(parents=True, exist_ok=True)
     for name in args.only or FIGURES:
         FIGURES[name](args.out, args.dpi)

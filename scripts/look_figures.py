@@ -20,6 +20,7 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from figure_cli import TINY_HELP, shrunk  # noqa: E402
 from figure_cli import conesurvey as _cli  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -36,16 +37,21 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "figures")
     parser.add_argument("--width", type=int, default=1200, help="browser window [px]")
     parser.add_argument("--height", type=int, default=1500, help="screenshot height [px]")
+    parser.add_argument("--tiny", action="store_true", help=TINY_HELP)
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="conesurvey-look-") as tmp:
         work = Path(tmp)
         nc = work / "gravity_precession.nc"
-        _cli("run", SURVEY, "-o", nc, "-q")
+        _cli("run", shrunk(SURVEY, work) if args.tiny else SURVEY, "-o", nc, "-q")
         plot = args.out / "plot_precession.png"
         _cli("plot", nc, "precession_rate", "--facet", "alpha", "-o", plot, "--overwrite")
         page = work / "report.html"
         _cli("report", nc, "-o", page)
         shot = work / "report.png"
+        if not Path(CHROMIUM).exists():
+            print(f"wrote {plot} and {page.stat().st_size:,} B of report; no {CHROMIUM}: the "
+                  "report's screenshot is not taken")  # fmt: skip
+            return
         subprocess.run(
             [
                 CHROMIUM,

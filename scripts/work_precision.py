@@ -1040,7 +1040,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=ROOT / "data" / "work_precision.nc")
     parser.add_argument("--png", type=Path, default=ROOT / "docs/figures/work_precision.png")
     parser.add_argument("--quick", action="store_true", help="reduced sets (< 1 min)")
+    parser.add_argument(
+        "--tiny", action="store_true", help="a seconds-long smoke run (tests/test_scripts.py)"
+    )
     args = parser.parse_args(argv)
+    args.quick = args.quick or args.tiny
     t_start = time.perf_counter()
     meta = machine_info()
     print(f"machine: {meta['machine']}")

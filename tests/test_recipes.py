@@ -17,12 +17,9 @@ import sys
 import textwrap
 from pathlib import Path
 
-import pytest
-
 ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "engine"
 
-pytestmark = pytest.mark.slow
 
 #: The recipe: the effect's row in the effects table.
 ROW = """

@@ -15,8 +15,12 @@ name the holder. What this relies on (README, "Guarantees"):
   meanwhile removed (its inode is no longer the path's) drops it and tries again, so two runs
   never both hold "the" lock.
 
-Only the process that runs the survey writes files (dask workers compute and send results back),
-so the lock needs to work where the client runs, on the output's directory.
+The process that runs the survey holds the lock and alone creates, journals, merges, renames and
+removes files. Dask workers write only into a Zarr run: each writes the chunk files of the
+blocks it computed into the unfinished store that the lock holder created (a netCDF run's
+workers send their results back instead); a block counts once its receipt reaches the lock
+holder's journal. So the lock needs to work where the client runs, on the output's directory,
+and a worker needs the store's file system, not the lock.
 """
 
 from __future__ import annotations
