@@ -93,6 +93,8 @@ METHODS: dict[str, Method] = {
                 "the closed form describes lossless orbits; a fate map integrates the resistance",
             ),
             ("attitude", "the closed form does not follow the sphere's orientation"),
+            ("sliding", "the closed form describes rolling without slipping"),
+            ("spin_friction", "the closed form describes lossless orbits"),
         ),
     ),
     **{tb.name: _rk_row(i) for i, tb in enumerate(RK_TABLEAUX)},
@@ -105,6 +107,10 @@ METHODS: dict[str, Method] = {
             (name, _SYMPLECTIC_REASONS[name])
             for name, bit in EFFECT_BITS.items()
             if bit & _SYMPLECTIC_UNSUPPORTED
+        )
+        + (
+            ("sliding", "a sliding sphere is not a conservative rolling orbit"),
+            ("spin_friction", "it integrates the conservative radial Hamiltonian"),
         ),
     ),
 }

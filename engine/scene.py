@@ -45,6 +45,11 @@ class Scene:
     mu : friction coefficient for the slip check, > 0; None = no slip check.
     c_rr : rolling-resistance coefficient, >= 0 (0 = none).
     attitude : integrate the sphere's orientation (a unit quaternion) in simulations.
+    mu_k : kinetic friction coefficient, 0 < mu_k <= mu (needs ``mu`` and k > 0); None = a slip
+        ends the run (``slipped``). Naming it turns the slip into a transition: the sphere
+        slides, and may roll again (docs/physics.md "Sliding, rolling again, and spin friction").
+    c_spin : spin-friction coefficient, >= 0 (0 = none): a couple c_spin a N against the spin
+        about the contact normal, while rolling and while sliding (needs ``mu_k``).
     """
 
     M: float = 1.0
@@ -55,6 +60,8 @@ class Scene:
     mu: float | None = None
     c_rr: float = 0.0
     attitude: bool = False
+    mu_k: float | None = None
+    c_spin: float = 0.0
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -69,6 +76,30 @@ class Scene:
         set_(self, "c_rr", _check_positive("c_rr", self.c_rr, allow_zero=True))
         if not isinstance(self.attitude, bool):
             raise ValueError(f"Scene.attitude must be true or false, got {self.attitude!r}")
+        set_(self, "c_spin", _check_positive("c_spin", self.c_spin, allow_zero=True))
+        if self.mu_k is not None:
+            set_(self, "mu_k", _check_positive("mu_k", self.mu_k))
+            if self.mu is None:
+                raise ValueError(
+                    f"Scene.mu_k = {self.mu_k!r} needs the static coefficient Scene.mu (mu_k <= mu)"
+                )
+            if self.mu_k > self.mu:
+                raise ValueError(
+                    f"Scene.mu_k must be <= Scene.mu (kinetic friction does not exceed static "
+                    f"friction), got mu_k = {self.mu_k!r} > mu = {self.mu!r}"
+                )
+            if self.k == 0:
+                raise ValueError(
+                    "Scene.mu_k needs k > 0: a sliding sphere's rotation is followed, and a "
+                    "body with k = 0 has none"
+                )
+            if self.attitude:
+                raise ValueError("Scene.mu_k cannot be combined with attitude = true (yet)")
+        if self.c_spin > 0 and self.mu_k is None:
+            raise ValueError(
+                f"Scene.c_spin = {self.c_spin!r} needs Scene.mu_k (spin friction is part of "
+                "the sliding model)"
+            )
 
     @property
     def effects(self) -> tuple[str, ...]:
@@ -82,6 +113,10 @@ class Scene:
             on.append("slip_check")
         if self.attitude:
             on.append("attitude")
+        if self.mu_k is not None:
+            on.append("sliding")
+        if self.c_spin > 0:
+            on.append("spin_friction")
         return tuple(on)
 
     @property

@@ -45,6 +45,9 @@ N_HYBRID = 10
 #: Modes.
 MODE_ROLLING = 0
 MODE_SLIDING = 1
+#: Relative band of the spin stick: the spin stays stuck while the couple it needs is at most
+#: c_spin N (1 + SPIN_BAND).
+SPIN_BAND = 1e-9
 
 
 @kernel
@@ -67,7 +70,9 @@ def normal_force(r, v, hp):
 @kernel
 def couples(p1, p2, w, N, stuck, hold, hp):
     """(T1/a, T2/a, T3/a) [N]: rolling resistance against (p1, p2) and spin friction against w,
-    in (e1, e2, nu). With ``stuck`` the spin couple is ``hold`` (what keeps w = 0)."""
+    in (e1, e2, nu). ``hold`` is the spin couple that keeps w = 0 (:func:`spin_hold`): with
+    ``stuck`` it is the couple; at w = 0 otherwise the couple is static Coulomb friction, hold
+    clamped to c_spin N (so a spin leaving zero meets the full couple at once)."""
     t1 = 0.0
     t2 = 0.0
     pt = math.sqrt(p1 * p1 + p2 * p2)
@@ -75,14 +80,15 @@ def couples(p1, p2, w, N, stuck, hold, hp):
         f = hp[P_CRR] * N / pt
         t1 = -f * p1
         t2 = -f * p2
+    cs = hp[H_C_SPIN] * N
     if stuck:
         t3 = hold
     elif w > 0.0:
-        t3 = -hp[H_C_SPIN] * N
+        t3 = -cs
     elif w < 0.0:
-        t3 = hp[H_C_SPIN] * N
+        t3 = cs
     else:
-        t3 = 0.0
+        t3 = min(max(hold, -cs), cs)
     return t1, t2, t3
 
 
@@ -147,7 +153,7 @@ def rolling_rates(r, u, v, w, stuck, hp):
     ir = 1.0 / r
     kappa = hp[P_COT] * ir
     N = normal_force(r, v, hp)
-    t1, t2, t3 = couples(-v, u, w, N, stuck, 0.0, hp)
+    t1, t2, t3 = couples(-v, u, w, N, stuck, spin_hold(r, v, u, hp), hp)
     udot = v * v * ir + k / (1.0 + k) * kappa * v * w - hp[P_G] * hp[P_COS] / (1.0 + k)
     udot += t2 / (M * (1.0 + k))
     vdot = -u * v * ir - t1 / (M * (1.0 + k))
@@ -208,8 +214,11 @@ def hold_margin(y, hp):
 
 @kernel
 def spin_hold_margin(y, hp):
-    """|couple that holds w = 0| - c_spin N [N] (> 0: the spin cannot stay stuck)."""
-    return abs(spin_hold(y[0], y[3], y[5], hp)) - hp[H_C_SPIN] * normal_force(y[0], y[3], hp)
+    """|couple that holds w = 0| - c_spin N (1 + :data:`SPIN_BAND`) [N] (> 0: the spin cannot
+    stay stuck). The band keeps a spin whose needed couple grazes the limit from sticking and
+    unsticking without end (docs/physics.md "Spin stick")."""
+    cs = hp[H_C_SPIN] * normal_force(y[0], y[3], hp)
+    return abs(spin_hold(y[0], y[3], y[5], hp)) - cs * (1.0 + SPIN_BAND)
 
 
 @kernel
