@@ -32,6 +32,8 @@ from .fate import (
     fate_run,
 )
 from .hybrid_step import (
+    ARMED_ROLL,
+    ARMED_SPIN,
     EV_REST,
     EV_RIM,
     EV_SLIP,
@@ -157,7 +159,7 @@ def hybrid_fate_of(method, effects, spin, p, mu_k, c_spin, energy, h, Lz, r_star
         scale = max(abs(E0), E0 - hybrid_energy(y[0], 0.0, 0.0, 0.0, 0.0, 0.0, hp))
     episodes = 1 if mode == MODE_SLIDING else 0
     stuck = spin == 1 and y[6] == 0.0 and spin_hold_margin(y, hp) <= 0.0
-    armed = False
+    armed = 0
     t = 0.0
     steps = 0
     n_ev = 0
@@ -226,7 +228,7 @@ def hybrid_fate_of(method, effects, spin, p, mu_k, c_spin, energy, h, Lz, r_star
             n_ev = push_event(ev_t, ev_kind, ev_y, n_ev, t, EV_SLIP, y)
             mode = MODE_SLIDING
             episodes += 1
-            armed = False
+            armed &= ARMED_SPIN
             continue
         end, t, st, dt, armed = segment(method, y, hp, mode, stuck, armed, t, t_horizon, rtol,
                                         hatol, max_steps - steps, K, ytmp, ynew, yev)  # fmt: skip
@@ -251,7 +253,7 @@ def hybrid_fate_of(method, effects, spin, p, mu_k, c_spin, energy, h, Lz, r_star
         if end == EV_SLIP:
             mode = MODE_SLIDING
             episodes += 1
-            armed = False
+            armed &= ARMED_SPIN
         elif end == EV_STICK:
             yt = y.copy()
             stick(yt, hp)
@@ -260,15 +262,16 @@ def hybrid_fate_of(method, effects, spin, p, mu_k, c_spin, energy, h, Lz, r_star
                 ev_y_stick(ev_y, n_ev - 1, y)
                 mode = MODE_ROLLING
                 fe, fh, fl = rolling_invariants(y, hp)
-            armed = False
-        elif end == EV_SPIN_STOP:
+            armed &= ARMED_SPIN
+        elif end == EV_SPIN_STOP:  # |w| down to the threshold: the rest of it to spin friction
+            y[9] += 0.5 * hp[P_K] * M * y[6] * y[6]
             y[6] = 0.0
             stuck = spin_hold_margin(y, hp) <= 0.0
-            if not stuck:
-                release_spin(y, hp)
+            armed &= ARMED_ROLL
         elif end == EV_SPIN_GO:
             stuck = False
             release_spin(y, hp)
+            armed &= ARMED_ROLL
         elif end == EV_REST:
             if holds_at_rest(p):
                 fate = FATE_REST

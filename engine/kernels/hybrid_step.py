@@ -57,6 +57,10 @@ EV_REST = 7
 N_EVENTS = 8
 HYBRID_EVENT_NAMES = ("spill", "vertex", "horizon", "slip", "roll", "spin_stop", "spin_go",
                       "rest")  # fmt: skip
+#: Bits of ``armed``: the return to rolling (the slip speed has exceeded twice the threshold
+#: since the last switch) and the spin's stop (|w| has, since the last stop or release).
+ARMED_ROLL = 1
+ARMED_SPIN = 2
 #: Largest number of function evaluations (re-steps) to locate one event.
 LOCATE_ITERATIONS = 60
 
@@ -108,13 +112,13 @@ def event_value(kind, y, hp, mode, stuck, armed, ref):
     if kind == EV_SLIP:
         return hold_margin(y, hp) if mode == MODE_ROLLING and hp[P_MU] < math.inf else off
     if kind == EV_STICK:
-        if mode != MODE_SLIDING or not armed:
+        if mode != MODE_SLIDING or not armed & ARMED_ROLL:
             return off
         return hp[P_V_REST] - ((y[2] - y[5]) * sd1 + (y[3] + y[4]) * sd2)
     if kind == EV_SPIN_STOP:
-        if stuck or hp[H_C_SPIN] == 0.0 or w_sign == 0.0:
+        if stuck or hp[H_C_SPIN] == 0.0 or w_sign == 0.0 or not armed & ARMED_SPIN:
             return off
-        return -w_sign * y[6]
+        return hp[P_V_REST] - w_sign * y[6]
     if kind == EV_SPIN_GO:
         return spin_hold_margin(y, hp) if stuck else off
     if kind == EV_REST:
@@ -263,8 +267,10 @@ def segment(method, y, hp, mode, stuck, armed, t, t_end, rtol, atol, max_steps, 
             if not math.isfinite(y[j]):
                 return SEG_FAILED, t, steps, t - t0, armed
         t += h_try
-        if mode == MODE_SLIDING and not armed and slip_speed(y) > 2.0 * hp[P_V_REST]:
-            armed = True
+        if mode == MODE_SLIDING and slip_speed(y) > 2.0 * hp[P_V_REST]:
+            armed |= ARMED_ROLL
+        if not stuck and abs(y[6]) > 2.0 * hp[P_V_REST]:
+            armed |= ARMED_SPIN
         if t >= t_end:
             return SEG_TIME, t, steps, t - t0, armed
         h = h_next
