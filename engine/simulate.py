@@ -10,7 +10,7 @@ import xarray as xr
 
 from ._jit import call_specialized
 from ._version import __version__
-from .kernels.fate import REST_SPEED
+from .kernels.fate import REST_SPEED, come_to_rest
 from .kernels.geometry import BOUNDED, CIRCULAR, CIRCULAR_TOL, CLASS_NAMES, HYPERBOLIC, ideal_orbit
 from .kernels.model import (
     ATTITUDE,
@@ -19,7 +19,6 @@ from .kernels.model import (
     coefficients,
     contact_forces_of,
     contact_velocity,
-    holds_at_rest,
     invariants,
     invariants_of,
 )
@@ -28,10 +27,15 @@ from .kernels.protocol import (
     APOCENTRE,
     BUFFER_FULL,
     FAILURE,
+    HORIZON,
     NORMAL_ENDS,
+    OK,
     RECORD_EVERY_DT,
+    RECORD_NONE,
     RECORD_STEPS,
     RESTED,
+    SLIP,
+    SLIPPED,
     STATUS_MESSAGES,
 )
 from .kernels.roots import free_fall_r_min
@@ -137,12 +141,14 @@ def simulate(
     event_r, event_theta; kinds pericentre, apocentre, spill, slip, rest, vertex, horizon,
     failed). Attributes hold the inputs, the scene, the initial invariants and the exit status.
 
-    A trajectory ends, it does not crash: spilling over the rim, slipping, coming to rest and
-    reaching the vertex region end the run as events with their status; a failed integration
-    (step budget, step size underflow, non-finite state) returns the trajectory up to the
-    failure, an event "failed" there, and the status saying why. With rolling resistance a
-    sphere that stops stays at rest if the resistance can hold it on the slope, and otherwise
-    starts again from rest (docs/physics.md "Effects beyond the ideal cone").
+    A trajectory ends, it does not crash, and its last event says where: spilling over the
+    rim, slipping, coming to rest and entering the vertex region end the run as events with
+    their status; a run to ``t_end`` ends with the event "horizon" there, one of ``periods``
+    on its last apsis; a failed integration (step budget, step size underflow, non-finite
+    state) returns the trajectory up to the failure, an event "failed" there, and the status
+    saying why. With rolling resistance a sphere that stops stays at rest if the resistance
+    can hold it on the slope and friction can too (else it slips there), and otherwise starts
+    again from rest (docs/physics.md "Effects beyond the ideal cone").
 
     Raises
     ------
@@ -191,9 +197,9 @@ def simulate(
     run.capacities(*_capacities(alpha, energy, h, Lz, scene, t_end, periods, dt_out))
     t_stop = math.inf if t_end is None else t_end
     record = RECORD_STEPS if dt_out is None else RECORD_EVERY_DT
-    status = run.follow(y0, t_stop, n_apsides, record, dt_out or 0.0, bool(holds_at_rest(p)))
+    status = run.follow(y0, t_stop, n_apsides, record, dt_out or 0.0)
     return _dataset(scene, effects, p, method, rtol, alpha, energy, h, Lz, cls_name, y0, status,
-                    run)  # fmt: skip
+                    run, periods is None)  # fmt: skip
 
 
 class _Run:
@@ -205,6 +211,7 @@ class _Run:
         self.max_steps = max_steps
         self.n_acc = self.n_rej = 0
         self.t_final = 0.0
+        self.y_final = np.empty(0)
         self.tr: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         self.ev: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
 
@@ -227,8 +234,10 @@ class _Run:
             self.cap_ev *= 4 if int(res[5]) == self.cap_ev else 1
             self.cap_tr *= 4 if int(res[6]) == self.cap_tr else 1
 
-    def follow(self, y0, t_stop, n_apsides, record, dt_out, holds) -> int:
-        """Integrate to the end; returns the final status."""
+    def follow(self, y0, t_stop, n_apsides, record, dt_out) -> int:
+        """Integrate to the end; returns the final status. A stop is carried from the rest
+        threshold to zero speed (:func:`.kernels.fate.come_to_rest`): the rest event and the
+        last recorded state move there."""
         t0 = 0.0
         y = y0
         while True:
@@ -240,12 +249,27 @@ class _Run:
             self.tr.append((tr[0][first:n_tr] + t0, tr[1][first:n_tr], tr[2][first:n_tr]))
             self.ev.append((ev[0][:n_ev] + t0, ev[1][:n_ev], ev[2][:n_ev]))
             self.t_final = t0 + float(res[3])
+            self.y_final = np.array(res[4], copy=True)
             if n_apsides > 0:
                 n_apsides -= int(np.count_nonzero(ev[1][:n_ev] <= APOCENTRE))
-            if status != RESTED or holds:
+            if status != RESTED:
                 return status
             y = np.array(res[4], copy=True)
-            y[2] = y[3] = 0.0
+            dt, at_rest = come_to_rest(y, self.args[3], self.args[1])
+            self.t_final += dt
+            ev_t, ev_kind, ev_y = self.ev[-1]
+            ev_t[-1] = self.t_final
+            ev_y[-1] = y
+            self.y_final = y
+            if record != RECORD_NONE:
+                t_tr, y_tr, rate_tr = self.tr[-1]
+                self.tr[-1] = (np.append(t_tr, self.t_final), np.vstack([y_tr, y]),
+                               np.vstack([rate_tr, np.zeros_like(rate_tr[:1])]))  # fmt: skip
+            if at_rest == SLIPPED:
+                ev_kind[-1] = SLIP
+                return SLIPPED
+            if at_rest != OK:
+                return status
             t0 = self.t_final
 
     def arrays(self) -> tuple[np.ndarray, ...]:
@@ -255,12 +279,16 @@ class _Run:
 
 
 def _dataset(scene, effects, p, method, rtol, alpha, energy, h, Lz, cls_name, y0, status,
-             run) -> xr.Dataset:  # fmt: skip
+             run, to_time) -> xr.Dataset:  # fmt: skip
     t, Y, rate, ev_t, ev_kind, ev_y = run.arrays()
     if status not in NORMAL_ENDS:  # the run failed: say where, as an event
         ev_t = np.append(ev_t, run.t_final)
         ev_kind = np.append(ev_kind, np.int8(FAILURE))
         ev_y = np.vstack([ev_y, Y[-1:]]) if Y.shape[0] else np.vstack([ev_y, y0[None]])
+    elif status == OK and to_time:  # it ran to t_end: the horizon is where it ended
+        ev_t = np.append(ev_t, run.t_final)
+        ev_kind = np.append(ev_kind, np.int8(HORIZON))
+        ev_y = np.vstack([ev_y, run.y_final[None]])
     M, g, k = scene.M, scene.g, scene.k
     s, c = math.sin(alpha), math.cos(alpha)
     r, th, u, v, w = (Y[:, i] for i in range(5))

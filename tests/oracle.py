@@ -46,7 +46,8 @@ def solve(alpha, calE, h, Lz, M, g, k, circ_tol=1e-12):
     mp.sqrt(1 - c**2 / (1 + k))
     if rc is not None:
         Vmin = A / rc**2 + B / rc + C * rc
-        if abs(calE - Vmin) <= circ_tol * abs(Vmin):
+        terms = A / rc**2 + abs(B) / rc + C * rc  # the size of V_min's terms (docs "Classes")
+        if abs(calE - Vmin) <= circ_tol * terms:
             w_r = mp.sqrt((6 * A / rc**4 + 2 * B / rc**3) / M)
             T = 2 * mp.pi / w_r
             psi = mp.pi * K / rc**2 / w_r

@@ -213,7 +213,9 @@ def test_escaping_free_fall_orbit_runs_with_t_end_only():
     with pytest.raises(ValueError, match="escapes.*give t_end"):
         simulate(c["alpha"], 0.5, c["h"], c["Lz"], sc, periods=1)
     ds = simulate(c["alpha"], 0.5, c["h"], c["Lz"], sc, t_end=10.0)
-    assert ds.attrs["orbit_class"] == "hyperbolic" and ds.sizes["event"] == 0
+    assert ds.attrs["orbit_class"] == "hyperbolic" and ds.sizes["event"] == 1  # the horizon
+    assert ds.event_kind.attrs["flag_meanings"].split()[int(ds.event_kind[0])] == "horizon"
+    assert float(ds.event_time[0]) == 10.0 and float(ds.event_r[0]) == float(ds.r[-1])
     assert np.all(np.diff(ds.r) > 0)
     assert np.abs(ds.E_drift).max() <= 1e-8 * abs(ds.attrs["E0"])
 

@@ -131,7 +131,7 @@ def select_lanes(F, m, g, circ_tol, S):
         vmin = F[9, j]
         delta = e - vmin
         reg = (F[0, j] == 0.0 and F[5, j] > 0.0 and g != 0.0 and delta >= 0.0
-               and not abs(e - vmin) <= circ_tol * abs(vmin))  # fmt: skip
+               and not abs(e - vmin) <= circ_tol * F[12, j])  # fmt: skip
         S[_REG, j] = 1.0 if reg else 0.0
         S[_RC, j] = F[7, j]
         S[_CC, j] = F[5, j]

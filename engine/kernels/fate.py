@@ -1,13 +1,19 @@
 """Fate maps: each orbit integrated from its start to its first terminal event or a horizon.
 
 A fate run follows the run protocol (:func:`.orbit.run`) with the scene's terminal events
-compiled in (the rim, the slip check, and with rolling resistance the stop and the vertex
-region; with a horizon in revolutions, the azimuth), then says what happened
+compiled in (the rim, the slip check, the vertex region, and with rolling resistance the
+stop; with a horizon in revolutions, the azimuth), then says what happened
 (:data:`FATE_NAMES`). Rolling resistance cannot push a sphere at rest backwards: when the
 speed falls to the rest threshold (``P_V_REST``, 10 rtol times the orbit's speed scale) the
+stop is carried on to zero speed at the deceleration there (:func:`come_to_rest`); the
 sphere stays at rest if the resistance can hold it there (cot(alpha) <= c_rr: only on nearly
-flat cones); otherwise it starts again from rest, and rolls down towards the vertex
-(docs/physics.md "Effects beyond the ideal cone").
+flat cones) and friction can too (cot(alpha) <= mu, else it slips); otherwise it starts again
+from rest, and rolls down towards the vertex (docs/physics.md "Effects beyond the ideal cone").
+
+Where a run starts, as the closed form says (:func:`.geometry.scene_end`): an orbit that
+starts beyond the rim has no orbit on this cone; a radial orbit (r_min = 0) leaves the vertex;
+the vertex event is the centre *entering* its region, so an orbit that starts there at its
+r_min leaves it first, and one that starts there moving inward has reached it at t = 0.
 """
 
 from __future__ import annotations
@@ -19,13 +25,24 @@ from numba import literally, prange
 
 from .._jit import kernel, parallel_kernel
 from .model import (
+    P_CRR,
+    P_G,
+    P_GC,
+    P_INV_M1K,
+    P_M,
     P_R_VERTEX,
+    P_RIM,
+    P_SIN,
     P_V_REST,
     ROLLING_RESISTANCE,
+    SLIP_CHECK,
     holds_at_rest,
     invariants,
     kinetic_energy,
+    motion_rates,
+    resistance_power,
     set_alpha,
+    slip_margin,
     state_size,
 )
 from .orbit import initial_state, orbit_start, run, tolerance_scales
@@ -71,17 +88,59 @@ def _fate_of_status(status):
 
 
 @kernel
+def come_to_rest(y, p, effects):
+    """Carry a stop by rolling resistance from the rest threshold to zero speed, in place: the
+    speed falls at the deceleration d|V|/dt of y, so it reaches 0 after dt = |V| / (-d|V|/dt)
+    and the centre moves on by half the distance at constant speed (the error is of order
+    (|V| dt)^2: the threshold squared); the work state takes the power's half too (the
+    attitude is left as it is, a rotation of |V| dt / (2 a) ~ 1e-10 rad). Returns (dt [s],
+    what happens at rest): RESTED if the sphere stays (the resistance holds it and the
+    friction it then needs, the whole slope pull, is within mu N), SLIPPED if friction cannot
+    hold it, OK if the resistance cannot (it starts again from rest)."""
+    u = y[2]
+    v = y[3]
+    speed = math.sqrt(u * u + v * v)
+    dt = 0.0
+    if speed > 0.0:
+        rates = motion_rates(y[0], u, v, y[4], p, effects)
+        decel = -(u * rates[2] + v * rates[3]) / speed
+        dt = speed / decel if decel > 0.0 else 0.0
+        half = 0.5 * dt
+        if effects & ROLLING_RESISTANCE:
+            y[state_size(effects) - 1] += resistance_power(y[0], u, v, p) * half
+        y[0] += u * half
+        y[1] += rates[1] * half
+        y[4] += rates[4] * half
+        y[2] = 0.0
+        y[3] = 0.0
+    if not holds_at_rest(p):
+        return dt, OK
+    if effects & SLIP_CHECK:
+        if slip_margin(y, p, effects) > 0.0:
+            return dt, SLIPPED
+    return dt, RESTED
+
+
+@kernel
 def fate_run(method, effects, p, y0, orbit, rtol, atol, t_horizon, max_steps):
     """Integrate from y0 at t = 0 to the first terminal event or ``t_horizon`` [s].
 
     Returns (fate, t [s], final state, steps taken). A stop by rolling resistance either ends
-    the run (the sphere stays at rest) or restarts it from rest (module docstring).
+    the run (the sphere stays at rest, or slips there) or restarts it from rest (module
+    docstring); a sphere that starts at rest where the resistance holds it stays at t = 0.
     """
     n = y0.shape[0]
     y = y0.copy()
     ev_t, ev_kind, ev_y = event_buffers(4, n)
     t0 = 0.0
     steps = 0
+    if effects & ROLLING_RESISTANCE:
+        if y[2] == 0.0 and y[3] == 0.0:
+            _, at_rest = come_to_rest(y, p, effects)
+            if at_rest == RESTED:
+                return FATE_REST, 0.0, y, steps
+            if at_rest == SLIPPED:
+                return FATE_SLIPPED, 0.0, y, steps
     for _ in range(MAX_RESTARTS):
         res = run(method, effects, y, p, orbit, rtol, atol, t_horizon - t0, np.int64(-1),
                   max_steps - steps, np.int64(RECORD_NONE), 0.0, ev_t, ev_kind, ev_y, ev_t,
@@ -92,10 +151,12 @@ def fate_run(method, effects, p, y0, orbit, rtol, atol, t_horizon, max_steps):
         copy_into(res[4], y)
         if status != RESTED:
             return _fate_of_status(status), t, y, steps
-        if holds_at_rest(p):
+        dt, at_rest = come_to_rest(y, p, effects)
+        t += dt
+        if at_rest == RESTED:
             return FATE_REST, t, y, steps
-        y[2] = 0.0
-        y[3] = 0.0
+        if at_rest == SLIPPED:
+            return FATE_SLIPPED, t, y, steps
         t0 = t
         if steps >= max_steps:
             break
@@ -105,7 +166,8 @@ def fate_run(method, effects, p, y0, orbit, rtol, atol, t_horizon, max_steps):
 @kernel
 def fate_of(method, effects, p, energy, h, Lz, r_start, rtol, t_horizon, max_steps):
     """The fate of the orbit (calE, h, L_z) started at rest radially (u = 0) at ``r_start`` [m]
-    (its r_min, or a launch radius), theta = 0, t = 0.
+    (its r_min, or a launch radius), theta = 0, t = 0; a radial orbit's r_min is the vertex,
+    which it leaves (module docstring).
 
     Returns (fate, time [s], r [m], theta [rad], revolutions, energy lost [J], drift of the
     energy balance E + W_resistance [1], steps).
@@ -113,25 +175,59 @@ def fate_of(method, effects, p, energy, h, Lz, r_start, rtol, t_horizon, max_ste
     nan = math.nan
     if not (r_start >= 0.0 and math.isfinite(energy) and math.isfinite(Lz)):
         return NO_ORBIT, nan, nan, nan, nan, nan, nan, 0
-    if r_start <= p[P_R_VERTEX]:  # through the axis (L_z = 0) or launched at the bottom
-        return FATE_VERTEX, 0.0, r_start, 0.0, 0.0, 0.0, 0.0, 0
+    if r_start > p[P_RIM]:  # beyond the rim: the closed form's off_cone
+        return NO_ORBIT, nan, nan, nan, nan, nan, nan, 0
     ok, r1, r2, rc = orbit_start(p, energy, h, Lz)
     if not ok:
         r1 = r_start
         r2 = math.inf
-    y0 = initial_state(p, effects, r_start, energy, h, Lz)
-    y0[2] = 0.0  # a turning point: the start of a map's orbit, or a launch with u0 = 0
-    sc = tolerance_scales(p, effects, y0, energy, h, Lz, min(r1, r_start), r2, rc)
+    t0 = 0.0
+    work0 = 0.0
+    if r_start == 0.0:  # a radial orbit from the vertex: to the edge of its region
+        y0, t0, work0 = _leave_vertex(p, effects, energy, h)
+        if t0 < 0.0:
+            return FATE_VERTEX, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0
+        r1 = y0[0]
+    else:
+        y0 = initial_state(p, effects, r_start, energy, h, Lz)
+        y0[2] = 0.0  # a turning point: the start of a map's orbit, or a launch with u0 = 0
+        if r_start <= p[P_R_VERTEX]:  # inside the vertex region: at its r_min it leaves
+            if motion_rates(y0[0], 0.0, y0[3], y0[4], p, effects)[2] <= 0.0:
+                return FATE_VERTEX, 0.0, r_start, 0.0, 0.0, 0.0, 0.0, 0
+    sc = tolerance_scales(p, effects, y0, energy, h, Lz, min(r1, y0[0]), r2, rc)
     p[P_V_REST] = REST_SPEED * rtol * max(sc[2], abs(y0[3]))
     atol = sc * rtol
-    fate, t, y, steps = fate_run(method, effects, p, y0, (energy, h, Lz), rtol, atol, t_horizon,
-                                 max_steps)  # fmt: skip
-    E0 = invariants(y0, p)[0]
+    fate, t, y, steps = fate_run(method, effects, p, y0, (energy, h, Lz), rtol, atol,
+                                 t_horizon - t0, max_steps)  # fmt: skip
+    E0 = invariants(y0, p)[0] + work0  # the energy at the start (the vertex for radial orbits)
     E1 = invariants(y, p)[0]
     work = y[state_size(effects) - 1] if effects & ROLLING_RESISTANCE else 0.0
     scale = max(abs(E0), kinetic_energy(y0, p))
     drift = abs(E1 + work - E0) / scale
-    return fate, t, y[0], y[1], abs(y[1]) / (2.0 * math.pi), E0 - E1, drift, steps
+    return fate, t0 + t, y[0], y[1], abs(y[1]) / (2.0 * math.pi), E0 - E1, drift, steps
+
+
+@kernel
+def _leave_vertex(p, effects, energy, h):
+    """The state where a radial orbit (L_z = 0, radial energy ``energy``) leaving the vertex
+    reaches the edge of the vertex region, the time it took and the work of the resistance on
+    the way: along the generatrix (v = 0, N = M g sin(alpha)) the deceleration is constant,
+    g cos(alpha)/(1+k) + c_rr g sin(alpha)/(1+k). Time -1: it never gets there."""
+    r_v = p[P_R_VERTEX]
+    y = initial_state(p, effects, r_v, energy, h, 0.0)
+    decel = p[P_GC]
+    work = 0.0
+    if effects & ROLLING_RESISTANCE:
+        resistance = p[P_CRR] * p[P_M] * p[P_G] * p[P_SIN]  # c_rr N [N]
+        decel += resistance * p[P_INV_M1K]
+        work = resistance * r_v
+        y[state_size(effects) - 1] = work
+    u0 = math.sqrt(2.0 * energy / p[P_M]) if energy > 0.0 else 0.0
+    u2 = u0 * u0 - 2.0 * decel * r_v
+    if not u2 > 0.0:
+        return y, -1.0, 0.0
+    y[2] = math.sqrt(u2)
+    return y, (u0 - y[2]) / decel, work
 
 
 @parallel_kernel

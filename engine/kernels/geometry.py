@@ -60,7 +60,9 @@ AXIS = 1
 #: Smallest A [J m^2] kept: below it (A underflows towards subnormals) the class is OUT_OF_RANGE.
 A_MIN = 2.2250738585072014e-308 / 2.220446049250313e-16
 
-#: Default |energy - V_min| <= CIRCULAR_TOL |V_min| tolerance of the circular class.
+#: Default tolerance of the circular class: |energy - V_min| <= CIRCULAR_TOL times the size of
+#: the terms of V_min, |A|/r_c^2 + |B|/r_c + C r_c (>= |V_min|; not |V_min|, which cancels to
+#: 0 where B < 0 balances the others while calE still carries their rounding).
 CIRCULAR_TOL = 1e-12
 NAN = math.nan
 
@@ -156,7 +158,7 @@ def orbit_in(fam, energy, M, g, k, circ_tol):
     has_min = not math.isnan(rc)
     if has_min:
         Vmin = fam[9]
-        if abs(energy - Vmin) <= circ_tol * abs(Vmin):
+        if abs(energy - Vmin) <= circ_tol * fam[12]:  # scaled by the size of V's terms
             omega_r = math.sqrt(2.0 * (A + C * rc * rc * rc) / (M * rc * rc * rc * rc))
             T = 2.0 * math.pi / omega_r
             psi = math.pi * Kang / (rc * rc * omega_r)

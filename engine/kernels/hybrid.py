@@ -56,6 +56,7 @@ from .model import (
     P_K,
     P_M,
     P_R_VERTEX,
+    P_RIM,
     P_SIN,
     P_V_REST,
     ROLLING_RESISTANCE,
@@ -63,6 +64,7 @@ from .model import (
     invariants,
     invariants_of,
     kinetic_energy,
+    motion_rates,
     radial_energy,
     set_alpha,
     state_size,
@@ -115,9 +117,8 @@ def hybrid_fate_of(method, effects, spin, p, mu_k, c_spin, energy, h, Lz, r_star
     out = np.full(len(HYBRID_ROWS), nan)
     if not (r_start >= 0.0 and math.isfinite(energy) and math.isfinite(Lz)):
         return NO_ORBIT, out, 0, 0
-    if r_start <= p[P_R_VERTEX]:
-        out[:6] = np.array([0.0, r_start, 0.0, 0.0, 0.0, 0.0])
-        return FATE_VERTEX, out, 0, 0
+    if r_start > p[P_RIM]:  # beyond the rim, as a fate map says
+        return NO_ORBIT, out, 0, 0
     M = p[P_M]
     e_true = energy + 0.5 * M * u0 * u0
     ok, r1, r2, rc = orbit_start(p, e_true, h, Lz)
@@ -126,6 +127,12 @@ def hybrid_fate_of(method, effects, spin, p, mu_k, c_spin, energy, h, Lz, r_star
         r2 = math.inf
     y0 = initial_state(p, effects, r_start, e_true, h, Lz)
     y0[2] = u0
+    if r_start <= p[P_R_VERTEX]:  # in the vertex region: it ends there unless it leaves it
+        leaves = u0 > 0.0 or (u0 == 0.0 and motion_rates(y0[0], 0.0, y0[3], y0[4], p,
+                                                         effects)[2] > 0.0)  # fmt: skip
+        if r_start == 0.0 or not leaves:
+            out[:6] = np.array([0.0, r_start, 0.0, 0.0, 0.0, 0.0])
+            return FATE_VERTEX, out, 0, 0
     sc = tolerance_scales(p, effects, y0, e_true, h, Lz, min(r1, r_start), r2, rc)
     p[P_V_REST] = REST_SPEED * rtol * max(max(sc[2], abs(y0[3])), max(abs(slip_u), abs(slip_v)))
     atol = sc * rtol

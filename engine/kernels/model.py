@@ -225,13 +225,18 @@ def motion_rates(r, u, v, w, p, effects):
     udot = v * vir + p[P_KK] * kappa * v * w - p[P_GC]
     vdot = -u * vir
     if effects & ROLLING_RESISTANCE:
-        # A force c_rr N opposing the CM velocity (u, v).
+        # A force c_rr N opposing the CM velocity (u, v); at zero speed, the pull (static).
         speed = math.sqrt(u * u + v * v)
+        N = p[P_M] * (p[P_G] * p[P_SIN] + v * vir * p[P_COT])
+        f = p[P_CRR] * N * p[P_INV_M1K]
         if speed > 0.0:
-            N = p[P_M] * (p[P_G] * p[P_SIN] + v * vir * p[P_COT])
-            f = p[P_CRR] * N * p[P_INV_M1K] / speed
-            udot -= f * u
-            vdot -= f * v
+            udot -= f * u / speed
+            vdot -= f * v / speed
+        else:
+            pull = math.sqrt(udot * udot + vdot * vdot)
+            held = min(f, pull) / pull if pull > 0.0 else 0.0
+            udot -= held * udot
+            vdot -= held * vdot
     return u, vir / p[P_SIN], udot, vdot, -kappa * u * v
 
 
@@ -335,7 +340,8 @@ def slip_margin(y, p, effects):
 
     F is the whole friction force at the contact. With rolling resistance (a couple c_rr N a
     opposing the rolling) it adds -c_rr N/(1+k) along the velocity (u, v) to the conservative
-    part F e1 (docs/physics.md "Effects beyond the ideal cone")."""
+    part F e1 (docs/physics.md "Effects beyond the ideal cone"); at zero speed, what holds the
+    sphere against the pull down the generatrix, up to c_rr N/(1+k) (:func:`motion_rates`)."""
     F, N = forces(y, p)
     if effects & ROLLING_RESISTANCE:
         u = y[2]
@@ -346,6 +352,8 @@ def slip_margin(y, p, effects):
             F1 = F - f * u
             F2 = f * v
             return math.sqrt(F1 * F1 + F2 * F2) - p[P_MU] * N
+        held = p[P_M] * min(p[P_GC], p[P_CRR] * N * p[P_INV_M1K])
+        return abs(F + held) - p[P_MU] * N
     return abs(F) - p[P_MU] * N
 
 

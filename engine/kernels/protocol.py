@@ -169,8 +169,10 @@ def kind_enabled(effects, kind):
         return effects & RIM != 0
     if kind == SLIP:
         return effects & SLIP_CHECK != 0
-    if kind == REST or kind == VERTEX:
+    if kind == REST:
         return effects & ROLLING_RESISTANCE != 0
+    if kind == VERTEX:  # any orbit of small enough L_z reaches it, with or without c_rr
+        return effects & TERMINAL_EFFECTS != 0
     if kind == HORIZON:
         return effects & REVOLUTIONS != 0
     return False
@@ -204,18 +206,21 @@ def terminal_fired(kind, g):
 def terminal_crossed(kind, g0, g1):
     """True where a terminal event happens between two states with event values g0, g1. Rest
     is an event only when the speed falls through its threshold (a sphere that starts at rest
-    may move off); the others fire wherever they hold at the end of the step."""
-    if kind == REST:
+    may move off), the vertex only when the centre enters its region (an orbit that starts
+    at its r_min inside the region leaves it: the closed form's convention); the others fire
+    wherever they hold at the end of the step."""
+    if kind == REST or kind == VERTEX:
         return g0 < 0.0 and terminal_fired(kind, g1)
     return terminal_fired(kind, g1)
 
 
 @kernel
 def terminal_at(effects, y, p):
-    """Terminal event kind already on at state y or -1; checked in kind order (rest is not an
-    event at a start: see :func:`terminal_crossed`)."""
+    """Terminal event kind already on at state y or -1; checked in kind order (rest and the
+    vertex are not events at a start: see :func:`terminal_crossed`; the fate kernel decides a
+    start at rest or inside the vertex region)."""
     for kind in range(FIRST_TERMINAL, LAST_TERMINAL + 1):
-        if kind != REST and kind_enabled(effects, kind):
+        if kind != REST and kind != VERTEX and kind_enabled(effects, kind):
             if terminal_fired(kind, event_value(kind, y, p, effects)):
                 return kind
     return -1
@@ -227,7 +232,7 @@ def terminal_between(effects, y, ynew, p):
     for kind in range(FIRST_TERMINAL, LAST_TERMINAL + 1):
         if kind_enabled(effects, kind):
             g1 = event_value(kind, ynew, p, effects)
-            g0 = event_value(kind, y, p, effects) if kind == REST else -1.0
+            g0 = event_value(kind, y, p, effects) if kind == REST or kind == VERTEX else -1.0
             if terminal_crossed(kind, g0, g1):
                 return True
     return False
