@@ -36,20 +36,16 @@ RIM = 2
 SLIP_CHECK = 4
 ATTITUDE = 8
 ALL_EFFECTS = ROLLING_RESISTANCE | RIM | SLIP_CHECK | ATTITUDE
-#: The hybrid model's effects (engine.kernels.hybrid; not bits of the rolling kernels' literal):
-#: sliding after a slip (kinetic friction mu_k) and spin friction (c_spin).
-SLIDING = 32
-SPIN_FRICTION = 64
 #: Run option (not a scene effect): stop after ``P_THETA_MAX`` radians of azimuth (fate maps).
 REVOLUTIONS = 16
-#: Effect name (as in :attr:`engine.Scene.effects`) -> bit.
+#: Effect name (Scene.effects) -> bit; sliding, spin_friction: kernels.hybrid's, not ALL_EFFECTS.
 EFFECT_BITS = {
     "rolling_resistance": ROLLING_RESISTANCE,
     "rim": RIM,
     "slip_check": SLIP_CHECK,
     "attitude": ATTITUDE,
-    "sliding": SLIDING,
-    "spin_friction": SPIN_FRICTION,
+    "sliding": 32,
+    "spin_friction": 64,
 }
 
 # Parameter array layout.
