@@ -116,6 +116,11 @@ def fates(
     """
     m = check_method(method, scene, integrator=True)
     require_horizon(horizon)
+    if "sliding" in scene.effects:  # not silently today's map (slipped as an end)
+        raise ValueError(
+            "Scene.mu_k: survey maps of the sliding model are not wired yet; use "
+            "engine.story.launch_fates or engine.hybrid.hybrid_fates"
+        )
     n = alpha.shape[0]
     params = scene.params()
     params[P_THETA_MAX] = horizon.theta_max

@@ -104,7 +104,7 @@ class Method:
 
 
 #: What the Runge-Kutta pairs can do: they integrate the scene's full state and right-hand side.
-RK_SUPPORTS = ("dissipative forces", "rigid-body state", "terminal events")
+RK_SUPPORTS = ("dissipative forces", "rigid-body state", "sliding contact", "terminal events")
 
 
 def _rk_row(kernel_id: int) -> Method:
@@ -123,9 +123,10 @@ METHODS: dict[str, Method] = {
         (
             (
                 "dissipative forces",
-                "the closed form describes lossless orbits; a fate map integrates the losses",
+                "the closed form describes lossless orbits; an integrator follows the losses",
             ),
             ("rigid-body state", "the closed form does not follow the sphere's orientation"),
+            ("sliding contact", "the closed form describes rolling without slipping"),
         ),
     ),
     **{tb.name: _rk_row(i) for i, tb in enumerate(RK_TABLEAUX)},
@@ -138,6 +139,7 @@ METHODS: dict[str, Method] = {
         (
             ("dissipative forces", "it integrates the conservative radial Hamiltonian"),
             ("rigid-body state", "it does not carry the sphere's orientation"),
+            ("sliding contact", "a sliding sphere is not a conservative rolling orbit"),
         ),
     ),
 }

@@ -63,6 +63,11 @@ class Scene:
     mu : friction coefficient for the slip check, > 0; None = no slip check.
     c_rr : rolling-resistance coefficient, >= 0 (0 = none).
     attitude : integrate the sphere's orientation (a unit quaternion) in simulations.
+    mu_k : kinetic friction coefficient, 0 < mu_k <= mu (needs ``mu`` and k > 0); None = a slip
+        ends the run (``slipped``). Naming it turns the slip into a transition: the sphere
+        slides, and may roll again (docs/physics.md "Sliding, rolling again, and spin friction").
+    c_spin : spin-friction coefficient, >= 0 (0 = none): a couple c_spin a N against the spin
+        about the contact normal, while rolling and while sliding (needs ``mu_k``).
     """
 
     M: float = 1.0
@@ -73,6 +78,8 @@ class Scene:
     mu: float | None = None
     c_rr: float = 0.0
     attitude: bool = False
+    mu_k: float | None = None
+    c_spin: float = 0.0
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -90,6 +97,28 @@ class Scene:
                 set_(self, name, _check_positive(name, value, allow_zero=True))
             elif value is not None:  # a limit
                 set_(self, name, _check_positive(name, value))
+        if self.mu_k is not None:
+            if self.mu is None:
+                raise ValueError(
+                    f"Scene.mu_k = {self.mu_k!r} needs the static coefficient Scene.mu (mu_k <= mu)"
+                )
+            if self.mu_k > self.mu:
+                raise ValueError(
+                    f"Scene.mu_k must be <= Scene.mu (kinetic friction does not exceed static "
+                    f"friction), got mu_k = {self.mu_k!r} > mu = {self.mu!r}"
+                )
+            if self.k == 0:
+                raise ValueError(
+                    "Scene.mu_k needs k > 0: a sliding sphere's rotation is followed, and a "
+                    "body with k = 0 has none"
+                )
+            if self.attitude:
+                raise ValueError("Scene.mu_k cannot be combined with attitude = true (yet)")
+        if self.c_spin > 0 and self.mu_k is None:
+            raise ValueError(
+                f"Scene.c_spin = {self.c_spin!r} needs Scene.mu_k (spin friction is part of "
+                "the sliding model)"
+            )
 
     @property
     def effects(self) -> tuple[str, ...]:

@@ -29,6 +29,8 @@ CAPABILITIES: dict[str, str] = {
     "dissipative forces": "follow forces that do work on the sphere (energy not conserved)",
     "rigid-body state": "carry the sphere's orientation in the state",
     "terminal events": "end a run where the sphere leaves the rolling regime",
+    "sliding contact": "release the rolling constraint: follow a sliding sphere's full angular "
+    "velocity under kinetic friction, and its return to rolling",
 }
 
 #: How a scene field calls for its effect: "coefficient" (a number >= 0; on when > 0),
@@ -119,6 +121,31 @@ EFFECTS: tuple[Effect, ...] = (
         ),
         doc="the sphere's orientation, a unit quaternion, integrated with the motion",
     ),
+    Effect(
+        name="sliding",
+        bit=32,
+        scene_field="mu_k",
+        switch="limit",
+        params=(),
+        dissipative=True,
+        events=(),
+        needs=("dissipative forces", "sliding contact"),
+        variables=(),
+        doc="a slip is a transition: the sphere slides under kinetic friction mu_k N and may "
+        "roll again (engine.story; the hybrid kernels, not the rolling ones)",
+    ),
+    Effect(
+        name="spin_friction",
+        bit=64,
+        scene_field="c_spin",
+        switch="coefficient",
+        params=(),
+        dissipative=True,
+        events=(),
+        needs=("dissipative forces", "sliding contact"),
+        variables=(),
+        doc="a couple c_spin a N against the spin about the contact normal (engine.story)",
+    ),
 )
 
 #: Effect name -> row.
@@ -160,6 +187,8 @@ def needing_any(capabilities) -> int:
 ALL_EFFECTS = mask_where(lambda e: True)
 #: The effects that do work on the sphere.
 DISSIPATIVE = mask_where(lambda e: e.dissipative)
+#: The effects the rolling kernels compile in (the others need the hybrid kernels).
+ROLLING_EFFECTS = mask_where(lambda e: "sliding contact" not in e.needs)
 #: Run option (not a scene effect): stop after ``P_THETA_MAX`` radians of azimuth (fate maps);
 #: it brings the terminal event "horizon".
 REVOLUTIONS = 1 << 16

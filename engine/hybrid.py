@@ -1,0 +1,93 @@
+"""The ball's whole story (the Python side of :mod:`engine.kernels.hybrid`): fate maps of a scene
+with kinetic friction ``mu_k`` (a slip is a transition: the sphere slides, and may roll again)
+and spin friction ``c_spin``, from rolling launches or launches with a radial speed and a slip
+velocity; and one launch followed with each mode change reported.
+
+docs/physics.md "Sliding, rolling again, and spin friction" has the model and the rules.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ._jit import call_specialized
+from .kernels.effects import REVOLUTIONS, ROLLING_EFFECTS
+from .kernels.hybrid import (
+    HYBRID_ROWS,
+    hybrid_fate_points,
+)
+from .kernels.model import P_THETA_MAX
+from .methods import check_method
+from .scene import Scene
+
+__all__ = ["HYBRID_VARIABLES", "HYBRID_STATE", "hybrid_fates", "hybrid_setup"]
+
+#: Variables a fate map of a sliding scene adds to today's fate variables.
+HYBRID_VARIABLES = HYBRID_ROWS[6:]
+#: Components of the hybrid state (an event's ``state``).
+HYBRID_STATE = ("r", "theta", "u", "v", "p1", "p2", "w", "W_rolling_resistance",
+                "W_sliding_friction", "W_spin_friction")  # fmt: skip
+#: Step budget of one launch (accepted + rejected steps, both modes).
+MAX_STEPS = 10_000_000
+
+
+def hybrid_setup(scene: Scene, theta_max: float) -> tuple[np.ndarray, int, int]:
+    """(params, the rolling scene's literal effects, the spin literal) of a hybrid run of
+    ``scene`` with the horizon ``theta_max`` [rad] (inf: none)."""
+    if scene.mu_k is None:
+        raise ValueError("a hybrid fate map needs Scene.mu_k (kinetic friction)")
+    params = scene.params()
+    params[P_THETA_MAX] = theta_max
+    effects = (scene.effects_mask & ROLLING_EFFECTS) | (
+        REVOLUTIONS if math.isfinite(theta_max) else 0
+    )
+    return params, effects, 1 if scene.c_spin > 0 else 0
+
+
+def hybrid_fates(
+    alpha: np.ndarray,
+    energy: np.ndarray,
+    h: np.ndarray,
+    Lz: np.ndarray,
+    r_start: np.ndarray,
+    scene: Scene,
+    method: str,
+    rtol: float,
+    t_max: float,
+    theta_max: float,
+    *,
+    u0: np.ndarray | None = None,
+    slip_u: np.ndarray | None = None,
+    slip_v: np.ndarray | None = None,
+    max_steps: int = MAX_STEPS,
+) -> dict[str, np.ndarray]:
+    """The whole story of each launch (1-D arrays): at ``r_start`` [m] on the rolling orbit
+    (calE [J], h [m/s], L_z) with radial speed ``u0`` [m/s] and slip velocity (``slip_u``,
+    ``slip_v``) [m/s] (default 0: rolling from rest radially, as a fate map starts).
+
+    Returns ``fate`` (int8, :data:`engine.kernels.hybrid.HYBRID_FATE_NAMES`), the float rows of
+    :data:`engine.kernels.hybrid.HYBRID_ROWS` (``slip_episodes`` as int32) and ``n_steps``.
+    """
+    m = check_method(method, scene, integrator=True)
+    params, effects, spin = hybrid_setup(scene, theta_max)
+    n = alpha.shape[0]
+    zero = np.zeros(n)
+    cols = [np.ascontiguousarray(c, np.float64) for c in (alpha, energy, h, Lz, r_start)]
+    extra = [np.ascontiguousarray(zero if c is None else c, np.float64) for c in
+             (u0, slip_u, slip_v)]  # fmt: skip
+    out_fate = np.zeros(n, np.int8)
+    out_f = np.empty((len(HYBRID_ROWS), n))
+    out_n = np.zeros(n, np.int64)
+    if n:
+        args = (*cols, *extra, params, float(scene.mu_k), float(scene.c_spin), m.kernel_id,
+                effects, spin, float(rtol), float(t_max), int(max_steps), out_fate, out_f,
+                out_n)  # fmt: skip
+        call_specialized(hybrid_fate_points, args, (11, 12, 13))
+    res: dict[str, np.ndarray] = {"fate": out_fate}
+    for i, name in enumerate(HYBRID_ROWS):
+        res[name] = out_f[i]
+    res["slip_episodes"] = np.where(np.isnan(out_f[7]), -1, out_f[7]).astype(np.int32)
+    res["n_steps"] = out_n
+    return res

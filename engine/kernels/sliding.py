@@ -1,0 +1,243 @@
+"""Sliding, rolling again and spin friction: the right-hand sides of the hybrid model
+(docs/physics.md "Sliding, rolling again, and spin friction"), as numba kernels.
+
+The hybrid state (length :data:`N_HYBRID`), the same in both modes::
+
+    r, theta, u, v          the centre on its cone (as in engine.kernels.model)
+    p1, p2, w               a omega in (e1, e2, nu): the full angular velocity as speeds [m/s]
+    W_rr, W_slide, W_spin   work done against rolling resistance, sliding friction and spin
+                            friction [J]
+
+While rolling p1 = -v and p2 = u (the rolling constraint) and the rates keep them so. The
+parameters are the scene's array (``model.P_*``) followed by :data:`H_MU_K` and
+:data:`H_C_SPIN` (:func:`hybrid_params`). The spin-stick flag ``stuck`` says that static spin
+friction holds w = 0 (its rate is then exactly 0).
+
+Every formula is arithmetic only, so ``.py_func`` of the scalar kernels runs in plain Python
+(the tests differentiate the energy through them).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._jit import kernel
+from .model import (
+    N_PARAMS,
+    P_COS,
+    P_COT,
+    P_CRR,
+    P_G,
+    P_K,
+    P_M,
+    P_MU,
+    P_SIN,
+)
+
+#: Hybrid parameter array: the scene's ``model.P_*`` entries, then these two.
+H_MU_K = N_PARAMS  # kinetic friction coefficient
+H_C_SPIN = N_PARAMS + 1  # spin-friction coefficient (couple c_spin a N)
+N_HYBRID_PARAMS = N_PARAMS + 2
+#: Length of the hybrid state.
+N_HYBRID = 10
+#: Modes.
+MODE_ROLLING = 0
+MODE_SLIDING = 1
+#: Relative band of the spin stick: the spin stays stuck while the couple it needs is at most
+#: c_spin N (1 + SPIN_BAND).
+SPIN_BAND = 1e-9
+
+
+@kernel
+def hybrid_params(p, mu_k, c_spin):
+    """The hybrid parameter array: a copy of the scene's ``p`` with mu_k and c_spin appended."""
+    hp = np.empty(N_HYBRID_PARAMS)
+    for i in range(N_PARAMS):
+        hp[i] = p[i]
+    hp[H_MU_K] = mu_k
+    hp[H_C_SPIN] = c_spin
+    return hp
+
+
+@kernel
+def normal_force(r, v, hp):
+    """N [N] = M (g sin(alpha) + kappa v^2), kappa = cot(alpha)/r (both modes)."""
+    return hp[P_M] * (hp[P_G] * hp[P_SIN] + v * v * hp[P_COT] / r)
+
+
+@kernel
+def couples(p1, p2, w, N, stuck, hold, hp):
+    """(T1/a, T2/a, T3/a) [N]: rolling resistance against (p1, p2) and spin friction against w,
+    in (e1, e2, nu). ``hold`` is the spin couple that keeps w = 0 (:func:`spin_hold`): with
+    ``stuck`` it is the couple; at w = 0 otherwise the couple is static Coulomb friction, hold
+    clamped to c_spin N (so a spin leaving zero meets the full couple at once)."""
+    t1 = 0.0
+    t2 = 0.0
+    pt = math.sqrt(p1 * p1 + p2 * p2)
+    if pt > 0.0:
+        f = hp[P_CRR] * N / pt
+        t1 = -f * p1
+        t2 = -f * p2
+    cs = hp[H_C_SPIN] * N
+    if stuck:
+        t3 = hold
+    elif w > 0.0:
+        t3 = -cs
+    elif w < 0.0:
+        t3 = cs
+    else:
+        t3 = min(max(hold, -cs), cs)
+    return t1, t2, t3
+
+
+@kernel
+def spin_hold(r, v, p2, hp):
+    """T3/a [N] that holds w = 0: k M kappa v p2."""
+    return hp[P_K] * hp[P_M] * hp[P_COT] / r * v * p2
+
+
+@kernel
+def free_slip_rate(r, u, v, p1, p2, w, t1, t2, hp):
+    """(D1, D2) [m/s^2]: the slip velocity's rate without the contact force f."""
+    ir = 1.0 / r
+    kM = hp[P_K] * hp[P_M]
+    kappa = hp[P_COT] * ir
+    d1 = v * v * ir + p1 * v * ir - hp[P_G] * hp[P_COS] - kappa * v * w - t2 / kM
+    d2 = (p2 - u) * v * ir + t1 / kM
+    return d1, d2
+
+
+@kernel
+def sliding_rates(r, u, v, p1, p2, w, stuck, hp):
+    """Rates of the hybrid state while sliding (module docstring; physics "Equations of motion
+    while sliding"): (rdot, thetadot, udot, vdot, p1dot, p2dot, wdot, P_rr, P_slide, P_spin),
+    the last three the powers [W] of the three dissipations (>= 0)."""
+    M = hp[P_M]
+    kM = hp[P_K] * M
+    ir = 1.0 / r
+    kappa = hp[P_COT] * ir
+    N = normal_force(r, v, hp)
+    hold = spin_hold(r, v, p2, hp)
+    t1, t2, t3 = couples(p1, p2, w, N, stuck, hold, hp)
+    s1 = u - p2
+    s2 = v + p1
+    sl = math.sqrt(s1 * s1 + s2 * s2)
+    fk = hp[H_MU_K] * N
+    if sl > 0.0:
+        f1 = -fk * s1 / sl
+        f2 = -fk * s2 / sl
+    else:  # the slip starts along D (physics "Switching between rolling and sliding")
+        d1, d2 = free_slip_rate(r, u, v, p1, p2, w, t1, t2, hp)
+        dl = math.sqrt(d1 * d1 + d2 * d2)
+        f1 = -fk * d1 / dl if dl > 0.0 else 0.0
+        f2 = -fk * d2 / dl if dl > 0.0 else 0.0
+    udot = v * v * ir - hp[P_G] * hp[P_COS] + f1 / M
+    vdot = -u * v * ir + f2 / M
+    p1dot = p2 * v * ir + (f2 + t1) / kM
+    p2dot = -p1 * v * ir + kappa * v * w + (t2 - f1) / kM
+    wdot = 0.0 if stuck else -kappa * v * p2 + t3 / kM
+    p_rr = hp[P_CRR] * N * math.sqrt(p1 * p1 + p2 * p2)
+    p_slide = fk * sl
+    p_spin = 0.0 if stuck else hp[H_C_SPIN] * N * abs(w)
+    return u, v * ir / hp[P_SIN], udot, vdot, p1dot, p2dot, wdot, p_rr, p_slide, p_spin
+
+
+@kernel
+def rolling_rates(r, u, v, w, stuck, hp):
+    """Rates of the hybrid state while rolling (p1 = -v, p2 = u kept): the rolling equations with
+    rolling resistance and the spin couple (which enters dw/dt only)."""
+    M = hp[P_M]
+    k = hp[P_K]
+    ir = 1.0 / r
+    kappa = hp[P_COT] * ir
+    N = normal_force(r, v, hp)
+    t1, t2, t3 = couples(-v, u, w, N, stuck, spin_hold(r, v, u, hp), hp)
+    udot = v * v * ir + k / (1.0 + k) * kappa * v * w - hp[P_G] * hp[P_COS] / (1.0 + k)
+    udot += t2 / (M * (1.0 + k))
+    vdot = -u * v * ir - t1 / (M * (1.0 + k))
+    wdot = 0.0 if stuck else -kappa * u * v + t3 / (k * M)
+    p_rr = hp[P_CRR] * N * math.sqrt(u * u + v * v)
+    p_spin = 0.0 if stuck else hp[H_C_SPIN] * N * abs(w)
+    return u, v * ir / hp[P_SIN], udot, vdot, -vdot, udot, wdot, p_rr, 0.0, p_spin
+
+
+@kernel
+def hybrid_rhs(y, hp, mode, stuck, out):
+    """dy/dt of the hybrid state in ``mode`` into ``out`` (length :data:`N_HYBRID`)."""
+    if mode == MODE_SLIDING:
+        d = sliding_rates(y[0], y[2], y[3], y[4], y[5], y[6], stuck, hp)
+    else:
+        d = rolling_rates(y[0], y[2], y[3], y[6], stuck, hp)
+    for j in range(N_HYBRID):
+        out[j] = d[j]
+
+
+@kernel
+def hybrid_energy(r, u, v, p1, p2, w, hp):
+    """E [J] = M (u^2 + v^2)/2 + k M (p1^2 + p2^2 + w^2)/2 + M g r cos(alpha)."""
+    M = hp[P_M]
+    return (
+        0.5 * M * (u * u + v * v)
+        + 0.5 * hp[P_K] * M * (p1 * p1 + p2 * p2 + w * w)
+        + M * hp[P_G] * r * hp[P_COS]
+    )
+
+
+@kernel
+def slip_speed(y):
+    """|s| [m/s], s = (u - p2, v + p1)."""
+    s1 = y[2] - y[5]
+    s2 = y[3] + y[4]
+    return math.sqrt(s1 * s1 + s2 * s2)
+
+
+@kernel
+def rolling_friction(y, hp):
+    """(f1, f2) [N]: the contact force that makes ds/dt = 0 in the state y, f = -k M D/(1+k)
+    (with rolling resistance; spin friction does not enter)."""
+    r, u, v, p1, p2, w = y[0], y[2], y[3], y[4], y[5], y[6]
+    N = normal_force(r, v, hp)
+    t1, t2, _ = couples(p1, p2, w, N, True, 0.0, hp)
+    d1, d2 = free_slip_rate(r, u, v, p1, p2, w, t1, t2, hp)
+    c = -hp[P_K] * hp[P_M] / (1.0 + hp[P_K])
+    return c * d1, c * d2
+
+
+@kernel
+def hold_margin(y, hp):
+    """|f_roll| - mu N [N]: > 0 where static friction cannot hold the rolling motion."""
+    f1, f2 = rolling_friction(y, hp)
+    return math.sqrt(f1 * f1 + f2 * f2) - hp[P_MU] * normal_force(y[0], y[3], hp)
+
+
+@kernel
+def spin_hold_margin(y, hp):
+    """|couple that holds w = 0| - c_spin N (1 + :data:`SPIN_BAND`) [N] (> 0: the spin cannot
+    stay stuck). The band keeps a spin whose needed couple grazes the limit from sticking and
+    unsticking without end (docs/physics.md "Spin stick")."""
+    cs = hp[H_C_SPIN] * normal_force(y[0], y[3], hp)
+    return abs(spin_hold(y[0], y[3], y[5], hp)) - cs * (1.0 + SPIN_BAND)
+
+
+@kernel
+def stick(y, hp):
+    """Remove the remaining slip by the friction impulse J = -k M s/(1+k) at the contact
+    (conserves the angular momentum about the contact point); returns the energy it takes
+    [J], k M |s|^2/(2(1+k)), which is booked to sliding friction (y[8])."""
+    k = hp[P_K]
+    s1 = y[2] - y[5]
+    s2 = y[3] + y[4]
+    j1 = -k * s1 / (1.0 + k)  # J/M
+    j2 = -k * s2 / (1.0 + k)
+    y[2] += j1
+    y[3] += j2
+    y[4] += j2 / k
+    y[5] -= j1 / k
+    # exactly on the rolling constraint (the impulse does it up to rounding)
+    y[4] = -y[3]
+    y[5] = y[2]
+    lost = 0.5 * k * hp[P_M] * (s1 * s1 + s2 * s2) / (1.0 + k)
+    y[8] += lost
+    return lost

@@ -1,0 +1,111 @@
+"""One launch's whole story, and fate maps over launch states that may slide (the user-facing
+side of :mod:`engine.hybrid`): a ball released with a radial speed and a slip velocity (thrown
+without spin, with backspin), on a scene with kinetic friction ``mu_k``."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .fates import Horizon, require_horizon
+from .hybrid import HYBRID_STATE, MAX_STEPS, hybrid_fates, hybrid_setup
+from .kernels.hybrid import HYBRID_FATE_NAMES, HYBRID_ROWS, hybrid_story
+from .kernels.hybrid_step import HYBRID_EVENT_NAMES
+from .kernels.model import set_alpha
+from .launch import invariants
+from .methods import check_method, check_rtol
+from .scene import Scene
+
+__all__ = ["launch_fates", "story"]
+
+
+def _horizon(horizon_time: float | None, horizon_revolutions: float | None) -> tuple[float, float]:
+    hz = require_horizon(Horizon(horizon_time, horizon_revolutions))
+    return hz.t_max, hz.theta_max
+
+
+def launch_fates(
+    alpha: Any,
+    r0: Any,
+    v0: Any,
+    w0: Any,
+    *,
+    u0: Any = 0.0,
+    slip_u: Any = 0.0,
+    slip_v: Any = 0.0,
+    scene: Scene,
+    method: str = "dop853",
+    rtol: float = 1e-10,
+    horizon_time: float | None = None,
+    horizon_revolutions: float | None = None,
+) -> dict[str, np.ndarray]:
+    """Fates of launches (numpy broadcasting of all state arguments): released at ``r0`` [m]
+    with radial speed ``u0``, azimuthal speed ``v0``, spin ``w0`` = a omega_nu and the contact
+    point's slip velocity (``slip_u`` along the generatrix, ``slip_v`` along the parallel)
+    [m/s]. A ball thrown without spin has slip_u = u0 (and slip_v = v0); backspin makes slip_u
+    larger. Returns the arrays of :func:`hybrid_fates`, shaped like the broadcast inputs, plus
+    ``fate_name``."""
+    rtol = check_rtol(rtol)
+    t_max, theta_max = _horizon(horizon_time, horizon_revolutions)
+    names = ("alpha", "r0", "v0", "w0", "u0", "slip_u", "slip_v")
+    arrs = np.broadcast_arrays(*[np.asarray(x, np.float64) for x in
+                                 (alpha, r0, v0, w0, u0, slip_u, slip_v)])  # fmt: skip
+    for name, a in zip(names, arrs, strict=True):
+        if not np.isfinite(a).all():
+            raise ValueError(f"{name} must be finite; got {a[~np.isfinite(a)].flat[0]!r}")
+    shape = arrs[0].shape
+    flat = [a.ravel() for a in arrs]
+    inv = invariants(flat[0], flat[1], np.zeros_like(flat[1]), flat[2], flat[3], scene)
+    res = hybrid_fates(flat[0], inv["energy"], inv["h"], inv["Lz"], flat[1], scene, method,
+                       rtol, t_max, theta_max, u0=flat[4], slip_u=flat[5],
+                       slip_v=flat[6])  # fmt: skip
+    out = {k: v.reshape(shape) for k, v in res.items()}
+    out["fate_name"] = np.array(HYBRID_FATE_NAMES, dtype=object)[out["fate"]]
+    return out
+
+
+def story(
+    alpha: float,
+    r0: float,
+    v0: float,
+    w0: float,
+    *,
+    u0: float = 0.0,
+    slip_u: float = 0.0,
+    slip_v: float = 0.0,
+    scene: Scene,
+    method: str = "dop853",
+    rtol: float = 1e-10,
+    horizon_time: float | None = None,
+    horizon_revolutions: float | None = None,
+    max_events: int = 10_000,
+) -> dict[str, Any]:
+    """One launch followed through its modes (arguments as :func:`launch_fates`, scalars).
+
+    Returns ``fate`` (name), the rows of :data:`engine.kernels.hybrid.HYBRID_ROWS`, ``n_steps``
+    and ``events``: a list of dicts (``kind``: slip, roll, spin_stop, spin_go, rest, spill,
+    vertex, horizon; ``t`` [s]; ``state``: dict of :data:`HYBRID_STATE`; a roll event's state is
+    the one after the sticking impulse)."""
+    m = check_method(method, scene, integrator=True)
+    rtol = check_rtol(rtol)
+    t_max, theta_max = _horizon(horizon_time, horizon_revolutions)
+    params, effects, spin = hybrid_setup(scene, theta_max)
+    set_alpha(params, float(alpha))
+    inv = invariants(alpha, r0, 0.0, v0, w0, scene)
+    res = hybrid_story(m.kernel_id, effects, spin, params, float(scene.mu_k),
+                       float(scene.c_spin), float(inv["energy"]), float(inv["h"]),
+                       float(inv["Lz"]), float(r0), float(u0), float(slip_u), float(slip_v),
+                       rtol, t_max, MAX_STEPS, int(max_events))  # fmt: skip
+    fate, f, steps, n_ev, ev_t, ev_kind, ev_y = res
+    out: dict[str, Any] = {"fate": HYBRID_FATE_NAMES[fate]}
+    out.update({name: float(f[i]) for i, name in enumerate(HYBRID_ROWS)})
+    out["n_steps"] = int(steps)
+    events = []
+    for i in range(min(n_ev, max_events)):
+        state = {name: float(ev_y[i, j]) for j, name in enumerate(HYBRID_STATE)}
+        events.append({"kind": HYBRID_EVENT_NAMES[ev_kind[i]], "t": float(ev_t[i]),
+                       "state": state})  # fmt: skip
+    out["events"] = events
+    out["events_dropped"] = max(0, n_ev - max_events)
+    return out

@@ -1,0 +1,142 @@
+"""The ball's whole story (engine.hybrid, engine.story, engine.kernels.hybrid): the flat limit
+and spin friction through the engine, the energy balance of the three losses, the anti-
+chattering rule, and a scene that never slips giving today's fate map bit for bit."""
+
+import math
+
+import numpy as np
+import pytest
+
+from engine import launch
+from engine.fates import Horizon, fates
+from engine.hybrid import hybrid_fates
+from engine.kernels.sliding import hybrid_energy, hybrid_params
+from engine.scene import Scene
+from engine.story import launch_fates, story
+
+FLAT = math.pi / 2 - 1e-4
+G = 9.81
+#: The scenes of these tests (each effect set is one compile: keep them few).
+PLAIN = dict(mu=0.5, mu_k=0.25, rim=5000.0)
+
+
+def _energy(scene, alpha, st):
+    hp = hybrid_params(scene.params(alpha), scene.mu_k, scene.c_spin)
+    return hybrid_energy.py_func(st["r"], st["u"], st["v"], st["p1"], st["p2"], st["w"], hp)
+
+
+@pytest.mark.parametrize("k", [0.4, 2.0 / 3.0])
+def test_flat_limit_slides_then_rolls(k):
+    sc = Scene(k=k, M=1.0, **PLAIN)
+    u0 = 2.0
+    out = story(FLAT, 1000.0, 0.0, 0.0, u0=u0, slip_u=u0, scene=sc, horizon_time=1.0)
+    kinds = [e["kind"] for e in out["events"]]
+    assert kinds == ["roll"]
+    t_roll = out["events"][0]["t"]
+    # O(cot alpha) = 1e-4 from the slope
+    assert t_roll == pytest.approx(k * u0 / ((1 + k) * sc.mu_k * G), rel=1e-3)
+    assert out["events"][0]["state"]["u"] == pytest.approx(u0 / (1 + k), rel=1e-3)
+    assert out["slide_time"] == t_roll
+    assert out["slip_episodes"] == 1
+    assert out["lost_sliding_friction"] == pytest.approx(u0**2 * k / (2 * (1 + k)), rel=1e-3)
+    assert out["fate"] == "rolling"
+
+
+@pytest.mark.parametrize("backspin", [1.0, 8.0])
+def test_flat_limit_backspin_comes_back(backspin):
+    sc = Scene(k=0.4, **PLAIN)
+    u0 = 2.0
+    out = story(FLAT, 1000.0, 0.0, 0.0, u0=u0, slip_u=u0 + backspin, scene=sc, horizon_time=2.0)
+    roll = [e for e in out["events"] if e["kind"] == "roll"][0]
+    final = (u0 - 0.4 * backspin) / 1.4
+    assert roll["state"]["u"] == pytest.approx(final, rel=1e-3)
+    assert (roll["state"]["u"] < 0) == (backspin > u0 / 0.4)
+
+
+def test_spin_friction_alone_stops_the_spin_and_holds_it():
+    k, w0, c_spin = 0.4, 3.0, 0.05
+    sc = Scene(k=k, c_spin=c_spin, **PLAIN)
+    out = story(FLAT, 1000.0, 0.0, w0, scene=sc, horizon_time=3.0)
+    stops = [e for e in out["events"] if e["kind"] == "spin_stop"]
+    assert len(stops) == 1 and not [e for e in out["events"] if e["kind"] == "spin_go"]
+    assert stops[0]["t"] == pytest.approx(k * w0 / (c_spin * G), rel=1e-6)
+    assert out["lost_spin_friction"] == pytest.approx(0.5 * k * w0**2, rel=1e-6)
+
+
+def _random_launches(n, seed):
+    rng = np.random.default_rng(seed)
+    alpha = rng.choice([0.2, 0.5, 0.9, 1.3], n)
+    r0 = rng.uniform(0.05, 0.5, n)
+    v0 = rng.uniform(0.1, 1.5, n) * rng.choice([-1, 1], n)
+    w0 = rng.uniform(-2, 2, n)
+    u0 = rng.uniform(-1, 1, n)
+    slip_u = rng.choice([0.0, 1.0], n) * rng.uniform(-2, 2, n)
+    slip_v = rng.choice([0.0, 1.0], n) * rng.uniform(-2, 2, n)
+    return alpha, r0, v0, w0, u0, slip_u, slip_v
+
+
+def test_losses_add_up_to_the_energy_drop_and_energy_never_increases():
+    sc = Scene(mu=0.3, mu_k=0.2, c_spin=0.02, c_rr=0.01, rim=1.0)
+    alpha, r0, v0, w0, u0, su, sv = _random_launches(40, 16)
+    res = launch_fates(alpha, r0, v0, w0, u0=u0, slip_u=su, slip_v=sv, scene=sc, rtol=1e-11,
+                       horizon_time=2.0)  # fmt: skip
+    assert not (res["fate_name"] == "failed").any(), res["fate_name"]
+    losses = res["lost_rolling_resistance"] + res["lost_sliding_friction"]
+    losses = losses + res["lost_spin_friction"]
+    inv = launch.invariants(alpha, r0, u0, v0, w0, sc)
+    scale = np.abs(inv["E"]) + 0.5 * (u0**2 + v0**2 + w0**2 + su**2 + sv**2)
+    assert np.all(np.abs(losses - res["energy_lost"]) <= 1e-9 * scale)
+    assert (res["slip_episodes"] >= 1).sum() >= 10  # the launches do slide
+    for i in range(0, 40, 4):
+        out = story(alpha[i], r0[i], v0[i], w0[i], u0=u0[i], slip_u=su[i], slip_v=sv[i],
+                    scene=sc, rtol=1e-11, horizon_time=2.0)  # fmt: skip
+        energies = [_energy(sc, alpha[i], e["state"]) for e in out["events"]]
+        assert all(b <= a + 1e-10 * scale[i] for a, b in zip(energies, energies[1:], strict=False))
+
+
+def test_no_chattering_when_kinetic_equals_static_friction():
+    """mu_k = mu: at the slip the slip speed grows only at second order. The return to rolling
+    is armed only once |s| exceeded twice the threshold, so the story cannot switch back and
+    forth within a step; it ends normally with a few episodes."""
+    sc = Scene(mu=0.05, mu_k=0.05, rim=1.0)
+    out = story(0.5, 0.1, 0.8, 0.5, scene=sc, rtol=1e-10, horizon_time=1.0)
+    assert out["fate"] != "failed"
+    ev = out["events"]
+    assert out["slip_episodes"] >= 1
+    assert out["slip_episodes"] < 20
+    times = [e["t"] for e in ev if e["kind"] in ("slip", "roll")]
+    assert all(b > a for a, b in zip(times, times[1:], strict=False))
+
+
+def test_never_slipping_map_equals_todays_fate_map_bit_for_bit():
+    rolling = Scene(mu=50.0, rim=1.0)
+    sliding = Scene(mu=50.0, mu_k=0.3, rim=1.0)
+    rng = np.random.default_rng(3)
+    n = 24
+    alpha = rng.uniform(0.2, 1.3, n)
+    r0 = rng.uniform(0.05, 0.5, n)
+    inv = launch.invariants(alpha, r0, 0.0, rng.uniform(0.1, 1.5, n), rng.uniform(-2, 2, n),
+                            rolling)  # fmt: skip
+    args = (alpha, inv["energy"], inv["h"], inv["Lz"], r0)
+    today = fates(*args, rolling, "dop853", 1e-10, Horizon(time=1.5))
+    mine = hybrid_fates(*args, sliding, "dop853", 1e-10, 1.5, math.inf)
+    assert (mine["slip_episodes"] == 0).all()
+    for name in ("fate", "fate_time", "fate_r", "fate_theta", "revolutions", "energy_lost",
+                 "invariant_drift", "n_steps"):  # fmt: skip
+        np.testing.assert_array_equal(mine[name], today[name], err_msg=name)
+    assert np.isnan(mine["final_energy"]).sum() == 0
+    np.testing.assert_array_equal(mine["final_Lz"], inv["Lz"])
+
+
+def test_scene_validates_mu_k_and_c_spin():
+    with pytest.raises(ValueError, match="mu_k must be <= Scene.mu"):
+        Scene(mu=0.1, mu_k=0.2)
+    with pytest.raises(ValueError, match="needs the static coefficient"):
+        Scene(mu_k=0.2)
+    with pytest.raises(ValueError, match="c_spin"):
+        Scene(c_spin=0.1)
+    with pytest.raises(ValueError, match="k > 0"):
+        Scene(mu=0.3, mu_k=0.2, k=0.0)
+    assert "slipped" not in Scene(mu=0.3).effects
+    assert Scene(mu=0.3, mu_k=0.2, c_spin=0.1).effects == ("slip_check", "sliding",
+                                                           "spin_friction")  # fmt: skip
