@@ -5,7 +5,7 @@
 - ``plot_precession.png``: ``conesurvey plot`` of the precession rate of
   ``surveys/gravity_precession.toml``, one map per cone angle (``--facet alpha``);
 - ``report.png``: the top of ``conesurvey report`` of the same survey, as headless Chromium
-  shows it (Debian's ``chromium``; ``bash .ci/chromium`` installs it).
+  shows it (Debian's ``chromium``; ``bash .ci/system-packages`` installs it).
 
 The survey (336,000 points, exact method) runs in a temporary directory in a few seconds.
 """

@@ -1,5 +1,5 @@
 """The default output is read by every netCDF-4 tool with no HDF5 filter plugin: Debian's
-``ncdump`` and ``h5dump`` (netcdf-bin, hdf5-tools; installed by .ci/netcdf-tools) and xarray's
+``ncdump`` and ``h5dump`` (netcdf-bin, hdf5-tools; installed by .ci/system-packages) and xarray's
 netcdf4 and h5netcdf engines, each run with ``HDF5_PLUGIN_PATH`` set to an empty directory.
 The chunks it writes directly (engine.io.deflate) are the bytes HDF5's own shuffle and
 deflate filters make, so the values are those of an uncompressed run, bit for bit."""
@@ -67,7 +67,7 @@ def test_the_default_is_deflate_with_shuffle_and_says_nothing(files):
 
 
 def test_debian_ncdump_reads_every_value_without_plugins(files):
-    assert shutil.which("ncdump"), "needs Debian's ncdump (netcdf-bin): bash .ci/netcdf-tools"
+    assert shutil.which("ncdump"), "needs Debian's ncdump (netcdf-bin): bash .ci/system-packages"
     d, _ = files
     proc = subprocess.run(
         ["ncdump", "-p", "9,17", "-v", "period,orbit_class", str(d / "default.nc")],
@@ -85,7 +85,7 @@ def test_debian_ncdump_reads_every_value_without_plugins(files):
 
 
 def test_debian_h5dump_reads_a_variable_without_plugins(files):
-    assert shutil.which("h5dump"), "needs Debian's h5dump (hdf5-tools): bash .ci/netcdf-tools"
+    assert shutil.which("h5dump"), "needs Debian's h5dump (hdf5-tools): bash .ci/system-packages"
     d, _ = files
     out = d / "r_max.bin"
     proc = subprocess.run(
