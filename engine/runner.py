@@ -46,14 +46,16 @@ from .grid import BLOCK_POINTS, MAX_BLOCKS, Tiling, grid_too_large
 from .io import OutputError, netcdf
 from .io import zarr as zarr_io
 from .io.atomic import not_regular, output_name_problem
-from .io.blocks import BlockStore, Scan, Summary, block_file_bytes, check_parts_dir, remove_store
+from .io.blocks import BlockStore, Scan, block_file_bytes, check_parts_dir, remove_store
 from .io.codecs import DEFAULT_COMPRESSION, compression_keywords, level
 from .io.leftovers import is_debris
 from .io.lock import Locked, LockError, OutputLock, describe_holder
 from .io.manifest import Manifest, fingerprint, parts_dir, read_manifest, survey_variables
 from .io.space import free_bytes
+from .io.summary import Summary
 from .io.zarrstore import RunStore
 from .progress import format_bytes
+from .runstats import AlreadyComplete, RunError, RunFailed, RunStats
 from .schema import DIMS
 
 if TYPE_CHECKING:
@@ -71,44 +73,6 @@ __all__ = [
 _Block = tuple[int, dict[str, np.ndarray]]
 #: What --compression can be for a Zarr store (Blosc LZ4 with shuffle, or none).
 ZARR_COMPRESSIONS = ("blosc_lz4", "none")
-
-
-class RunError(Exception):
-    """A run that cannot start or resume (the message says why); nothing was written.
-    CLI exit status 2."""
-
-
-class AlreadyComplete(RunError):
-    """The output already holds this very survey, finished: nothing to compute."""
-
-
-class RunFailed(Exception):
-    """A run that stopped after it began to write (a full disk, a lost dask cluster, a block
-    that changed on disk); the blocks stored so far are kept and the same run resumes.
-    CLI exit status 1."""
-
-
-@dataclass
-class RunStats:
-    """What a finished run reports: class counts, value ranges, timings, block counts.
-    ``compute_seconds`` ends when the last block is stored (the output is written meanwhile);
-    ``write_seconds`` is what writing the output took after that."""
-
-    shape: tuple[int, ...]
-    counts: np.ndarray
-    ranges: dict[str, tuple[float, float, str]]
-    dims: tuple[str, ...] = DIMS
-    flags: dict[str, np.ndarray] = field(default_factory=dict)
-    compute_seconds: float = 0.0
-    write_seconds: float = 0.0
-    compile_seconds: float = 0.0
-    blocks_total: int = 0
-    blocks_reused: int = 0
-    path: Path | None = None
-
-    @property
-    def points(self) -> int:
-        return math.prod(self.shape)
 
 
 @dataclass

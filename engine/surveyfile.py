@@ -46,13 +46,11 @@ resistance, a rim or a friction limit) needs a horizon::
 Each of the four axes is required and is given either as ``values = [...]`` (a non-empty list
 of distinct finite numbers, in the order they should appear) or as a range: ``start``, ``stop``
 (both included) and ``num`` (a positive integer, at most ``MAX_AXIS_POINTS``; ``num = 1`` needs
-``start == stop``, and the points must be distinct doubles), with
-``scale = "linear"`` (the default) or ``"log"`` (geometric spacing; start and stop > 0).
-``relative_to = "V_min"`` is allowed on the energy axis only.
+``start == stop``, and the points must be distinct doubles), with ``scale = "linear"`` (the
+default) or ``"log"`` (geometric; start, stop > 0); ``relative_to = "V_min"``: energy only.
 
-Numbers may be written as TOML integers or floats; booleans are not numbers. Every problem is
-reported as a :class:`SurveyError` naming the file, the key path (``axes.alpha.values[1]``) and
-the offending value; unknown keys come with a did-you-mean suggestion.
+Numbers are TOML integers or floats (booleans are not). Every problem is a :class:`SurveyError`
+naming the file, the key path (``axes.alpha.values[1]``) and the value (did-you-mean for keys).
 """
 
 from __future__ import annotations

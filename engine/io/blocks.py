@@ -40,8 +40,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..grid import Tiling
-from ..kernels.geometry import CLASS_NAMES
-from ..schema import DIMS, LAUNCH_DIMS, RESULTS, variable_attrs
+from ..schema import DIMS, LAUNCH_DIMS
 from . import OutputError
 from .atomic import (
     NEW_FILE,
@@ -62,7 +61,6 @@ __all__ = [
     "JOURNAL",
     "BlockStore",
     "Scan",
-    "Summary",
     "block_file_bytes",
     "check_parts_dir",
     "estimate_bytes",
@@ -378,39 +376,3 @@ def parts_info(root: Path) -> dict[str, Any]:
         "blocks_done": len({i for i in done if i < m.tiling.nblocks}),
         "blocks_total": m.tiling.nblocks,
     }
-
-
-class Summary:
-    """Counts of every flag variable (orbit classes, fates, statuses) and finite value ranges
-    of the results, gathered block by block."""
-
-    def __init__(self) -> None:
-        self.flags: dict[str, np.ndarray] = {}
-        self._lo: dict[str, float] = {}
-        self._hi: dict[str, float] = {}
-
-    @property
-    def counts(self) -> np.ndarray:
-        """Counts of the orbit classes."""
-        return self.flags.get("orbit_class", np.zeros(len(CLASS_NAMES), np.int64))
-
-    def add(self, block: dict[str, np.ndarray]) -> None:
-        """Count the flags of ``block`` and widen the ranges of its float variables."""
-        for name, arr in block.items():
-            meanings = RESULTS[name].flags if name in RESULTS else None
-            if meanings is not None:
-                n = len(meanings)
-                seen = np.bincount(arr.ravel(), minlength=n)[:n]
-                self.flags[name] = self.flags.get(name, np.zeros(n, np.int64)) + seen
-            elif arr.dtype.kind == "f":
-                fin = arr[np.isfinite(arr)]
-                if fin.size:
-                    self._lo[name] = min(self._lo.get(name, np.inf), float(fin.min()))
-                    self._hi[name] = max(self._hi.get(name, -np.inf), float(fin.max()))
-
-    @property
-    def ranges(self) -> dict[str, tuple[float, float, str]]:
-        """(min, max, units) of each float variable over its finite values."""
-        return {
-            n: (lo, self._hi[n], variable_attrs(n).get("units", "")) for n, lo in self._lo.items()
-        }

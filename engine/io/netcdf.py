@@ -39,7 +39,7 @@ import numpy as np
 from ..schema import FINGERPRINT_ATTR, axis_attrs, map_kind, variable_attrs
 from . import WriteError
 from .atomic import fsync_path, replacing
-from .blocks import BlockStore, Summary
+from .blocks import BlockStore
 from .cf import CONVENTIONS, cf_attrs, cf_dataset, history_line, typed_flags
 from .codecs import (
     DEFAULT_COMPRESSION,
@@ -54,6 +54,7 @@ from .deflate import DirectChunks, unavailable
 from .feed import feed
 from .netcdf_info import read_fingerprint, read_info
 from .space import free_bytes, output_bytes
+from .summary import Summary
 
 if TYPE_CHECKING:
     import xarray as xr

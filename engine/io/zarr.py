@@ -32,12 +32,13 @@ from ..grid import Tiling
 from ..schema import FINGERPRINT_ATTR, axis_attrs, map_kind, variable_attrs
 from . import OutputError, netcdf
 from .atomic import exists_error, fsync_dir, not_regular, refuse_special
-from .blocks import Summary, check_parts_dir, survey_dims
+from .blocks import check_parts_dir, survey_dims
 from .cf import cf_attrs
 from .contents import BLOCK_SCHEME, CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher, verify_file
 from .manifest import Manifest, parts_dir
 from .netcdf_info import class_counts, fate_counts
 from .space import output_bytes
+from .summary import Summary
 from .zarrcommit import check_tree, commit_store, metadata_problem
 from .zarrlayout import (
     UNFINISHED_ATTR,

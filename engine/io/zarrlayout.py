@@ -33,9 +33,9 @@ from ..errortext import install_hint
 from ..grid import Tiling
 from . import OutputError
 from .atomic import NEW_FILE, O_CLOEXEC, O_NOFOLLOW, fsync_dir, fsync_path, read_regular
-from .blocks import Summary
 from .cf import typed_flags
 from .contents import block_digest
+from .summary import Summary
 
 __all__ = [
     "BLOSC",

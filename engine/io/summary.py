@@ -1,0 +1,47 @@
+"""The summary a run prints and `info` shows: counts of every flag variable (orbit classes,
+fates, statuses) and the finite value ranges of the results, gathered block by block."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..kernels.geometry import CLASS_NAMES
+from ..schema import RESULTS, variable_attrs
+
+__all__ = ["Summary"]
+
+
+class Summary:
+    """Counts of every flag variable (orbit classes, fates, statuses) and finite value ranges
+    of the results, gathered block by block."""
+
+    def __init__(self) -> None:
+        self.flags: dict[str, np.ndarray] = {}
+        self._lo: dict[str, float] = {}
+        self._hi: dict[str, float] = {}
+
+    @property
+    def counts(self) -> np.ndarray:
+        """Counts of the orbit classes."""
+        return self.flags.get("orbit_class", np.zeros(len(CLASS_NAMES), np.int64))
+
+    def add(self, block: dict[str, np.ndarray]) -> None:
+        """Count the flags of ``block`` and widen the ranges of its float variables."""
+        for name, arr in block.items():
+            meanings = RESULTS[name].flags if name in RESULTS else None
+            if meanings is not None:
+                n = len(meanings)
+                seen = np.bincount(arr.ravel(), minlength=n)[:n]
+                self.flags[name] = self.flags.get(name, np.zeros(n, np.int64)) + seen
+            elif arr.dtype.kind == "f":
+                fin = arr[np.isfinite(arr)]
+                if fin.size:
+                    self._lo[name] = min(self._lo.get(name, np.inf), float(fin.min()))
+                    self._hi[name] = max(self._hi.get(name, -np.inf), float(fin.max()))
+
+    @property
+    def ranges(self) -> dict[str, tuple[float, float, str]]:
+        """(min, max, units) of each float variable over its finite values."""
+        return {
+            n: (lo, self._hi[n], variable_attrs(n).get("units", "")) for n, lo in self._lo.items()
+        }
