@@ -252,7 +252,8 @@ def survey(
     With ``energy_relative=True`` the energy axis holds offsets (energy - V_min)/|V_min| from
     each (alpha, h, Lz)'s potential minimum, and ``energy_absolute`` [J] is added; where V has
     no minimum (free fall with B >= 0, or L_z = 0) the energy is undefined and the point is
-    classed forbidden. ``progress(done, total)`` is called after each block of
+    classed forbidden (out_of_range where :func:`evaluate` says so at any energy).
+    ``progress(done, total)`` is called after each block of
     about ``block_points`` points (``chunk_points`` is its former name, still accepted).
     Fate maps (see :func:`evaluate`) start each orbit at its r_min.
     """

@@ -18,7 +18,7 @@ import numpy as np
 from .fates import Horizon, fates, require_horizon
 from .integrated import evaluate_integrated
 from .kernels.batch import BATCH_ROWS, empty_outputs, minimum_energy_batch, work_units
-from .kernels.geometry import BOUNDED, CIRCULAR_TOL
+from .kernels.geometry import BOUNDED, CIRCULAR_TOL, OUT_OF_RANGE
 from .kernels.protocol import NOT_BOUNDED
 from .kernels.workqueue import orbit_units_queued
 from .launch import invariants
@@ -164,7 +164,8 @@ def evaluate_block(spec: dict[str, Any], slices: tuple[slice, ...]) -> dict[str,
     ``method``, ``energy_relative``, ``circular_tol``, ``rtol``, ``horizon`` (fate maps).
     With a relative energy axis the absolute energy (``energy_absolute``) is V_min + offset
     |V_min| from the slab's own V_min; where V has no minimum it is NaN and the point is classed
-    forbidden. On a grid of launch states the invariants of each launch are computed
+    forbidden (out_of_range where its numbers are, as :func:`evaluate_flat` says). On a grid
+    of launch states the invariants of each launch are computed
     (:func:`engine.launch.invariants`) and returned too, and fates start at the launch. A
     closed-form map on (alpha, energy, h, L_z) runs the grid kernel, which computes what does
     not depend on the energy once per (alpha, h, L_z); its numbers equal
@@ -223,7 +224,8 @@ def _flat_block(sub: list[np.ndarray], dims: tuple[str, ...], scene: Scene,
     if e_abs is not None:
         undefined = np.isnan(e_abs)
         if undefined.any():
-            res["orbit_class"][undefined] = 0
+            cls = res["orbit_class"]
+            cls[undefined & (cls != OUT_OF_RANGE)] = 0  # out_of_range stays, as evaluate says
             for name, col in res.items():
                 if name != "r_circ" and col.dtype.kind == "f":
                     col[undefined] = np.nan

@@ -29,6 +29,7 @@ from .geometry import (
     BOUNDED,
     FAMILY_FIELDS,
     FORBIDDEN,
+    OUT_OF_RANGE,
     Family,
     cel_args,
     family,
@@ -332,12 +333,12 @@ def _grid_energy(energy, ie, relative, nhl, m, F, S, base, oidx, out_energy):
 
 
 @kernel
-def _no_minimum(m, S, out_cls, out_f, oidx):
-    """Lanes whose relative energy is undefined (no V_min): FORBIDDEN, NaN but r_circ."""
+def _no_minimum(m, F, S, out_cls, out_f, oidx):
+    """Lanes with no V_min: FORBIDDEN (OUT_OF_RANGE if the family is), NaN but r_circ."""
     for j in range(m):
         if math.isnan(S[_E, j]):
             o = oidx[j]
-            out_cls[o] = FORBIDDEN
+            out_cls[o] = OUT_OF_RANGE if F[F_KIND, j] == OUT_OF_RANGE else FORBIDDEN
             for i in range(10):
                 if i != 2:
                     out_f[i, o] = math.nan
@@ -362,10 +363,9 @@ def orbit_units(u0, u1, alpha, energy, h, Lz, grid, relative, M, g, k, a, rim, m
     float64[10, n] (rows :data:`BATCH_ROWS`), ``out_energy`` unused. On the grid alpha x
     energy x h x Lz (1-D axes; outputs flat in that C order), each family is computed once per
     (alpha, h, L_z) and a chunk of energies; with ``relative`` the energy axis is an offset:
-    the energy is V_min + offset |V_min| and a point whose V_min is undefined is FORBIDDEN with
-    NaN outputs (but r_circ); ``out_energy`` float64[n] receives the absolute energy. Every
-    unit's numbers are independent of the others' (callers run units on several threads; the
-    kernel releases the GIL)."""
+    the energy is V_min + offset |V_min|; with no V_min a point is :func:`_no_minimum`;
+    ``out_energy`` float64[n] receives the absolute energy. Units are independent (callers
+    run them on several threads; the kernel releases the GIL)."""
     n, nhl = alpha.size, h.size * Lz.size
     ntri = alpha.size * nhl
     nec = (energy.size + GRID_ENERGY_CHUNK - 1) // GRID_ENERGY_CHUNK
@@ -397,7 +397,7 @@ def orbit_units(u0, u1, alpha, energy, h, Lz, grid, relative, M, g, k, a, rim, m
                 families(S[_AL], S[_H], S[_LZ], m, M, g, k, grid, F, R)
             lanes(F, m, M, g, k, a, rim, mu, circ_tol, S, out_cls, out_f, oidx)
             if grid and relative:
-                _no_minimum(m, S, out_cls, out_f, oidx)
+                _no_minimum(m, F, S, out_cls, out_f, oidx)
 
 
 @parallel_kernel
