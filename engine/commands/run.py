@@ -16,12 +16,13 @@ import re
 import sys
 import textwrap
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 from ..errortext import install_hint
 from ..grid import BLOCK_POINTS
 from ..io import zarr as zarr_io
 from ..io.codecs import COMPRESSIONS, DEFAULT_COMPRESSION, DEFAULT_LEVELS
+from ..io.manifest import fingerprint
 from ..kernels.fate import FATE_NAMES
 from ..kernels.geometry import CLASS_NAMES
 from ..progress import Progress
@@ -29,6 +30,9 @@ from ..runner import AlreadyComplete, RunError, RunFailed, RunStats, run_survey
 from ..scene import Scene
 from . import PROG, Command, InputError, error, load
 from .validate import compile_seconds, energy_warning
+
+if TYPE_CHECKING:
+    from ..surveyfile import Survey
 
 __all__ = ["COMMAND", "print_summary"]
 
@@ -198,6 +202,47 @@ def _run(args: argparse.Namespace, command: str) -> int:
     progress = None if args.quiet else Progress(sys.stderr)
     if progress is not None:
         progress.kernels_cached = compile_seconds(survey) == 0.0
+    before = _identity(out)
+    try:
+        return _run_and_report(args, command, survey, source, out, progress)
+    except KeyboardInterrupt:
+        if not _finished_since(out, survey, before):
+            raise
+        _close(progress)
+        error(f"interrupted after the run had finished: {out} is complete; nothing to resume")
+        return 130
+
+
+def _identity(out: Path) -> tuple[int, int] | None:
+    """(device, inode) of the output as it is now (None: none): a finished run renames a new
+    file or store into place, so the output it leaves has another."""
+    try:
+        st = os.lstat(out)
+    except OSError:
+        return None
+    return (st.st_dev, st.st_ino)
+
+
+def _finished_since(out: Path, survey: Survey, before: tuple[int, int] | None) -> bool:
+    """Whether this run renamed its complete output into place (a Ctrl-C after that point
+    interrupts only the tidying and the summary: nothing is left to resume)."""
+    now = _identity(out)
+    if now is None or now == before:
+        return False
+    try:
+        return zarr_io.backend_for(out).read_fingerprint(out) == fingerprint(survey)
+    except (OSError, ValueError):
+        return False
+
+
+def _run_and_report(
+    args: argparse.Namespace,
+    command: str,
+    survey: Survey,
+    source: Path,
+    out: Path,
+    progress: Progress | None,
+) -> int:
     try:
         stats = run_survey(
             survey,
