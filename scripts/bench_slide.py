@@ -55,16 +55,23 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", type=int, default=400)
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--method", default="rk45", help="rk45 (default) or dop853")
+    ap.add_argument(
+        "--tiny", action="store_true", help="a short smoke run: 8 launches, dop853 (the tests')"
+    )
     args = ap.parse_args()
+    if args.tiny:
+        args.points, args.repeats, args.method = 8, 1, "dop853"
+    method = args.method
     pts = sample(args.points)
     base = dict(mu=0.3, c_rr=0.02, rim=1.0)
     runs = {
-        "rolling": lambda: fates(*pts, Scene(**base), "rk45", 1e-9, Horizon(time=T_MAX)),
+        "rolling": lambda: fates(*pts, Scene(**base), method, 1e-9, Horizon(time=T_MAX)),
         "hybrid": lambda: hybrid_fates(
-            *pts, Scene(mu_k=0.25, **base), "rk45", 1e-9, T_MAX, float("inf")
+            *pts, Scene(mu_k=0.25, **base), method, 1e-9, T_MAX, float("inf")
         ),  # fmt: skip
         "hybrid + spin": lambda: hybrid_fates(
-            *pts, Scene(mu_k=0.25, c_spin=0.01, **base), "rk45", 1e-9, T_MAX, float("inf")
+            *pts, Scene(mu_k=0.25, c_spin=0.01, **base), method, 1e-9, T_MAX, float("inf")
         ),  # fmt: skip
     }
     print(f"{args.points} launches, best of {args.repeats}")

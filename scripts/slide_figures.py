@@ -73,7 +73,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "figures")
     parser.add_argument("--n", type=int, default=48)
+    parser.add_argument("--tiny", action="store_true", help="a 3x3 smoke run (tests)")
     args = parser.parse_args()
+    if args.tiny:
+        args.n = 3
     t0 = time.perf_counter()
     u0, spin, res = launch_map(args.n)
     dt = time.perf_counter() - t0

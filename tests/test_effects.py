@@ -22,14 +22,20 @@ ONLY = {
     "rim": Scene(rim=3.0),
     "slip_check": Scene(mu=0.5),
     "attitude": Scene(attitude=True),
+    "sliding": Scene(mu=0.5, mu_k=0.3),
+    "spin_friction": Scene(mu=0.5, mu_k=0.3, c_spin=0.01),
 }
+#: The effects a scene must name for the effect to be possible (kinetic friction needs the static
+#: coefficient; spin friction belongs to the sliding model).
+PREREQUISITES = {"sliding": ("slip_check",), "spin_friction": ("slip_check", "sliding")}
 
 
 def test_every_effect_has_a_scene_above():
     assert set(ONLY) == set(fx.BY_NAME)
     for name, scene in ONLY.items():
-        assert scene.effects == (name,)
-        assert scene.effects_mask == fx.BY_NAME[name].bit
+        assert scene.effects == (*PREREQUISITES.get(name, ()), name)
+        assert scene.effects_mask == fx.mask_of(scene.effects)
+        assert scene.effects_mask & fx.BY_NAME[name].bit
 
 
 @pytest.mark.parametrize("method", list(METHODS.values()), ids=list(METHODS))
@@ -70,7 +76,8 @@ def test_symplectic_kernel_refuses_what_the_registry_refuses():
 
 def test_masks_follow_the_rows():
     assert fx.ALL_EFFECTS == sum(e.bit for e in fx.EFFECTS)
-    assert fx.DISSIPATIVE == fx.BY_NAME["rolling_resistance"].bit
+    assert fx.DISSIPATIVE == fx.mask_of(("rolling_resistance", "sliding", "spin_friction"))
+    assert fx.ROLLING_EFFECTS == fx.mask_of(("rolling_resistance", "rim", "slip_check", "attitude"))
     assert fx.names_of(fx.ALL_EFFECTS) == tuple(fx.BY_NAME)
     assert not fx.REVOLUTIONS & fx.ALL_EFFECTS
 

@@ -37,7 +37,7 @@ ROW = """
     ),"""
 ROW_AFTER = 'integrated with the motion",\n    ),'
 _ATT = 'ATTITUDE = EFFECT_BITS["attitude"]'
-_RR_FORCE = "            vdot -= f * v"
+_RETURN = "    return u, vir / p[P_SIN], udot, vdot, -kappa * u * v"
 _RR_POWER = "        power += p[P_CRR] * N * math.sqrt(u * u + v * v)"
 #: Its terms in the right-hand side: the force, and the power it takes (the work state's rate).
 RHS_TERM = """
@@ -56,7 +56,7 @@ EDITS = [
         "\nN_PARAMS = 18",
         "\nP_DRAG = 18  # linear drag rate [s-1]\nN_PARAMS = 19",
     ),
-    ("kernels/model.py", _RR_FORCE, _RR_FORCE + RHS_TERM),
+    ("kernels/model.py", _RETURN, RHS_TERM.lstrip("\n") + "\n" + _RETURN),
     ("kernels/model.py", _RR_POWER, _RR_POWER + POWER_TERM),
     (
         "scene.py",

@@ -23,11 +23,13 @@ TINY = {
     "bench_exact.py": ([], "load average"),
     "bench_fates.py": ([], "2-thread speedup of the fate map"),
     "bench_integrators.py": ([], "heyoka"),
+    "bench_slide.py": ([], "2-thread speedup"),
     "energy_drift.py": (["--out", "{tmp}/drift.png"], "wrote"),
     "fate_figures.py": (["--out", "{tmp}"], ""),
     "figures.py": (["--out", "{tmp}"], ""),
     "integrator_peers.py": ([], "scipy DOP853"),
     "look_figures.py": (["--out", "{tmp}"], "wrote"),
+    "slide_figures.py": (["--out", "{tmp}"], "launches in"),
     "work_precision.py": (["--out", "{tmp}/wp.nc", "--png", "{tmp}/wp.png"], "wrote"),
 }
 #: Modules the scripts import, not scripts themselves (tested below through their functions).

@@ -560,7 +560,14 @@ def invalid_cases(draw) -> dict:
         effect = draw(st.sampled_from([name for name, _ in method.refuses]))
         doc["method"] = method.name
         scene = doc.setdefault("scene", {})
-        scene.update({"rolling_resistance": {"c_rr": 1e-3}, "attitude": {"attitude": True}}[effect])
+        scene.update(
+            {
+                "rolling_resistance": {"c_rr": 1e-3},
+                "attitude": {"attitude": True},
+                "sliding": {"mu": 0.5, "mu_k": 0.3},
+                "spin_friction": {"mu": 0.5, "mu_k": 0.3, "c_spin": 0.01},
+            }[effect]
+        )
         key, shows = "method", effect
     elif kind == "rtol_range":  # in (0, 1) but outside the registry's range, for an integrator
         doc["method"] = draw(st.sampled_from([m.name for m in _REGISTRY.values() if m.integrates]))

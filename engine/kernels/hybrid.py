@@ -30,6 +30,7 @@ from .fate import (
     REST_SPEED,
     ROLLING,
     fate_run,
+    holds_at_rest,
 )
 from .hybrid_step import (
     ARMED_ROLL,
@@ -60,7 +61,6 @@ from .model import (
     P_SIN,
     P_V_REST,
     ROLLING_RESISTANCE,
-    holds_at_rest,
     invariants,
     invariants_of,
     kinetic_energy,

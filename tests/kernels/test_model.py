@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from model_oracle import invariants, rhs, state_from_invariants
 
 from engine.kernels import model
-from engine.kernels.effects import ALL_EFFECTS
+from engine.kernels.effects import ROLLING_EFFECTS
 from engine.kernels.geometry import ideal_orbit
 from engine.kernels.model import coefficients, potential, radial_energy
 from engine.kernels.roots import circular_radius
@@ -292,7 +292,7 @@ def test_forces_match_physics_kernel():
 def test_effects_mask_and_state_size():
     assert Scene().effects_mask == 0
     sc = Scene(c_rr=0.1, rim=2.0, mu=0.5, attitude=True)
-    assert sc.effects_mask == ALL_EFFECTS
+    assert sc.effects_mask == ROLLING_EFFECTS
     assert Scene(rim=1.0).effects_mask == model.RIM
     assert model.state_size(0) == 5
     assert model.state_size(model.ATTITUDE) == 9
