@@ -32,8 +32,9 @@ TINY = {
     "slide_figures.py": (["--out", "{tmp}"], "launches in"),
     "work_precision.py": (["--out", "{tmp}/wp.nc", "--png", "{tmp}/wp.png"], "wrote"),
 }
-#: Modules the scripts import, not scripts themselves (tested below through their functions).
-HELPERS = {"figure_cli.py", "readme_block.py"}
+#: Modules the scripts import, not scripts themselves (figure_cli and readme_block tested below
+#: through their functions; bench_common through the benchmarks' tiny runs above).
+HELPERS = {"figure_cli.py", "readme_block.py", "bench_common.py"}
 
 
 def test_every_script_is_run_here():
