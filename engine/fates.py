@@ -84,6 +84,18 @@ def check_horizon(
     return None
 
 
+def check_mappable(scene: Scene) -> Scene:
+    """``scene`` if a survey map can follow all its effects; ValueError naming the field
+    otherwise (the sliding model has no survey map yet: not silently today's map, where a
+    slip is an end)."""
+    if "sliding" in scene.effects:
+        raise ValueError(
+            "Scene.mu_k makes a slip a transition, and survey maps of the sliding model are not "
+            "wired yet: use engine.story.launch_fates (one launch: engine.story.story)"
+        )
+    return scene
+
+
 def require_horizon(horizon: Horizon | None) -> Horizon:
     """The horizon of a fate map; ValueError when none is given."""
     if horizon is None or not horizon.given:
@@ -116,11 +128,7 @@ def fates(
     """
     m = check_method(method, scene, integrator=True)
     require_horizon(horizon)
-    if "sliding" in scene.effects:  # not silently today's map (slipped as an end)
-        raise ValueError(
-            "Scene.mu_k: survey maps of the sliding model are not wired yet; use "
-            "engine.story.launch_fates or engine.hybrid.hybrid_fates"
-        )
+    check_mappable(scene)
     n = alpha.shape[0]
     params = scene.params()
     params[P_THETA_MAX] = horizon.theta_max

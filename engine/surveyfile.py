@@ -70,7 +70,7 @@ import numpy as np
 from .api import launch_survey as api_launch_survey
 from .api import survey as api_survey
 from .errortext import toml_repr, toml_type
-from .fates import Horizon, check_horizon
+from .fates import Horizon, check_horizon, check_mappable
 from .grid import grid_too_large
 from .io.atomic import read_regular
 from .kernels.geometry import CIRCULAR_TOL as DEFAULT_CIRCULAR_TOL
@@ -389,7 +389,7 @@ class _Reader(AxisReader):
             else:
                 kwargs[field.name] = self.number(value, key)
         try:
-            return Scene(**kwargs)
+            return check_mappable(Scene(**kwargs))
         except ValueError as exc:
             m = re.search(r"Scene\.(\w+)", str(exc))
             name = m.group(1) if m else ""

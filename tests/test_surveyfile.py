@@ -345,3 +345,26 @@ def test_bad_horizons_and_launch_axes_are_named(text, key, words):
     with pytest.raises(SurveyError) as info:
         parse_survey(text)
     assert info.value.key.startswith(key) and words in str(info.value), str(info.value)
+
+
+def test_a_sliding_scene_is_refused_in_survey_files_naming_mu_k():
+    """Survey maps do not follow the sliding model yet: a file naming mu_k is refused by the one
+    validation ``run`` and ``validate`` share (not silently mapped with slips as ends)."""
+    text = """
+method = "rk45"
+[scene]
+mu = 0.4
+mu_k = 0.3
+[horizon]
+time = 5.0
+[axes.alpha]
+values = [0.6]
+[axes.r0]
+values = [0.5]
+[axes.v0]
+values = [1.0]
+[axes.w0]
+values = [0.0]
+"""
+    with pytest.raises(SurveyError, match=r"scene\.mu_k.*engine\.story\.launch_fates"):
+        parse_survey(text)
