@@ -19,7 +19,7 @@ import pytest
 import runs
 
 from engine import cli
-from engine.io import blocks as io_blocks
+from engine.io import summary as io_summary
 from engine.io.blocks import BlockStore
 from engine.runner import run_survey
 from engine.surveyfile import parse_survey
@@ -90,7 +90,7 @@ def test_disk_full_while_a_block_is_stored(work, capsys, reference, monkeypatch)
 def test_disk_full_during_the_merge(work, capsys, reference, monkeypatch):
     """netCDF4 reports an HDF5 write error (ENOSPC included) as RuntimeError("NetCDF: HDF
     error"); here it comes after the first block was written into the file."""
-    real = io_blocks.Summary.add
+    real = io_summary.Summary.add
     calls = []
 
     def add(self, block):
@@ -99,10 +99,10 @@ def test_disk_full_during_the_merge(work, capsys, reference, monkeypatch):
             raise RuntimeError("NetCDF: HDF error")
         real(self, block)
 
-    monkeypatch.setattr(io_blocks.Summary, "add", add)
+    monkeypatch.setattr(io_summary.Summary, "add", add)
     store = stopped_cleanly(work, capsys, "writing out.nc failed (NetCDF: HDF error)")
     assert store.scan().good == {0, 1, 2, 3}
-    monkeypatch.setattr(io_blocks.Summary, "add", real)
+    monkeypatch.setattr(io_summary.Summary, "add", real)
     resumes(work, capsys, reference)
 
 

@@ -19,7 +19,6 @@ from engine.io import OutputError
 from engine.io.blocks import (
     JOURNAL,
     BlockStore,
-    Summary,
     block_file_bytes,
     check_parts_dir,
     estimate_bytes,
@@ -27,6 +26,7 @@ from engine.io.blocks import (
     read_journal,
 )
 from engine.io.manifest import MANIFEST, Manifest, parts_dir, survey_variables
+from engine.io.summary import Summary
 from engine.surveyfile import parse_survey
 
 SURVEY = runs.gravity_survey("blocks test", alpha=(0.3, 0.6), energy=5, h=2, lz=3)
