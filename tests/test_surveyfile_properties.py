@@ -557,17 +557,13 @@ def invalid_cases(draw) -> dict:
         key = f"axes.{name}.relative_to"
     elif kind == "method_scene":  # a method that cannot honour an effect of the scene
         method = draw(st.sampled_from([m for m in _REGISTRY.values() if m.refuses]))
-        effect = draw(st.sampled_from([name for name, _ in method.refuses]))
+        # (a scene with mu_k is refused at scene.mu_k before any method: survey maps do not
+        # follow the sliding model yet; test_surveyfile.py tests that refusal)
+        fields = {"rolling_resistance": {"c_rr": 1e-3}, "attitude": {"attitude": True}}
+        effect = draw(st.sampled_from([name for name, _ in method.refuses if name in fields]))
         doc["method"] = method.name
         scene = doc.setdefault("scene", {})
-        scene.update(
-            {
-                "rolling_resistance": {"c_rr": 1e-3},
-                "attitude": {"attitude": True},
-                "sliding": {"mu": 0.5, "mu_k": 0.3},
-                "spin_friction": {"mu": 0.5, "mu_k": 0.3, "c_spin": 0.01},
-            }[effect]
-        )
+        scene.update(fields[effect])
         key, shows = "method", effect
     elif kind == "rtol_range":  # in (0, 1) but outside the registry's range, for an integrator
         doc["method"] = draw(st.sampled_from([m.name for m in _REGISTRY.values() if m.integrates]))
