@@ -16,10 +16,10 @@ from __future__ import annotations
 
 import argparse
 import os
-import time
 
 import numba
 import numpy as np
+from bench_common import best
 
 import engine
 
@@ -31,15 +31,6 @@ def sample(n: int, seed: int = 3) -> tuple[np.ndarray, ...]:
     Lz = rng.uniform(0.3, 1.5, n)
     vmin = engine.minimum_energy(alpha, h, Lz)
     return alpha, vmin + np.abs(vmin) * rng.uniform(0.2, 3.0, n), h, Lz
-
-
-def best(fn, repeats: int) -> float:
-    t = float("inf")
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        t = min(t, time.perf_counter() - t0)
-    return t
 
 
 def main() -> None:

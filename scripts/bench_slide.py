@@ -19,10 +19,10 @@ from __future__ import annotations
 
 import argparse
 import os
-import time
 
 import numba
 import numpy as np
+from bench_common import best
 
 from engine import launch
 from engine.fates import Horizon, fates
@@ -40,15 +40,6 @@ def sample(n: int, seed: int = 3) -> tuple[np.ndarray, ...]:
     r0 = rng.uniform(0.1, 0.5, n)
     inv = launch.invariants(alpha, r0, 0.0, rng.uniform(0.2, 1.5, n), rng.uniform(-2, 2, n))
     return alpha, inv["energy"], inv["h"], inv["Lz"], r0
-
-
-def best(fn, repeats: int) -> float:
-    t = float("inf")
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        t = min(t, time.perf_counter() - t0)
-    return t
 
 
 def main() -> None:
