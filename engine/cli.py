@@ -27,6 +27,7 @@ from .commands import info as _info
 from .commands import look as _look
 from .commands import run as _run
 from .commands import validate as _validate
+from .commands.interrupts import interrupts_outside_compile_hooks
 
 __all__ = ["COMMANDS", "build_parser", "main", "register"]
 
@@ -83,7 +84,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(args_list)
     command_line = shlex.join([PROG, *args_list])
     try:
-        status = COMMANDS[args.command].run(args, command_line)
+        with interrupts_outside_compile_hooks():  # a Ctrl-C while numba loads a kernel, too
+            status = COMMANDS[args.command].run(args, command_line)
         sys.stdout.flush()  # a closed pipe shows up here, inside the handler below
         return status
     except InputError as exc:

@@ -18,7 +18,7 @@ import numpy as np
 from .fates import Horizon, fates, require_horizon
 from .integrated import evaluate_integrated
 from .kernels.batch import BATCH_ROWS, empty_outputs, minimum_energy_batch, work_units
-from .kernels.geometry import BOUNDED, CIRCULAR_TOL, OUT_OF_RANGE
+from .kernels.geometry import BOUNDED, CIRCULAR_TOL, OUT_OF_RANGE, ideal_cone
 from .kernels.protocol import NOT_BOUNDED
 from .kernels.workqueue import orbit_units_queued
 from .launch import invariants
@@ -66,10 +66,10 @@ def evaluate_flat(
     kind = map_kind(method, scene)
     wanted = result_variables(method, scene)
     cls, f = empty_outputs(a.shape[0])
-    rim, mu = scene.rim_or_inf, scene.mu_or_inf
+    p = scene.params()
     if kind == "fate":  # the launch orbit on the ideal cone; the integration follows the scene
-        rim, mu = math.inf, math.inf
-    orbit_batch(a, e, hh, lz, scene.M, scene.g, scene.k, scene.a, rim, mu, circular_tol, cls, f)
+        p = ideal_cone(p)
+    orbit_batch(a, e, hh, lz, p, circular_tol, cls, f)
     out: dict[str, np.ndarray] = {"orbit_class": cls}
     for i, name in enumerate(BATCH_ROWS):
         if name in wanted:
@@ -128,31 +128,30 @@ def run_units(*args) -> None:
 
 
 def orbit_batch(alpha: np.ndarray, energy: np.ndarray, h: np.ndarray, Lz: np.ndarray,
-                M: float, g: float, k: float, a: float, rim: float, mu: float, circ_tol: float,
-                out_cls: np.ndarray, out_f: np.ndarray) -> None:  # fmt: skip
-    """:func:`.kernels.geometry.orbit_point` over 1-D float64 arrays, in parallel and in lanes:
-    ``out_cls`` int8[n], ``out_f`` float64[10, n] (rows :data:`.kernels.batch.BATCH_ROWS`)."""
-    run_units(alpha, energy, h, Lz, False, False, float(M), float(g), float(k), float(a),
-                float(rim), float(mu), float(circ_tol), out_cls, out_f, _NO_ENERGY)  # fmt: skip
+                params: np.ndarray, circ_tol: float, out_cls: np.ndarray,
+                out_f: np.ndarray) -> None:  # fmt: skip
+    """:func:`.kernels.geometry.orbit_point` over 1-D float64 arrays, in parallel and in lanes,
+    on the scene's parameter array ``params`` (``Scene.params()``): ``out_cls`` int8[n],
+    ``out_f`` float64[10, n] (rows :data:`.kernels.batch.BATCH_ROWS`)."""
+    run_units(alpha, energy, h, Lz, False, False, params, float(circ_tol), out_cls, out_f,
+              _NO_ENERGY)  # fmt: skip
 
 
 def orbit_grid(alpha: np.ndarray, energy: np.ndarray, h: np.ndarray, Lz: np.ndarray,
-               relative: bool, M: float, g: float, k: float, a: float, rim: float, mu: float,
-               circ_tol: float, out_cls: np.ndarray, out_f: np.ndarray,
-               out_energy: np.ndarray) -> None:  # fmt: skip
+               relative: bool, params: np.ndarray, circ_tol: float, out_cls: np.ndarray,
+               out_f: np.ndarray, out_energy: np.ndarray) -> None:  # fmt: skip
     """:func:`orbit_batch` over the grid alpha x energy x h x Lz (1-D float64 axes; outputs
     flat in that C order), each family computed once per (alpha, h, L_z) for a chunk of
     energies; ``relative``: the energy axis is an offset (:func:`.kernels.batch.orbit_units`),
     ``out_energy`` float64[n] receives the absolute energy."""
-    run_units(alpha, energy, h, Lz, True, bool(relative), float(M), float(g), float(k),
-                float(a), float(rim), float(mu), float(circ_tol), out_cls, out_f,
-                out_energy)  # fmt: skip
+    run_units(alpha, energy, h, Lz, True, bool(relative), params, float(circ_tol), out_cls, out_f,
+              out_energy)  # fmt: skip
 
 
 def minimum_energy_flat(alpha: np.ndarray, h: np.ndarray, Lz: np.ndarray, scene: Scene):
     """V_min [J] at each (alpha, h, Lz) of 1-D float64 arrays; NaN where V has no minimum."""
     out = np.empty(alpha.size)
-    minimum_energy_batch(alpha, h, Lz, scene.M, scene.g, scene.k, out)
+    minimum_energy_batch(alpha, h, Lz, scene.params(), out)
     return out
 
 
@@ -191,8 +190,7 @@ def _closed_form_grid(sub: list[np.ndarray], scene: Scene, spec: dict[str, Any])
     relative = bool(spec["energy_relative"])
     cls, f = empty_outputs(n)
     e_abs = np.empty(n)
-    orbit_grid(*sub, relative, scene.M, scene.g, scene.k, scene.a, scene.rim_or_inf,
-               scene.mu_or_inf, spec["circular_tol"], cls, f, e_abs)  # fmt: skip
+    orbit_grid(*sub, relative, scene.params(), spec["circular_tol"], cls, f, e_abs)
     wanted = result_variables(spec["method"], scene)
     out: dict[str, np.ndarray] = {"orbit_class": cls}
     for i, name in enumerate(BATCH_ROWS):

@@ -60,7 +60,7 @@ def _real(name: str, value: Any) -> float:
 
 def _capacities(alpha, energy, h, Lz, scene, t_end, periods, dt_out) -> tuple[int, int]:
     """First guess of the event and trajectory buffer sizes (grown on demand)."""
-    T = float(ideal_orbit(alpha, energy, h, Lz, scene.M, scene.g, scene.k, CIRCULAR_TOL)[4])
+    T = float(ideal_orbit(alpha, energy, h, Lz, scene.params(alpha), CIRCULAR_TOL)[4])
     if periods is not None:
         cap_ev = 2 * int(periods) + 2
         span = 1.05 * periods * T
@@ -76,7 +76,7 @@ def _capacities(alpha, energy, h, Lz, scene, t_end, periods, dt_out) -> tuple[in
 
 def _start_radius(alpha, energy, h, Lz, scene, p, periods):
     """(r0, r1, r2, rc, class name) of the orbit's start at r_min; ValueError if impossible."""
-    cls = int(ideal_orbit(alpha, energy, h, Lz, scene.M, scene.g, scene.k, CIRCULAR_TOL)[0])
+    cls = int(ideal_orbit(alpha, energy, h, Lz, scene.params(alpha), CIRCULAR_TOL)[0])
     ok, r1, r2, rc = orbit_start(p, energy, h, Lz)
     if cls == HYPERBOLIC:
         if periods is not None:

@@ -52,7 +52,7 @@ from engine.backends import block_spec
 from engine.evaluation import evaluate_block, evaluate_flat
 from engine.grid import Tiling
 from engine.kernels.batch import STAGES, empty_outputs, profile_batch
-from engine.kernels.geometry import BOUNDED
+from engine.kernels.geometry import BOUNDED, scene_params
 from engine.schema import DIMS
 from engine.surveyfile import load_survey
 
@@ -199,9 +199,9 @@ def profile(pts: dict[str, np.ndarray], rounds: int) -> list[tuple[str, float]]:
     a, e, h, lz = pts["alpha"], pts["energy"], pts["h"], pts["Lz"]
     n = a.size
     cls, f = empty_outputs(n)
-    fns = {}
+    fns, p = {}, scene_params(M, G, K)
     for upto in range(len(STAGES)):
-        fns[STAGES[upto]] = lambda u=upto: profile_batch(a, e, h, lz, M, G, K, 1e-12, cls, f, u)
+        fns[STAGES[upto]] = lambda u=upto: profile_batch(a, e, h, lz, p, 1e-12, cls, f, u)
     for fn in fns.values():
         fn()
     best = measure(fns, max(rounds, 5))

@@ -27,6 +27,26 @@ SLOW = {
 }
 
 
+#: Files whose tests take longest (``--durations=0``, summed per file), longest first. With
+#: ``-n 2 --dist loadfile`` each file runs whole on one worker, and the workers take files in
+#: the collection's order (``--no-loadscope-reorder`` in pyproject.toml; xdist's own order, by
+#: number of tests, put these few-test files last, so the suite ended with one of them running
+#: alone). They start first; the other files follow, most tests first, and fill the gaps.
+LONGEST_FIRST = (
+    "test_hybrid.py",
+    "test_dask.py",
+    "test_architecture.py",
+    "test_attacks.py",
+    "test_recipes.py",
+    "test_fates.py",
+    "test_interrupt_after_complete.py",
+    "test_runner.py",
+    "test_scripts.py",
+    "test_report.py",
+    "test_message_edges.py",
+)
+
+
 def pytest_collection_modifyitems(config, items):
     import pytest
 
@@ -34,3 +54,13 @@ def pytest_collection_modifyitems(config, items):
         name = item.path.name
         if name in SLOW or f"{name}::{item.originalname}" in SLOW:
             item.add_marker(pytest.mark.slow)
+    per_file: dict = {}
+    for item in items:
+        per_file.setdefault(item.path, []).append(item)
+
+    def rank(path):
+        if path.name in LONGEST_FIRST:
+            return (0, LONGEST_FIRST.index(path.name))
+        return (1, -len(per_file[path]))
+
+    items[:] = [item for path in sorted(per_file, key=rank) for item in per_file[path]]

@@ -14,9 +14,22 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from engine import _jit
 from engine import cli as engine_cli
 
 ROOT = Path(__file__).resolve().parent.parent
+
+
+def copy_cache(tmp_path: Path, recipe: str) -> Path:
+    """The compile cache of the package copy a recipe test makes (CONESURVEY_CACHE_DIR of its
+    subprocess): a directory per recipe beside the package's own cache, so that the next run of
+    the suite loads the copy's kernels instead of compiling them again (minutes). The copy's
+    kernels are keyed on their content like any others (a changed source compiles again); it is
+    kept apart from the package's cache because numba keeps one key per function and file, and
+    the copy's keys would replace the package's. A fresh directory when caching is off."""
+    if _jit.CACHE_DIR is None:
+        return tmp_path / "cache"
+    return _jit.CACHE_DIR.parent / "recipe-copies" / recipe
 
 
 def gravity_survey(

@@ -7,7 +7,7 @@ import pytest
 import xarray as xr
 
 import engine
-from engine.kernels.geometry import ideal_orbit
+from engine.kernels.geometry import ideal_orbit, scene_params
 from engine.schema import result_variables
 
 VARS = ("r_min", "r_max", "r_circ", "period", "apsidal_angle", "precession_rate", "mu_required")
@@ -19,7 +19,7 @@ def test_evaluate_broadcasts_like_numpy():
     assert ds.alpha.shape == (2, 5)
     for v in VARS:
         assert ds[v].dtype == np.float64 and "units" in ds[v].attrs and "long_name" in ds[v].attrs
-    want = ideal_orbit(0.5, ds.energy.values[1, 3], 1.0, 1.0, 1.0, 9.81, 0.4, 1e-12)
+    want = ideal_orbit(0.5, ds.energy.values[1, 3], 1.0, 1.0, scene_params(1.0, 9.81, 0.4), 1e-12)
     assert ds.period.values[1, 3] == want[4]
 
 

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 from cases import CASES
+from runs import copy_cache
 
 ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "engine"
@@ -214,7 +215,8 @@ def test_recipe_new_runge_kutta_pair(tmp_path):
     shutil.copytree(PKG, copy, ignore=shutil.ignore_patterns("__pycache__"))
     tableaux = copy / "kernels" / "tableaux.py"
     tableaux.write_text(tableaux.read_text() + textwrap.dedent(BS32))
-    env = dict(os.environ, PYTHONPATH=str(tmp_path), CONESURVEY_CACHE_DIR=str(tmp_path / "cache"))
+    cache = copy_cache(tmp_path, "new-runge-kutta-pair")
+    env = dict(os.environ, PYTHONPATH=str(tmp_path), CONESURVEY_CACHE_DIR=str(cache))
     env["NUMBA_NUM_THREADS"] = "1"
     # A reference orbit (40-digit period, the reference data) integrated for one period: the
     # integrators' promise is 100 rtol kappa (tests/cases.py), kappa = max(1, A/r1^2/calE).

@@ -17,6 +17,8 @@ import sys
 import textwrap
 from pathlib import Path
 
+from runs import copy_cache
+
 ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "engine"
 
@@ -155,7 +157,11 @@ def test_recipe_new_effect(tmp_path, capsys):
     shutil.copytree(PKG, copy, ignore=shutil.ignore_patterns("__pycache__"))
     lines = _apply(copy)
     assert lines <= 25, lines
-    env = dict(os.environ, PYTHONPATH=str(tmp_path), CONESURVEY_CACHE_DIR=str(tmp_path / "cache"))
+    env = dict(
+        os.environ,
+        PYTHONPATH=str(tmp_path),
+        CONESURVEY_CACHE_DIR=str(copy_cache(tmp_path, "new-effect")),
+    )
     env["NUMBA_NUM_THREADS"] = "1"
     res = subprocess.run(
         [sys.executable, "-c", textwrap.dedent(CHECK), str(tmp_path)],

@@ -41,6 +41,7 @@ from .geometry import (
     scene_point,
     well_or_nan,
 )
+from .model import P_G, P_M, P_MU, P_RIM_SLANT
 from .roots import (
     RC_STEPS,
     TP_STEPS,
@@ -94,12 +95,12 @@ def _store(F, col, row, values):
 
 
 @kernel
-def families(AL, HH, LZ, m, M, g, k, eager, F, R):
+def families(AL, HH, LZ, m, p, eager, F, R):
     """:func:`.geometry.family` of (AL[j], HH[j], LZ[j]) into column j of F, j < m, with r_c
     over the lanes (RC_STEPS Halley steps side by side). ``R``: float64[3, >= m] scratch."""
     r, dr, ok = R[0], R[1], R[2]
     for j in range(m):
-        head = family_head(AL[j], HH[j], LZ[j], M, g, k, eager)
+        head = family_head(AL[j], HH[j], LZ[j], p, eager)
         A, B, C = head.A, head.B, head.C
         F[F_KIND, j] = head.kind
         _store(F, j, F_S, head[F_S:F_RC])  # the head is the family but r_c and the well
@@ -121,14 +122,14 @@ def families(AL, HH, LZ, m, M, g, k, eager, F, R):
 
 
 @kernel
-def select_lanes(F, m, g, circ_tol, S):
+def select_lanes(F, m, p, circ_tol, S):
     """Which lanes are bounded under gravity (the lanes' path), and the scalar orbit of the
     others."""
     for j in range(m):
         e = S[_E, j]
         vmin = F[F_VMIN, j]
         delta = e - vmin
-        reg = (F[F_KIND, j] == 0.0 and F[F_C, j] > 0.0 and g != 0.0 and delta >= 0.0
+        reg = (F[F_KIND, j] == 0.0 and F[F_C, j] > 0.0 and p[P_G] != 0.0 and delta >= 0.0
                and not abs(e - vmin) <= circ_tol * F[F_NOISE, j])  # fmt: skip
         S[_REG, j] = 1.0 if reg else 0.0
         S[_RC, j] = F[F_RC, j]
@@ -176,13 +177,13 @@ def turning_lanes(F, m, S):
 
 
 @kernel
-def elliptic_lanes(F, m, M, S):
+def elliptic_lanes(F, m, p, S):
     """Period, apsidal angle and precession rate of the bounded lanes (.geometry.orbit_in):
     the two complete elliptic integrals of every lane in one lock-step loop."""
     for j in range(m):
         r1, r2 = S[_R1, j], S[_R2, j]
         reg = S[_REG, j] != 0.0
-        kc, sc = cel_args(F[F_A, j], F[F_C, j], M, r1, r2)
+        kc, sc = cel_args(F[F_A, j], F[F_C, j], p[P_M], r1, r2)
         S[_KC, j] = kc if reg else 1.0
         S[_P2, j] = r2 / r1 if reg else 1.0
         S[_A1, j] = r1 if reg else 1.0
@@ -212,21 +213,20 @@ def friction_lanes(F, m, S):
 
 
 @kernel
-def scalar_lanes(F, m, M, g, k, circ_tol, S):
+def scalar_lanes(F, m, p, circ_tol, S):
     """The lanes that are not bounded under gravity, one by one (.geometry.orbit_in)."""
     for j in range(m):
         if S[_REG, j] == 0.0:
-            cls, r1, r2, rc, T, psi, prec, mu = orbit_in(family_at(F, j), S[_E, j], M, g, k,
-                                                         circ_tol)  # fmt: skip
+            cls, r1, r2, rc, T, psi, prec, mu = orbit_in(family_at(F, j), S[_E, j], p, circ_tol)
             S[_CLS, j], S[_R1, j], S[_R2, j], S[_RCOUT, j] = cls, r1, r2, rc
             S[_T, j], S[_PSI, j], S[_PREC, j], S[_MU, j] = T, psi, prec, mu
 
 
 @kernel
-def store_lanes(m, M, g, k, a, rim, mu, S, out_cls, out_f, oidx):
+def store_lanes(m, p, S, out_cls, out_f, oidx):
     """The scene's rules (.geometry.scene_point) and the outputs of every lane, to column
     oidx[j]."""
-    plain = not (rim < math.inf or mu < math.inf)
+    plain = not (p[P_RIM_SLANT] < math.inf or p[P_MU] < math.inf)
     for j in range(m):
         o = oidx[j]
         if plain and S[_REG, j] != 0.0 and representable(BOUNDED, S[_R1, j], S[_R2, j], S[_T, j],
@@ -239,7 +239,7 @@ def store_lanes(m, M, g, k, a, rim, mu, S, out_cls, out_f, oidx):
             continue
         res = scene_point(int(S[_CLS, j]), S[_R1, j], S[_R2, j], S[_RCOUT, j], S[_T, j],
                           S[_PSI, j], S[_PREC, j], S[_MU, j], S[_AL, j], S[_E, j], S[_H, j],
-                          S[_LZ, j], M, g, k, a, rim, mu)  # fmt: skip
+                          S[_LZ, j], p)  # fmt: skip
         out_cls[o] = res[0]
         _store(out_f, o, 0, res[1:])
 
@@ -250,16 +250,16 @@ STAGES = ("load", "families", "select", "turning points", "elliptic integrals", 
 
 
 @kernel
-def lanes(F, m, M, g, k, a, rim, mu, circ_tol, S, out_cls, out_f, oidx):
+def lanes(F, m, p, circ_tol, S, out_cls, out_f, oidx):
     """Lanes 0..m-1: lane j is the orbit of family column j of F at energy S[_E, j]
     (alpha S[_AL, j], h S[_H, j], L_z S[_LZ, j] for the scene's rules), written to column
     oidx[j] of the outputs: :func:`.geometry.orbit_point`, bit for bit."""
-    select_lanes(F, m, g, circ_tol, S)
+    select_lanes(F, m, p, circ_tol, S)
     turning_lanes(F, m, S)
-    elliptic_lanes(F, m, M, S)
+    elliptic_lanes(F, m, p, S)
     friction_lanes(F, m, S)
-    scalar_lanes(F, m, M, g, k, circ_tol, S)
-    store_lanes(m, M, g, k, a, rim, mu, S, out_cls, out_f, oidx)
+    scalar_lanes(F, m, p, circ_tol, S)
+    store_lanes(m, p, S, out_cls, out_f, oidx)
 
 
 @kernel
@@ -274,7 +274,7 @@ def _load(alpha, energy, h, Lz, i0, m, S, oidx):
 
 
 @kernel
-def profile_batch(alpha, energy, h, Lz, M, g, k, circ_tol, out_cls, out_f, upto):
+def profile_batch(alpha, energy, h, Lz, p, circ_tol, out_cls, out_f, upto):
     """:func:`orbit_units` on flat points, one thread, stopping after stage ``upto`` of
     :data:`STAGES` (a benchmark times each prefix: the stages' cost per point)."""
     n = alpha.shape[0]
@@ -286,19 +286,19 @@ def profile_batch(alpha, energy, h, Lz, M, g, k, circ_tol, out_cls, out_f, upto)
         m = min(LANES, n - i0)
         _load(alpha, energy, h, Lz, i0, m, S, oidx)
         if upto >= 1:
-            families(S[_AL], S[_H], S[_LZ], m, M, g, k, False, F, R)
+            families(S[_AL], S[_H], S[_LZ], m, p, False, F, R)
         if upto >= 2:
-            select_lanes(F, m, g, circ_tol, S)
+            select_lanes(F, m, p, circ_tol, S)
         if upto >= 3:
             turning_lanes(F, m, S)
         if upto >= 4:
-            elliptic_lanes(F, m, M, S)
+            elliptic_lanes(F, m, p, S)
         if upto >= 5:
             friction_lanes(F, m, S)
         if upto >= 6:
-            scalar_lanes(F, m, M, g, k, circ_tol, S)
+            scalar_lanes(F, m, p, circ_tol, S)
         if upto >= 7:
-            store_lanes(m, M, g, k, 0.0, math.inf, math.inf, S, out_cls, out_f, oidx)
+            store_lanes(m, p, S, out_cls, out_f, oidx)
         else:  # keep the stages' results live
             for j in range(m):
                 out_f[0, i0 + j] = S[_R1, j] + S[_T, j] + S[_MU, j] + F[F_VMIN, j]
@@ -355,9 +355,9 @@ def work_units(n, ne, nhl, grid):
 
 
 @kernel
-def orbit_units(u0, u1, alpha, energy, h, Lz, grid, relative, M, g, k, a, rim, mu, circ_tol,
-                out_cls, out_f, out_energy):  # fmt: skip
-    """Units u0..u1-1 (:func:`work_units`) of :func:`.geometry.orbit_point` in lanes.
+def orbit_units(u0, u1, alpha, energy, h, Lz, grid, relative, p, circ_tol, out_cls, out_f,
+                out_energy):  # fmt: skip
+    """Units u0..u1-1 (:func:`work_units`) of :func:`.geometry.orbit_point` (scene ``p``) in lanes.
 
     Flat (``grid`` False): over 1-D arrays of points, outputs ``out_cls`` int8[n], ``out_f``
     float64[10, n] (rows :data:`BATCH_ROWS`), ``out_energy`` unused. On the grid alpha x
@@ -389,23 +389,23 @@ def orbit_units(u0, u1, alpha, energy, h, Lz, grid, relative, M, g, k, a, rim, m
         for b in range(first, last):
             if grid:
                 if b == first:
-                    families(S[_AL], S[_H], S[_LZ], m, M, g, k, grid, F, R)
+                    families(S[_AL], S[_H], S[_LZ], m, p, grid, F, R)
                 _grid_energy(energy, b, relative, nhl, m, F, S, base, oidx, out_energy)
             else:
                 m = min(LANES, n - b * LANES)
                 _load(alpha, energy, h, Lz, b * LANES, m, S, oidx)
-                families(S[_AL], S[_H], S[_LZ], m, M, g, k, grid, F, R)
-            lanes(F, m, M, g, k, a, rim, mu, circ_tol, S, out_cls, out_f, oidx)
+                families(S[_AL], S[_H], S[_LZ], m, p, grid, F, R)
+            lanes(F, m, p, circ_tol, S, out_cls, out_f, oidx)
             if grid and relative:
                 _no_minimum(m, F, S, out_cls, out_f, oidx)
 
 
 @parallel_kernel
-def minimum_energy_batch(alpha, h, Lz, M, g, k, out):
-    """V_min [J] for each (alpha, h, Lz); NaN where V has no minimum."""
+def minimum_energy_batch(alpha, h, Lz, p, out):
+    """V_min [J] for each (alpha, h, Lz) of the scene ``p``; NaN where V has no minimum."""
     n = alpha.shape[0]
     for i in prange(n):
-        out[i] = math.nan if Lz[i] == 0.0 else family(alpha[i], h[i], Lz[i], M, g, k, False).V_min
+        out[i] = math.nan if Lz[i] == 0.0 else family(alpha[i], h[i], Lz[i], p, False).V_min
 
 
 def empty_outputs(n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -23,6 +23,8 @@ import math
 from collections import namedtuple
 from typing import NamedTuple
 
+import numpy as np
+
 from .._jit import kernel
 from .carlson import cel_pair
 from .ending import (
@@ -33,7 +35,19 @@ from .ending import (
     mu_required_of,
     time_and_azimuth,
 )
-from .model import coefficients, coefficients_sc, rim_on_centre_cone
+from .model import (
+    P_G,
+    P_K,
+    P_M,
+    P_MU,
+    P_RADIUS,
+    P_RIM_SLANT,
+    PARAM_SLOTS,
+    coefficients,
+    coefficients_sc,
+    make_params,
+    rim_on_centre_cone,
+)
 from .roots import circular_radius, free_fall_r_min, turning_points, turning_points_in, well
 
 #: Orbit classes, stored as int8 ``orbit_class`` (CF flag_values, names CLASS_NAMES).
@@ -104,9 +118,30 @@ WELL_FIELDS = ("a", "V_min", "c3", "igam", "noise")
 FamilyHead = namedtuple("FamilyHead", [f for f in FAMILY_FIELDS if f not in ("r_c", *WELL_FIELDS)])
 
 
+def scene_params(M: float, g: float, k: float, a: float = 0.0, rim: float = math.inf,
+                 mu: float = math.inf) -> np.ndarray:  # fmt: skip
+    """The parameter array (``.model.P_*`` layout, as ``engine.Scene.params`` builds it) of a
+    scene given by the closed form's numbers: the sphere's M, g, k, a, the rim (the real cone's
+    slant length; +inf: none) and the friction limit mu (+inf: no slip check). The closed-form
+    kernels read these six from it; alpha is per point (its slots are not read)."""
+    slots = np.array([PARAM_SLOTS["P_RIM_SLANT"], PARAM_SLOTS["P_MU"]], np.int64)
+    return make_params(math.pi / 4, float(M), float(g), float(k), float(a), slots,
+                       np.array([rim, mu], np.float64))  # fmt: skip
+
+
+def ideal_cone(p: np.ndarray) -> np.ndarray:
+    """A copy of the parameter array ``p`` without the scene's rules (no rim, no slip check):
+    the closed form of the orbit on the ideal cone."""
+    q = p.copy()
+    q[P_RIM_SLANT] = math.inf
+    q[P_MU] = math.inf
+    return q
+
+
 @kernel
-def family_head(alpha, h, Lz, M, g, k, eager):
+def family_head(alpha, h, Lz, p, eager):
     """:func:`family` but r_c and the well: a :data:`FamilyHead`."""
+    M, g, k = p[P_M], p[P_G], p[P_K]
     s = math.sin(alpha)
     c = math.cos(alpha)
     A, B, C = coefficients_sc(s, c, h, Lz, M, g, k)
@@ -140,7 +175,7 @@ def family_from(head, rc):
 
 
 @kernel
-def family(alpha, h, Lz, M, g, k, eager):
+def family(alpha, h, Lz, p, eager):
     """Everything of the points (alpha, energy, h, L_z) that does not depend on the energy:
     sin and cos of alpha, A, B, C, K = |L_z|/(M sin^2 alpha), r_c, the potential's
     :func:`roots.well` (V_min among it) and the friction terms (:mod:`.ending`). A survey grid
@@ -149,7 +184,7 @@ def family(alpha, h, Lz, M, g, k, eager):
 
     Returns a :class:`Family`; kind is AXIS (L_z = 0), OUT_OF_RANGE or 0; NaN where undefined.
     """
-    head = family_head(alpha, h, Lz, M, g, k, eager)
+    head = family_head(alpha, h, Lz, p, eager)
     rc = NAN if Lz == 0.0 else circular_radius(head.A, head.B, head.C)
     return family_from(head, rc)
 
@@ -171,8 +206,9 @@ def _turning(fam, energy):
 
 
 @kernel
-def orbit_in(fam, energy, M, g, k, circ_tol):
+def orbit_in(fam, energy, p, circ_tol):
     """:func:`ideal_orbit` at one energy of a :func:`family`."""
+    M, g, k = p[P_M], p[P_G], p[P_K]
     kind, s, A, B, C, Kang, rc = fam.kind, fam.s, fam.A, fam.B, fam.C, fam.K, fam.r_c
     cls = FORBIDDEN
     r1 = r2 = T = psi = prec = mu = NAN
@@ -243,13 +279,14 @@ def precession(psi, T):
 
 
 @kernel
-def ideal_orbit(alpha, energy, h, Lz, M, g, k, circ_tol):
-    """Class and geometry of one orbit on the ideal (infinite, lossless) cone.
+def ideal_orbit(alpha, energy, h, Lz, p, circ_tol):
+    """Class and geometry of one orbit on the ideal (infinite, lossless) cone of the scene's
+    parameter array ``p`` (:func:`scene_params`; M, g and k are read).
 
     Returns (orbit_class, r_min [m], r_max [m], r_circ [m], period [s], apsidal_angle [rad],
     precession_rate [rad/s], mu_required [1]); NaN where a quantity is undefined.
     """
-    return orbit_in(family(alpha, h, Lz, M, g, k, False), energy, M, g, k, circ_tol)
+    return orbit_in(family(alpha, h, Lz, p, False), energy, p, circ_tol)
 
 
 @kernel
@@ -267,14 +304,15 @@ def representable(cls, r1, r2, T, psi, prec):
 
 
 @kernel
-def scene_end(cls, r1, r2, alpha, energy, h, Lz, M, g, k, a, rim, mu):
+def scene_end(cls, r1, r2, alpha, energy, h, Lz, p):
     """The scene's rules on an ideal orbit started at r_min: its class on this cone and where
     rolling on it ends (r [m], t [s] and theta [rad] from r_min; NaN if it never ends).
 
-    ``rim`` is the real cone's slant length (docs/physics.md "Effects beyond the ideal cone");
-    an orbit that starts beyond it is OFF_CONE, one that reaches it SPILLS (every escape does);
-    one where |F|/N first exceeds ``mu`` before that SLIPS.
+    The rim (``p[P_RIM_SLANT]``) is the real cone's slant length (docs/physics.md "Effects
+    beyond the ideal cone"); an orbit that starts beyond it is OFF_CONE, one that reaches it
+    SPILLS (every escape does); one where |F|/N first exceeds mu (``p[P_MU]``) before that SLIPS.
     """
+    M, g, k, a, rim, mu = p[P_M], p[P_G], p[P_K], p[P_RADIUS], p[P_RIM_SLANT], p[P_MU]
     nan = math.nan
     if not (cls == BOUNDED or cls == CIRCULAR or cls == HYPERBOLIC or cls == RADIAL):
         return cls, nan, nan, nan
@@ -297,21 +335,21 @@ def scene_end(cls, r1, r2, alpha, energy, h, Lz, M, g, k, a, rim, mu):
 
 
 @kernel
-def orbit_point(alpha, energy, h, Lz, M, g, k, a, rim, mu, circ_tol):
-    """Class and geometry of one orbit on the scene's cone.
+def orbit_point(alpha, energy, h, Lz, p, circ_tol):
+    """Class and geometry of one orbit on the cone of the scene's parameter array ``p``
+    (:func:`scene_params`, ``engine.Scene.params``: M, g, k, a, the rim and mu are read).
 
     Returns (orbit_class, r_min [m], r_max [m], r_circ [m], period [s], apsidal_angle [rad],
     precession_rate [rad/s], mu_required [1], end_r [m], end_time [s], end_theta [rad]): the
     geometry is the orbit's on the ideal cone; the class and the end apply the scene's rim and
     friction limit (:func:`scene_end`). NaN where a quantity is undefined.
     """
-    cls, r1, r2, rc, T, psi, prec, mur = ideal_orbit(alpha, energy, h, Lz, M, g, k, circ_tol)
-    return scene_point(cls, r1, r2, rc, T, psi, prec, mur, alpha, energy, h, Lz, M, g, k, a, rim,
-                       mu)  # fmt: skip
+    cls, r1, r2, rc, T, psi, prec, mur = ideal_orbit(alpha, energy, h, Lz, p, circ_tol)
+    return scene_point(cls, r1, r2, rc, T, psi, prec, mur, alpha, energy, h, Lz, p)
 
 
 @kernel
-def scene_point(cls, r1, r2, rc, T, psi, prec, mur, alpha, energy, h, Lz, M, g, k, a, rim, mu):
+def scene_point(cls, r1, r2, rc, T, psi, prec, mur, alpha, energy, h, Lz, p):
     """:func:`orbit_point` from the ideal orbit: OUT_OF_RANGE where its numbers did not come
     out finite, then the scene's rules (:func:`scene_end`) when a rim or mu is given."""
     if not representable(cls, r1, r2, T, psi, prec):
@@ -320,7 +358,6 @@ def scene_point(cls, r1, r2, rc, T, psi, prec, mur, alpha, energy, h, Lz, M, g, 
     end_r = math.nan
     end_t = math.nan
     end_th = math.nan
-    if rim < math.inf or mu < math.inf:
-        cls, end_r, end_t, end_th = scene_end(cls, r1, r2, alpha, energy, h, Lz, M, g, k, a, rim,
-                                              mu)  # fmt: skip
+    if p[P_RIM_SLANT] < math.inf or p[P_MU] < math.inf:
+        cls, end_r, end_t, end_th = scene_end(cls, r1, r2, alpha, energy, h, Lz, p)
     return cls, r1, r2, rc, T, psi, prec, mur, end_r, end_t, end_th

@@ -17,8 +17,8 @@ from .lanes_step import fetch_add
 
 
 @kernel
-def orbit_units_queued(queue, n_units, alpha, energy, h, Lz, grid, relative, M, g, k, a, rim, mu,
-                       circ_tol, out_cls, out_f, out_energy):  # fmt: skip
+def orbit_units_queued(queue, n_units, alpha, energy, h, Lz, grid, relative, p, circ_tol, out_cls,
+                       out_f, out_energy):  # fmt: skip
     """:func:`.batch.orbit_units` over the units ``queue[0]`` (int64[1], shared by the threads
     and advanced atomically) up to ``n_units``, one at a time. Returns the units this call
     computed."""
@@ -27,6 +27,6 @@ def orbit_units_queued(queue, n_units, alpha, energy, h, Lz, grid, relative, M, 
         u = fetch_add(queue, 1)
         if u >= n_units:
             return done
-        orbit_units(u, u + 1, alpha, energy, h, Lz, grid, relative, M, g, k, a, rim, mu, circ_tol,
-                    out_cls, out_f, out_energy)  # fmt: skip
+        orbit_units(u, u + 1, alpha, energy, h, Lz, grid, relative, p, circ_tol, out_cls, out_f,
+                    out_energy)  # fmt: skip
         done += 1

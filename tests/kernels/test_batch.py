@@ -16,7 +16,7 @@ from engine.kernels.batch import (
     minimum_energy_batch,
     profile_batch,
 )
-from engine.kernels.geometry import BOUNDED, CLASS_NAMES, orbit_point
+from engine.kernels.geometry import BOUNDED, CLASS_NAMES, orbit_point, scene_params
 
 # (M, g, k, a, rim, mu): gravity, extreme scales, free fall, a point particle, a rim, a
 # friction limit, both.
@@ -33,10 +33,10 @@ SCENES = [
 
 
 @njit
-def _scalar(alpha, energy, h, Lz, M, g, k, a, rim, mu, cls, f):
+def _scalar(alpha, energy, h, Lz, p, cls, f):
     for i in range(alpha.size):
         c, r1, r2, rc, T, psi, prec, mur, er, et, eth = orbit_point(
-            alpha[i], energy[i], h[i], Lz[i], M, g, k, a, rim, mu, 1e-12
+            alpha[i], energy[i], h[i], Lz[i], p, 1e-12
         )
         cls[i] = c
         f[0, i], f[1, i], f[2, i], f[3, i], f[4, i] = r1, r2, rc, T, psi
@@ -60,7 +60,7 @@ def _points(n, seed, M, g, k):
     Lz = np.where(rng.random(n) < 0.05, 0.0, sign() * lu(-6, 6))
     offset = np.where(rng.random(n) < 0.1, 0.0, lu(-16, 3) * np.where(rng.random(n) < 0.15, -1, 1))
     vmin = np.empty(n)
-    minimum_energy_batch(alpha, h, Lz, M, g, k, vmin)
+    minimum_energy_batch(alpha, h, Lz, scene_params(M, g, k), vmin)
     absolute = np.where(rng.random(n) < 0.2, 0.0, sign() * lu(-6, 6))
     relative = (rng.random(n) < 0.75) & np.isfinite(vmin)
     energy = np.where(relative, vmin + offset * np.abs(vmin), absolute)
@@ -81,8 +81,8 @@ def test_lanes_equal_the_scalar_kernel_bit_for_bit(scene):
     alpha, energy, h, Lz = _points(20_000 + 7, 11, M, g, k)  # a partial last block too
     c1, f1 = empty_outputs(alpha.size)
     c2, f2 = empty_outputs(alpha.size)
-    orbit_batch(alpha, energy, h, Lz, *scene, 1e-12, c1, f1)
-    _scalar(alpha, energy, h, Lz, *scene, c2, f2)
+    orbit_batch(alpha, energy, h, Lz, scene_params(*scene), 1e-12, c1, f1)
+    _scalar(alpha, energy, h, Lz, scene_params(*scene), c2, f2)
     assert _same(c1, c2) and _same(f1, f2)
     # the sample reaches several classes (the lanes' scalar path) besides bounded
     classes = {CLASS_NAMES[c] for c in np.unique(c1)}
@@ -98,8 +98,8 @@ def test_lanes_any_number_of_points(n):
     energy = rng.uniform(-5, 30, n)
     c1, f1 = empty_outputs(n)
     c2, f2 = empty_outputs(n)
-    orbit_batch(alpha, energy, h, Lz, 1.0, 9.81, 0.4, 0.0, math.inf, math.inf, 1e-12, c1, f1)
-    _scalar(alpha, energy, h, Lz, 1.0, 9.81, 0.4, 0.0, math.inf, math.inf, c2, f2)
+    orbit_batch(alpha, energy, h, Lz, scene_params(1.0, 9.81, 0.4), 1e-12, c1, f1)
+    _scalar(alpha, energy, h, Lz, scene_params(1.0, 9.81, 0.4), c2, f2)
     assert _same(c1, c2) and _same(f1, f2)
 
 
@@ -115,15 +115,15 @@ def test_grid_equals_flat_kernel(relative, scene):
     Lz = np.array([-2.0, -1e-4, 0.0, 1e-7, 0.05, 1.0, 3.0])
     n = alpha.size * energy.size * h.size * Lz.size
     cls, f, e_abs = *empty_outputs(n), np.empty(n)
-    orbit_grid(alpha, energy, h, Lz, relative, *scene, 1e-12, cls, f, e_abs)
+    orbit_grid(alpha, energy, h, Lz, relative, scene_params(*scene), 1e-12, cls, f, e_abs)
     A, E, H, L = (x.reshape(-1) for x in np.meshgrid(alpha, energy, h, Lz, indexing="ij"))
     if relative:
         vmin = np.empty(n)
-        minimum_energy_batch(A, H, L, M, g, k, vmin)
+        minimum_energy_batch(A, H, L, scene_params(M, g, k), vmin)
         E = vmin + E * np.abs(vmin)  # the rule of engine.evaluation (numpy arithmetic)
     assert _same(e_abs, E)
     c2, f2 = empty_outputs(n)
-    orbit_batch(A, E, H, L, *scene, 1e-12, c2, f2)
+    orbit_batch(A, E, H, L, scene_params(*scene), 1e-12, c2, f2)
     undefined = np.isnan(E)
     if relative:  # no V_min (L_z = 0 here): forbidden, nothing but r_circ
         assert undefined.any()
@@ -136,11 +136,12 @@ def test_grid_equals_flat_kernel(relative, scene):
 def test_grid_with_one_triple_and_many_energies():
     energy = np.geomspace(1e-8, 10, 300)
     cls, f, e_abs = *empty_outputs(300), np.empty(300)
-    orbit_grid(np.array([0.6]), energy, np.array([1.0]), np.array([0.7]), True, 1.0, 9.81, 0.4,
-               0.0, math.inf, math.inf, 1e-12, cls, f, e_abs)  # fmt: skip
+    p = scene_params(1.0, 9.81, 0.4)
+    orbit_grid(np.array([0.6]), energy, np.array([1.0]), np.array([0.7]), True, p, 1e-12, cls, f,
+               e_abs)  # fmt: skip
     c2, f2 = empty_outputs(300)
     n = np.ones(300)
-    orbit_batch(0.6 * n, e_abs, n, 0.7 * n, 1.0, 9.81, 0.4, 0.0, math.inf, math.inf, 1e-12, c2, f2)
+    orbit_batch(0.6 * n, e_abs, n, 0.7 * n, p, 1e-12, c2, f2)
     assert _same(cls, c2) and _same(f, f2) and (cls == BOUNDED).all()
 
 
@@ -152,8 +153,9 @@ def test_profile_runs_the_real_stages():
     energy = rng.uniform(0, 30, n)
     c1, f1 = empty_outputs(n)
     c2, f2 = empty_outputs(n)
-    profile_batch(alpha, energy, h, Lz, 1.0, 9.81, 0.4, 1e-12, c1, f1, len(STAGES) - 1)
-    orbit_batch(alpha, energy, h, Lz, 1.0, 9.81, 0.4, 0.0, math.inf, math.inf, 1e-12, c2, f2)
+    p = scene_params(1.0, 9.81, 0.4)
+    profile_batch(alpha, energy, h, Lz, p, 1e-12, c1, f1, len(STAGES) - 1)
+    orbit_batch(alpha, energy, h, Lz, p, 1e-12, c2, f2)
     assert _same(c1, c2) and _same(f1, f2)
 
 
@@ -169,9 +171,9 @@ def test_results_do_not_depend_on_the_number_of_threads():
         for threads in sorted({1, numba.config.NUMBA_NUM_THREADS}):
             numba.set_num_threads(threads)
             c1, f1 = empty_outputs(alpha.size)
-            orbit_batch(alpha, energy, h, Lz, *SCENES[0], 1e-12, c1, f1)
+            orbit_batch(alpha, energy, h, Lz, scene_params(*SCENES[0]), 1e-12, c1, f1)
             c2, f2, e2 = *empty_outputs(ng), np.empty(ng)
-            orbit_grid(*axes, True, *SCENES[0], 1e-12, c2, f2, e2)
+            orbit_grid(*axes, True, scene_params(*SCENES[0]), 1e-12, c2, f2, e2)
             runs.append((c1, f1, c2, f2, e2))
     finally:
         numba.set_num_threads(before)

@@ -22,6 +22,7 @@ from engine.kernels.geometry import (
     SPILLS,
     ideal_orbit,
     orbit_point,
+    scene_params,
 )
 
 M, G, K = 1.0, 9.81, 0.4
@@ -62,7 +63,7 @@ def _first_slip_scan(r1, r2, mu, *args):
     ],
 )
 def test_first_slip_radius_matches_a_dense_scan(alpha, energy, h, Lz, mu):
-    cls, r1, r2, *_ = ideal_orbit(alpha, energy, h, Lz, M, G, K, 1e-12)
+    cls, r1, r2, *_ = ideal_orbit(alpha, energy, h, Lz, scene_params(M, G, K), 1e-12)
     assert cls == BOUNDED
     args = (alpha, energy, h, Lz)
     want = _first_slip_scan(r1, r2, mu, *args)
@@ -100,7 +101,7 @@ def test_time_and_azimuth_to_a_radius_under_gravity(frac):
     alpha, h, Lz = 0.6, 1.0, 0.7
     vmin = float(engine.minimum_energy(alpha, h, Lz))
     energy = vmin + 1.2 * abs(vmin)
-    cls, r1, r2, rc, T, psi, *_ = ideal_orbit(alpha, energy, h, Lz, M, G, K, 1e-12)
+    cls, r1, r2, rc, T, psi, *_ = ideal_orbit(alpha, energy, h, Lz, scene_params(M, G, K), 1e-12)
     A, B, C = coefficients(alpha, h, Lz, M, G, K)
     r_end = r1 + frac * (r2 - r1)
     Kang = abs(Lz) / (M * math.sin(alpha) ** 2)
@@ -115,7 +116,9 @@ def test_time_and_azimuth_to_the_outer_turning_point_are_half_the_period_and_psi
     for alpha, h, Lz, rel in [(0.6, 1.0, 0.7, 1.2), (1.3, -2.0, 0.2, 30.0), (0.2, 0.5, 1.0, 1e-3)]:
         vmin = float(engine.minimum_energy(alpha, h, Lz))
         energy = vmin + rel * abs(vmin)
-        cls, r1, r2, rc, T, psi, *_ = ideal_orbit(alpha, energy, h, Lz, M, G, K, 1e-12)
+        cls, r1, r2, rc, T, psi, *_ = ideal_orbit(
+            alpha, energy, h, Lz, scene_params(M, G, K), 1e-12
+        )
         A, B, C = coefficients(alpha, h, Lz, M, G, K)
         Kang = abs(Lz) / (M * math.sin(alpha) ** 2)
         t, th = time_and_azimuth(r2, r1, r2, energy, A, C, M, Kang)
@@ -129,12 +132,12 @@ def test_time_and_azimuth_of_free_fall_ellipse_escape_and_radial_orbit():
     Kang = abs(Lz) / (M * math.sin(alpha) ** 2)
     # ellipse: the quadrature to r2 is half of T = pi (r1 + r2) sqrt(M / (2 |calE|))
     e = -0.05
-    cls, r1, r2, rc, T, psi, *_ = ideal_orbit(alpha, e, h, Lz, M, 0.0, K, 1e-12)
+    cls, r1, r2, rc, T, psi, *_ = ideal_orbit(alpha, e, h, Lz, scene_params(M, 0.0, K), 1e-12)
     t, th = time_and_azimuth(r2, r1, r2, e, A, 0.0, M, Kang)
     assert t == pytest.approx(T / 2, rel=1e-12) and th == pytest.approx(psi, rel=1e-12)
     # escape: against mpmath
     e = 0.3
-    cls, r1, r2, *_ = ideal_orbit(alpha, e, h, Lz, M, 0.0, K, 1e-12)
+    cls, r1, r2, *_ = ideal_orbit(alpha, e, h, Lz, scene_params(M, 0.0, K), 1e-12)
     assert cls == HYPERBOLIC
     r_end = 7.0 * r1
     t, th = time_and_azimuth(r_end, r1, math.inf, e, A, 0.0, M, Kang)
@@ -165,30 +168,32 @@ def test_rim_is_the_real_cones_slant_length():
 def test_scene_rules_off_cone_escapes_spill_and_slips_first():
     a = 0.01
     alpha, h, Lz = 0.7, -1.5, 0.6
-    esc = orbit_point(alpha, 0.3, h, Lz, M, 0.0, K, a, 2.0, math.inf, 1e-12)
+    esc = orbit_point(alpha, 0.3, h, Lz, scene_params(M, 0.0, K, a, 2.0, math.inf), 1e-12)
     assert esc[0] == SPILLS  # every escape spills on a finite cone
     assert esc[8] == pytest.approx(2.0 - a / math.tan(alpha), rel=1e-15)
-    ell = orbit_point(alpha, -0.05, h, Lz, M, 0.0, K, a, 2.0, math.inf, 1e-12)
+    ell = orbit_point(alpha, -0.05, h, Lz, scene_params(M, 0.0, K, a, 2.0, math.inf), 1e-12)
     r1 = ell[1]
-    beyond = orbit_point(alpha, -0.05, h, Lz, M, 0.0, K, a, 0.5 * r1, math.inf, 1e-12)
+    beyond = orbit_point(alpha, -0.05, h, Lz, scene_params(M, 0.0, K, a, 0.5 * r1, math.inf), 1e-12)
     assert beyond[0] == OFF_CONE and math.isnan(beyond[8])
     # slip before the rim: SLIPS at the first failing radius; the rim first: SPILLS
     orbit = (1.1, 9.0, -2.0, 1.2)
-    cls, r1, r2, *_, mur = ideal_orbit(*orbit, M, G, K, 1e-12)
+    cls, r1, r2, *_, mur = ideal_orbit(*orbit, scene_params(M, G, K), 1e-12)
     mu = 0.1
     rs = first_slip(r1, r2, 1.1, -2.0, 1.2, M, G, K, mu)
     assert r1 < rs < r2
-    far = orbit_point(*orbit, M, G, K, a, 1e3, mu, 1e-12)
+    far = orbit_point(*orbit, scene_params(M, G, K, a, 1e3, mu), 1e-12)
     assert far[0] == SLIPS and far[8] == rs
     rim_first = (rs + r1) / 2 + a / math.tan(1.1)
-    near = orbit_point(*orbit, M, G, K, a, rim_first, mu, 1e-12)
+    near = orbit_point(*orbit, scene_params(M, G, K, a, rim_first, mu), 1e-12)
     assert near[0] == SPILLS
-    holds = orbit_point(*orbit, M, G, K, a, math.inf, mur * 1.001, 1e-12)
+    holds = orbit_point(*orbit, scene_params(M, G, K, a, math.inf, mur * 1.001), 1e-12)
     assert holds[0] == BOUNDED
     # a radial orbit slips at once where cot(alpha) k/(1+k) > mu
-    rad = orbit_point(0.5, 3.0, 0.0, 0.0, M, G, K, a, math.inf, 0.1, 1e-12)
+    rad = orbit_point(0.5, 3.0, 0.0, 0.0, scene_params(M, G, K, a, math.inf, 0.1), 1e-12)
     assert rad[0] == SLIPS and rad[8] == 0.0 and rad[9] == 0.0
-    assert orbit_point(0.5, 3.0, 0.0, 0.0, M, G, K, a, math.inf, 0.9, 1e-12)[0] == RADIAL
+    assert (
+        orbit_point(0.5, 3.0, 0.0, 0.0, scene_params(M, G, K, a, math.inf, 0.9), 1e-12)[0] == RADIAL
+    )
 
 
 def test_tiny_Lz_is_right_or_out_of_range():
@@ -219,7 +224,7 @@ def test_free_fall_mu_required_far_out_is_finite():
     mu_required is its larger end value; an orbit reaching r ~ 2e194 (where p2 / x overflowed)
     has a finite one."""
     alpha, energy, h, Lz = 1.0, -1e-80, -1.0, 1e115
-    cls, r1, r2, *_, mur = ideal_orbit(alpha, energy, h, Lz, M, 0.0, K, 1e-12)
+    cls, r1, r2, *_, mur = ideal_orbit(alpha, energy, h, Lz, scene_params(M, 0.0, K), 1e-12)
     assert cls == BOUNDED and r2 > 1e194
     f = [h * M * math.sin(alpha) / Lz * r + 1.0 / math.tan(alpha) for r in (r1, r2)]
     assert mur == pytest.approx(K / (1 + K) * max(abs(x) for x in f), rel=1e-14)

@@ -22,6 +22,7 @@ from engine.kernels.geometry import (
     family,
     ideal_orbit,
     orbit_point,
+    scene_params,
 )
 from engine.kernels.model import coefficients, potential, potential_d1
 from engine.kernels.roots import TP_STEPS, cbrt, circular_radius, tp_accept, tp_starts, tp_step
@@ -52,7 +53,7 @@ def _vmin_exact(alpha, h, Lz, M, g, k):
 
 def _check_against_oracle(alpha, energy, h, Lz, M=1.0, g=9.81, k=0.4):
     cls_ref, vals, cond = reference(alpha, energy, h, Lz, M, g, k)
-    got = ideal_orbit(alpha, energy, h, Lz, M, g, k, 1e-12)
+    got = ideal_orbit(alpha, energy, h, Lz, scene_params(M, g, k), 1e-12)
     assert engine.CLASS_NAMES[got[0]] == cls_ref
     for key, idx in NAMES.items():
         if key == "r2" and cls_ref == "hyperbolic":
@@ -144,19 +145,23 @@ def test_spin_dominated_orbits_both_signs():
 
 def test_radial_convention():
     alpha, energy, M, g, k = 0.5, 3.0, 2.0, 9.81, 0.4
-    cls, r1, r2, rc, T, psi, prec, mu = ideal_orbit(alpha, energy, 0.3, 0.0, M, g, k, 1e-12)
+    cls, r1, r2, rc, T, psi, prec, mu = ideal_orbit(
+        alpha, energy, 0.3, 0.0, scene_params(M, g, k), 1e-12
+    )
     C = M * g * math.cos(alpha) / (1 + k)
     assert cls == RADIAL and r1 == 0.0
     assert r2 == pytest.approx(energy / C, rel=4 * EPS)
     assert T == pytest.approx(2 * math.sqrt(2 * M * r2 / C), rel=4 * EPS)
     assert math.isnan(psi) and math.isnan(prec) and math.isnan(rc)
     assert mu == pytest.approx(k / (1 + k) / math.tan(alpha), rel=4 * EPS)
-    assert ideal_orbit(alpha, -1.0, 0.3, 0.0, M, g, k, 1e-12)[0] == FORBIDDEN
-    assert ideal_orbit(alpha, 1.0, 0.3, 0.0, M, 0.0, k, 1e-12)[0] == FORBIDDEN
+    assert ideal_orbit(alpha, -1.0, 0.3, 0.0, scene_params(M, g, k), 1e-12)[0] == FORBIDDEN
+    assert ideal_orbit(alpha, 1.0, 0.3, 0.0, scene_params(M, 0.0, k), 1e-12)[0] == FORBIDDEN
 
 
 def test_forbidden_reports_r_circ_and_nothing_else():
-    cls, r1, r2, rc, T, psi, prec, mu = ideal_orbit(0.5, -100.0, 1.0, 1.0, 1.0, 9.81, 0.4, 1e-12)
+    cls, r1, r2, rc, T, psi, prec, mu = ideal_orbit(
+        0.5, -100.0, 1.0, 1.0, scene_params(1.0, 9.81, 0.4), 1e-12
+    )
     assert cls == FORBIDDEN and np.isfinite(rc)
     assert all(math.isnan(x) for x in (r1, r2, T, psi, prec, mu))
 
@@ -165,11 +170,11 @@ def test_free_fall_zero_energy_rules():
     # B < 0, calE = 0: the e = 1 escape sweeping 2 pi / Omega; B > 0, calE = 0: forbidden.
     alpha, k = 0.5, 0.4
     Om = math.sqrt(1 - math.cos(alpha) ** 2 / (1 + k))
-    got = ideal_orbit(alpha, 0.0, -1.0, 1.0, 1.0, 0.0, k, 1e-12)
+    got = ideal_orbit(alpha, 0.0, -1.0, 1.0, scene_params(1.0, 0.0, k), 1e-12)
     assert got[0] == HYPERBOLIC and 2 * got[5] == pytest.approx(2 * math.pi / Om, rel=4 * EPS)
-    assert ideal_orbit(alpha, 0.0, 1.0, 1.0, 1.0, 0.0, k, 1e-12)[0] == FORBIDDEN
+    assert ideal_orbit(alpha, 0.0, 1.0, 1.0, scene_params(1.0, 0.0, k), 1e-12)[0] == FORBIDDEN
     # B = 0 (h = 0): sweep pi / Omega
-    got = ideal_orbit(alpha, 1.0, 0.0, 1.0, 1.0, 0.0, k, 1e-12)
+    got = ideal_orbit(alpha, 1.0, 0.0, 1.0, scene_params(1.0, 0.0, k), 1e-12)
     assert got[0] == HYPERBOLIC and 2 * got[5] == pytest.approx(math.pi / Om, rel=4 * EPS)
 
 
@@ -178,25 +183,25 @@ def test_circular_class_tolerance_and_limit_values():
     A, B, C = coefficients(alpha, h, Lz, M, g, k)
     rc = circular_radius(A, B, C)
     vmin = potential(rc, A, B, C)
-    got = ideal_orbit(alpha, vmin, h, Lz, M, g, k, 1e-12)
+    got = ideal_orbit(alpha, vmin, h, Lz, scene_params(M, g, k), 1e-12)
     assert got[0] == CIRCULAR and got[1] == got[2] == rc
     # a wider tolerance turns a near-circular orbit into the circular class
     e = vmin + 1e-9 * abs(vmin)
-    assert ideal_orbit(alpha, e, h, Lz, M, g, k, 1e-12)[0] == BOUNDED
-    assert ideal_orbit(alpha, e, h, Lz, M, g, k, 1e-8)[0] == CIRCULAR
+    assert ideal_orbit(alpha, e, h, Lz, scene_params(M, g, k), 1e-12)[0] == BOUNDED
+    assert ideal_orbit(alpha, e, h, Lz, scene_params(M, g, k), 1e-8)[0] == CIRCULAR
 
 
 def test_rim_spills():
     alpha, h, Lz = 0.7, 0.5, 1.0
-    got = ideal_orbit(alpha, 20.0, h, Lz, 1.0, 9.81, 0.4, 1e-12)
+    got = ideal_orbit(alpha, 20.0, h, Lz, scene_params(1.0, 9.81, 0.4), 1e-12)
     assert got[0] == BOUNDED
     r2 = got[2]
     # the rim is the real cone's slant length: the centre reaches it at rim - a cot(alpha)
     a = 0.01
     rim = r2 + a / math.tan(alpha)
-    args = (alpha, 20.0, h, Lz, 1.0, 9.81, 0.4, a)
-    assert orbit_point(*args, rim * 0.99, math.inf, 1e-12)[0] == SPILLS
-    assert orbit_point(*args, rim * 1.01, math.inf, 1e-12)[0] == BOUNDED
+    args = (alpha, 20.0, h, Lz)
+    assert orbit_point(*args, scene_params(1.0, 9.81, 0.4, a, rim * 0.99), 1e-12)[0] == SPILLS
+    assert orbit_point(*args, scene_params(1.0, 9.81, 0.4, a, rim * 1.01), 1e-12)[0] == BOUNDED
 
 
 # --- properties -------------------------------------------------------------------------
@@ -231,7 +236,9 @@ def _bounded_point(o):
 @given(orbits)
 def test_turning_points_are_roots_and_bracket_r_circ(o):
     alpha, energy, h, Lz, k, g, A, B, C, rc = _bounded_point(o)
-    cls, r1, r2, rc2, T, psi, prec, mu = ideal_orbit(alpha, energy, h, Lz, 1.0, g, k, 1e-12)
+    cls, r1, r2, rc2, T, psi, prec, mu = ideal_orbit(
+        alpha, energy, h, Lz, scene_params(1.0, g, k), 1e-12
+    )
     assert cls == BOUNDED
     assert r1 <= rc2 <= r2
     for r in (r1, r2):
@@ -246,9 +253,9 @@ def test_turning_points_are_roots_and_bracket_r_circ(o):
 def test_apsidal_angle_continuous_across_circular_limit(o):
     alpha, _, h, Lz, k, g, A, B, C, rc = _bounded_point(o)
     vmin = potential(rc, A, B, C)
-    circ = ideal_orbit(alpha, vmin, h, Lz, 1.0, g, k, 1e-12)
+    circ = ideal_orbit(alpha, vmin, h, Lz, scene_params(1.0, g, k), 1e-12)
     off = 1e-10
-    near = ideal_orbit(alpha, vmin + off * abs(vmin), h, Lz, 1.0, g, k, 1e-12)
+    near = ideal_orbit(alpha, vmin + off * abs(vmin), h, Lz, scene_params(1.0, g, k), 1e-12)
     assert circ[0] == CIRCULAR and near[0] == BOUNDED
     # T and psi are smooth in energy: they move by O(offset) (here O(1) x 1e-10) plus rounding.
     for idx in (4, 5):
@@ -259,7 +266,7 @@ def test_apsidal_angle_continuous_across_circular_limit(o):
 def test_mu_required_is_max_of_force_ratio_on_orbit(o):
     alpha, energy, h, Lz, k, g, A, B, C, rc = _bounded_point(o)
     assume(k > 0)
-    got = ideal_orbit(alpha, energy, h, Lz, 1.0, g, k, 1e-12)
+    got = ideal_orbit(alpha, energy, h, Lz, scene_params(1.0, g, k), 1e-12)
     r1, r2, mu = got[1], got[2], got[7]
     rs = np.geomspace(r1, r2, 2001)
     ratios = []
@@ -319,7 +326,7 @@ def test_outer_root_that_plain_halley_steps_miss_takes_the_safe_path():
         5.818775364816308e-05,
     )
     M, g, k = 1e3, 50.0, 2.0 / 3.0
-    fam = family(alpha, h, Lz, M, g, k, False)
+    fam = family(alpha, h, Lz, scene_params(M, g, k), False)
     rc, a, vmin, c3, igam = fam.r_c, fam.a, fam.V_min, fam.c3, fam.igam
     delta = energy - vmin
     r1, r2 = tp_starts(rc, a, delta, c3, igam)

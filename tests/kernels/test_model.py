@@ -14,7 +14,7 @@ from model_oracle import invariants, rhs, state_from_invariants
 
 from engine.kernels import model
 from engine.kernels.effects import ROLLING_EFFECTS
-from engine.kernels.geometry import ideal_orbit
+from engine.kernels.geometry import ideal_orbit, scene_params
 from engine.kernels.model import coefficients, potential, radial_energy
 from engine.kernels.roots import circular_radius
 from engine.scene import Scene
@@ -141,7 +141,7 @@ def test_erratum_universal_relation_factor_two(orbit):
     rc = circular_radius(A, B, C)
     vmin = potential(rc, A, B, C)
     energy = vmin + offset * abs(vmin)
-    cls, r1, r2, *_ = ideal_orbit(alpha, energy, h, Lz, M, g, k, 1e-12)
+    cls, r1, r2, *_ = ideal_orbit(alpha, energy, h, Lz, scene_params(M, g, k), 1e-12)
     assert cls == 1
     hm = r1 * r2 / (r1 + r2)
     fixed = 2 * r1 * r2 * hm + B / C * (rc - 2 * hm)
@@ -155,7 +155,9 @@ def test_erratum_universal_relation_factor_two(orbit):
 def test_erratum_point_particle_free_fall_line():
     """k = 0, g = 0: the path is a straight line on the developed cone: sweep pi / sin(a)."""
     alpha = 0.4
-    cls, r1, r2, rc, T, psi, *_ = ideal_orbit(alpha, 2.0, 0.0, 0.5, 1.0, 0.0, 0.0, 1e-12)
+    cls, r1, r2, rc, T, psi, *_ = ideal_orbit(
+        alpha, 2.0, 0.0, 0.5, scene_params(1.0, 0.0, 0.0), 1e-12
+    )
     assert cls == 3
     assert 2 * psi == pytest.approx(math.pi / math.sin(alpha), rel=1e-15)
     assert np.isinf(r2) and math.isnan(T)

@@ -1,0 +1,141 @@
+"""A Ctrl-C while Python imports the package, or while numba loads or compiles a kernel, ends as
+any interrupted command: ``conesurvey: error: interrupted ...`` and exit status 130, no
+traceback, no output file (engine/commands/interrupts.py, conesurvey_cli.py).
+
+The moments are made exact: each subprocess sends itself a real SIGINT from inside the import of
+numba, or from inside llvmlite's object-cache callback while numba compiles (``notify``) or loads
+(``getbuffer``) a small cached kernel at the start of the run. Without the fix the first printed
+a KeyboardInterrupt traceback (exit -2), the second ended in ``RuntimeError: no compiled object
+yet`` (exit 1) and the third lost the Ctrl-C (the run went on to exit 0).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+from runs import ROOT, env, free_fall_survey
+
+#: A sitecustomize that sends SIGINT to its own process when numba is first imported.
+ON_IMPORT = textwrap.dedent(
+    """
+    import os, signal, sys
+
+    class Interrupt:
+        def find_spec(self, name, path=None, target=None):
+            if name == "numba":
+                sys.meta_path.remove(self)
+                os.kill(os.getpid(), signal.SIGINT)
+            return None
+
+    sys.meta_path.insert(0, Interrupt())
+    """
+)
+
+#: Runs ``conesurvey ARGS`` in process after arming a SIGINT inside llvmlite's object-cache
+#: callback ``argv[1]`` while numba compiles or loads ``tiny`` (a cached kernel in ``argv[2]``).
+IN_HOOK = textwrap.dedent(
+    """
+    import os, signal, sys
+    from numba.core import codegen
+
+    which, where = sys.argv[1], sys.argv[2]
+    name = {"notify": "_object_compiled_hook", "getbuffer": "_object_getbuffer_hook"}[which]
+    original = getattr(codegen.JITCodeLibrary, name).__func__
+    armed = []
+
+    def hook(cls, *args):
+        if armed:
+            armed.clear()
+            os.kill(os.getpid(), signal.SIGINT)
+        return original(cls, *args)
+
+    setattr(codegen.JITCodeLibrary, name, classmethod(hook))
+    sys.path.insert(0, where)
+    import engine.commands.run as run_command
+    from engine import cli
+
+    run_survey = run_command.run_survey
+
+    def compile_then_run(*args, **kwargs):
+        import tiny
+
+        armed.append(True)
+        tiny.tiny(1.0)
+        return run_survey(*args, **kwargs)
+
+    run_command.run_survey = compile_then_run
+    sys.exit(cli.main(sys.argv[3:]))
+    """
+)
+
+TINY = "import numba\n\n@numba.njit(cache=True)\ndef tiny(x):\n    return x + 1.0\n"
+
+
+def _console_script() -> list[str]:
+    script = Path(sys.executable).parent / "conesurvey"
+    return [str(script)] if script.exists() else [sys.executable, "-m", "conesurvey_cli"]
+
+
+def test_console_script_is_the_launcher():
+    text = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
+    assert 'conesurvey = "conesurvey_cli:main"' in text
+    assert 'py-modules = ["conesurvey_cli"]' in text
+
+
+def test_ctrl_c_while_the_package_imports(tmp_path: Path):
+    site = tmp_path / "site"
+    site.mkdir()
+    (site / "sitecustomize.py").write_text(ON_IMPORT)
+    (tmp_path / "s.toml").write_text(free_fall_survey("interrupted import"))
+    proc = subprocess.run(
+        [*_console_script(), "run", "s.toml", "-o", "out.nc"],
+        cwd=tmp_path,
+        env=env(PYTHONPATH=os.pathsep.join((str(site), str(ROOT)))),
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 130, proc.stderr[-3000:]
+    assert proc.stderr == "conesurvey: error: interrupted; nothing written\n", proc.stderr[-3000:]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml", "site"]
+
+
+@pytest.mark.parametrize("hook", ["notify", "getbuffer"])
+def test_ctrl_c_while_numba_compiles_or_loads_a_kernel(tmp_path: Path, hook: str):
+    where = tmp_path / "tiny"
+    where.mkdir()
+    (where / "tiny.py").write_text(TINY)
+    run_env = env(NUMBA_CACHE_DIR=str(tmp_path / "numba-cache"))
+    if hook == "getbuffer":  # cache it first: the interrupted run loads it
+        prime = subprocess.run(
+            [sys.executable, "-c", "import tiny; tiny.tiny(1.0)"],
+            cwd=where,
+            env=run_env,
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+        assert prime.returncode == 0, prime.stderr[-3000:]
+    (tmp_path / "s.toml").write_text(free_fall_survey("interrupted compile"))
+    proc = subprocess.run(
+        [sys.executable, "-c", IN_HOOK, hook, str(where), "run", "s.toml", "-o", "out.nc"],
+        cwd=tmp_path,
+        env=run_env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 130, proc.stderr[-3000:]
+    assert "Traceback" not in proc.stderr and "Exception ignored" not in proc.stderr, proc.stderr
+    assert proc.stderr.rstrip().endswith(
+        "conesurvey: error: interrupted; finished blocks are kept: run the same command again "
+        "to resume"
+    ), proc.stderr[-3000:]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["numba-cache", "s.toml", "tiny"]
+    leftovers = [p.name for p in (tmp_path / "numba-cache").rglob("*") if ".tmp." in p.name]
+    assert leftovers == []
