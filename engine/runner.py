@@ -40,23 +40,23 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .backends import BackendError, block_spec, check_address, open_backend
+from .backends import BackendError, check_address, open_backend
 from .evaluation import evaluate_block
-from .grid import BLOCK_POINTS, MAX_BLOCKS, Tiling, grid_too_large
+from .grid import Tiling
 from .io import OutputError, netcdf
 from .io import zarr as zarr_io
 from .io.atomic import not_regular, output_name_problem
 from .io.blocks import BlockStore, Scan, block_file_bytes, check_parts_dir, remove_store
-from .io.codecs import DEFAULT_COMPRESSION, compression_keywords, level
+from .io.codecs import level
 from .io.leftovers import is_debris
 from .io.lock import Locked, LockError, OutputLock, describe_holder
 from .io.manifest import Manifest, fingerprint, parts_dir, read_manifest, survey_variables
 from .io.space import free_bytes
 from .io.summary import Summary
 from .io.zarrstore import RunStore
+from .plan import RunPlan, plan_from_survey
 from .progress import format_bytes
 from .runstats import AlreadyComplete, RunError, RunFailed, RunStats
-from .schema import DIMS
 
 if TYPE_CHECKING:
     from .surveyfile import Survey
@@ -71,12 +71,10 @@ __all__ = [
 
 
 _Block = tuple[int, dict[str, np.ndarray]]
-#: What --compression can be for a Zarr store (Blosc LZ4 with shuffle, or none).
-ZARR_COMPRESSIONS = ("blosc_lz4", "none")
 
 
 @dataclass
-class _Plan:
+class _Store:
     """What step 2 found: the store to resume (with its scan), or a store to remove first."""
 
     fp: str
@@ -88,9 +86,9 @@ class _Plan:
 
 def _inspect(
     out: Path, survey: Survey, overwrite: bool, block_points: int | None, warn: Callable
-) -> _Plan:
+) -> _Store:
     """Step 2 (reads only): RunError or AlreadyComplete, else the plan."""
-    plan = _Plan(fingerprint(survey))
+    plan = _Store(fingerprint(survey))
     root = parts_dir(out)
     try:
         has_store = check_parts_dir(root)
@@ -156,23 +154,6 @@ def _check_space(out: Path, survey: Survey, tiling: Tiling, pending: list[int]) 
         )
 
 
-def _check_scale(survey: Survey, block_points: int | None) -> None:
-    """RunError for a grid no run can hold, or one cut into more blocks than a run lists
-    (from the shape alone: constant time and memory)."""
-    if why := grid_too_large(dict(zip(survey.dims, survey.shape, strict=True))):
-        raise RunError(why)
-    try:
-        tiling = Tiling.for_grid(survey.shape, block_points or BLOCK_POINTS)
-    except ValueError as exc:
-        raise RunError(str(exc)) from None
-    if tiling.nblocks > MAX_BLOCKS:
-        fewer = -(-tiling.size // MAX_BLOCKS)
-        raise RunError(
-            f"{tiling.nblocks:,} blocks of {math.prod(tiling.block):,} points: a run lists at "
-            f"most {MAX_BLOCKS:,}; give --block-points {fewer} or more"
-        )
-
-
 def _take_lock(out: Path, command: str) -> OutputLock:
     try:
         return OutputLock.acquire(out, command)
@@ -213,50 +194,45 @@ def run_survey(
     (:mod:`engine.io.codecs`; docs/output.md); None: the format's default (netCDF: zlib;
     Zarr: blosc_lz4).
     """
-    if compression is None:
-        compression = ZARR_COMPRESSIONS[0] if zarr_io.is_zarr(out) else DEFAULT_COMPRESSION
-    try:
-        compression_keywords(compression, complevel)
+    try:  # every input checked once (engine.plan), before anything else
+        run = plan_from_survey(
+            survey, out, block_points=block_points, compression=compression, complevel=complevel
+        )
     except ValueError as exc:
         raise RunError(str(exc)) from None
-    if zarr_io.is_zarr(out) and compression not in ZARR_COMPRESSIONS:
-        raise RunError(
-            f"compression {compression!r} is for netCDF output; a Zarr store is written with "
-            f"{' or '.join(ZARR_COMPRESSIONS)}"
-        )
+    compression, complevel = run.output.compression, run.output.complevel
     if scheduler is not None:
         try:
             check_address(scheduler)
         except ValueError as exc:
             raise RunError(str(exc)) from None
-    _check_scale(survey, block_points)
     out = Path(out)
     if why := output_name_problem(out):
         raise RunError(why)
     warn = warn or (lambda msg: print(f"conesurvey: warning: {msg}", file=sys.stderr))
     if not out.parent.is_dir():
         raise RunError(f"output directory does not exist: {out.parent}")
-    if zarr_io.is_zarr(out) and (why := zarr_io.unavailable()):
+    if run.output.format == "zarr" and (why := zarr_io.unavailable()):
         raise RunError(why)  # an optional dependency: refused before anything is written
     with _take_lock(out, command):
-        plan = _inspect(out, survey, overwrite, block_points, warn)
+        asked = None if block_points is None else run.output.block_points
+        plan = _inspect(out, survey, overwrite, asked, warn)
         tiling = (
             plan.store.tiling
             if plan.store is not None
-            else Tiling.for_grid(survey.shape, block_points or BLOCK_POINTS)
+            else Tiling.for_grid(run.shape, run.output.block_points)
         )
         done = plan.scan.good
         pending = [i for i in range(tiling.nblocks) if i not in done]
         if check_space:
             _check_space(out, survey, tiling, pending)
-        spec = block_spec(survey)
         # Compile (or load from numba's cache) on one point of the grid before anything is
         # written: the engine may still refuse the survey. This also warms the cache before
         # dask workers start (concurrent first compiles race, numba#4807).
         tc = time.perf_counter()
         compiling = getattr(progress, "compiling", contextlib.nullcontext)
         with compiling():  # a first run's compile is announced, not a silent wait
-            evaluate_block(spec, tuple(slice(0, 1) for _ in DIMS))
+            evaluate_block(run, tuple(slice(0, 1) for _ in run.dims))
         t0 = time.perf_counter()
         try:
             backend = open_backend(scheduler, workers)
@@ -265,7 +241,7 @@ def run_survey(
         try:
             store = _prepare(out, survey, plan, tiling, warn, level(compression, complevel))
             once = dict(fingerprint=plan.fp, command=command, overwrite=overwrite)
-            blocks = _compute(store, backend, spec, pending, len(done), progress, on_block)
+            blocks = _compute(store, backend, run, pending, len(done), progress, on_block)
             if isinstance(store, RunStore):  # Zarr: the blocks wrote their chunks; commit
                 for _ in blocks:
                     pass
@@ -303,7 +279,7 @@ def run_survey(
 
 
 def _prepare(
-    out: Path, survey: Survey, plan: _Plan, tiling: Tiling, warn: Callable, complevel: int
+    out: Path, survey: Survey, plan: _Store, tiling: Tiling, warn: Callable, complevel: int
 ) -> BlockStore | RunStore:
     """Step 4's first writes: remove what goes, create or tidy the store."""
     root = parts_dir(out)
@@ -324,7 +300,7 @@ def _prepare(
 def _compute(
     store: BlockStore | RunStore,
     backend: object,
-    spec: dict,
+    run: RunPlan,
     pending: list[int],
     reused: int,
     progress: Callable[[int, int], None] | None,
@@ -339,7 +315,7 @@ def _compute(
     stored = reused
     try:
         writer = getattr(store, "writer", None)  # Zarr: blocks write their own chunks
-        for i, res in backend.blocks(spec, tiling, pending, writer):  # type: ignore[attr-defined]
+        for i, res in backend.blocks(run, tiling, pending, writer):  # type: ignore[attr-defined]
             try:
                 clean = store.commit(i, res)
             except OSError as exc:

@@ -18,6 +18,7 @@ import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
+from ..checks import PlanError, check_block_points
 from ..errortext import install_hint
 from ..grid import BLOCK_POINTS
 from ..io import zarr as zarr_io
@@ -117,14 +118,14 @@ def add_arguments(run: argparse.ArgumentParser) -> None:
     )
     run.add_argument(
         "--block-points",
-        type=_positive_int,
+        type=_block_points,
         metavar="N",
         help=f"points per block computed and stored at a time (default {BLOCK_POINTS:,}); "
         "memory grows with N, not with the grid",
     )
     # The option's former name, hidden ("chunk" means the netCDF storage chunk): old scripts run.
     run.add_argument(
-        "--chunk-points", dest="block_points", type=_positive_int, help=argparse.SUPPRESS
+        "--chunk-points", dest="block_points", type=_block_points, help=argparse.SUPPRESS
     )
     run.add_argument(
         "--compression",
@@ -161,6 +162,18 @@ def add_arguments(run: argparse.ArgumentParser) -> None:
         metavar="N",
         help="start a local dask cluster of N worker processes (numba threads split among them)",
     )
+
+
+def _block_points(text: str) -> int:
+    """``--block-points N``, by the API's check (:func:`engine.checks.check_block_points`)."""
+    try:
+        n: int | str = int(text)
+    except ValueError:
+        n = text  # not an integer: refused below
+    try:
+        return check_block_points(n)
+    except PlanError as exc:
+        raise argparse.ArgumentTypeError(f"{exc.problem}, got {text!r}") from None
 
 
 def _positive_int(text: str) -> int:
