@@ -22,8 +22,8 @@ import numpy as np
 
 from .fates import Horizon, check_mappable
 from .grid import MAX_BLOCKS, Tiling, grid_too_large
-from .io import zarr as zarr_io
-from .io.codecs import DEFAULT_COMPRESSION, check_compression
+from .io.codecs import check_compression
+from .io.formats import OutputFormat, format_for
 from .methods import METHODS, RTOL_RANGE, Method, get_method
 from .methods import check_method as _registry_check_method
 from .scene import Scene
@@ -32,7 +32,6 @@ from .schema import DIMS, LAUNCH_DIMS, map_kind
 __all__ = [
     "PlanError",
     "PRECISIONS",
-    "ZARR_COMPRESSIONS",
     "axis_problem",
     "check_axes",
     "check_block_points",
@@ -51,8 +50,6 @@ __all__ = [
 #: ``precision``: how the float result variables are stored (the axes stay float64; the
 #: integer ones, class, status and fate, are exact either way).
 PRECISIONS = ("double", "single")
-#: What a Zarr store can be compressed with (Blosc LZ4 with shuffle, or none).
-ZARR_COMPRESSIONS = ("blosc_lz4", "none")
 _NO_VALUE = object()
 
 
@@ -272,23 +269,28 @@ def check_axes(dims: tuple[str, ...], values: dict[str, Any]) -> tuple[np.ndarra
 
 
 def check_output(
-    path: str | os.PathLike[str] | None, compression: Any, complevel: Any
-) -> tuple[Path | None, str, str, int | None]:
-    """The output: its path (None: in memory), its format (``"netcdf"`` or ``"zarr"``, from
-    the name), the compression (None: the format's default) and its level."""
+    path: str | os.PathLike[str] | None,
+    compression: Any,
+    complevel: Any,
+    output_format: Any = None,
+) -> tuple[Path | None, OutputFormat, str, int | None]:
+    """The output: its path (None: in memory), its format's row (:mod:`engine.io.formats`:
+    ``output_format`` by name, else the one of the path's name), the compression (None: the
+    format's default) and its level."""
     p = None if path is None else Path(path)
-    fmt = "zarr" if p is not None and zarr_io.is_zarr(p) else "netcdf"
+    try:
+        fmt = format_for(p, output_format)
+    except ValueError as exc:
+        raise PlanError("output_format", str(exc), output_format, whole=True) from None
     if compression is None:
-        compression = ZARR_COMPRESSIONS[0] if fmt == "zarr" else DEFAULT_COMPRESSION
+        compression = fmt.default_compression
     try:
         check_compression(compression, complevel)
     except ValueError as exc:
         name = "complevel" if str(exc).startswith("complevel") else "compression"
-        raise PlanError(name, str(exc).removeprefix(name + " ")) from None
-    if fmt == "zarr" and compression not in ZARR_COMPRESSIONS:
-        raise PlanError(
-            "compression",
-            f"{compression!r} is for netCDF output; a Zarr store is written with "
-            f"{' or '.join(ZARR_COMPRESSIONS)}",
-        )
+        raise PlanError(name, str(exc), whole=True) from None
+    try:
+        fmt.check_compression(compression)
+    except ValueError as exc:
+        raise PlanError("compression", str(exc), compression, whole=True) from None
     return p, fmt, compression, complevel

@@ -33,6 +33,7 @@ from .checks import (
 from .fates import Horizon
 from .grid import BLOCK_POINTS
 from .io.codecs import DEFAULT_COMPRESSION
+from .io.formats import OutputFormat, format_for
 from .kernels.geometry import CIRCULAR_TOL
 from .methods import DEFAULT_RTOL, Method
 from .scene import Scene
@@ -49,16 +50,25 @@ __all__ = ["OutputPlan", "PlanError", "RunPlan", "plan_from_survey", "survey_pla
 
 @dataclass(frozen=True)
 class OutputPlan:
-    """Where and how the results are written: ``path`` (None: an in-memory Dataset),
-    ``format`` (``"netcdf"`` or ``"zarr"``), ``compression``/``complevel``, ``precision``
-    (float results as float64 or float32) and ``block_points`` (points per block)."""
+    """Where and how the results are written: ``path`` (None: an in-memory Dataset), its
+    ``format`` (the row of :mod:`engine.io.formats`), ``compression``/``complevel``,
+    ``precision`` (float results as float64 or float32) and ``block_points`` (points per
+    block). Pickled with its format's name (a dask worker finds the row in its registry)."""
 
     path: Path | None = None
-    format: str = "netcdf"
+    format: OutputFormat = field(default_factory=format_for)
     compression: str = DEFAULT_COMPRESSION
     complevel: int | None = None
     precision: str = "double"
     block_points: int = BLOCK_POINTS
+
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        return _output_plan, (self.path, self.format.name, self.compression, self.complevel,
+                              self.precision, self.block_points)  # fmt: skip
+
+
+def _output_plan(path, format_name, *rest) -> OutputPlan:
+    return OutputPlan(path, format_for(name=format_name), *rest)
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,6 +138,7 @@ def survey_plan(
     out: str | os.PathLike[str] | None = None,
     compression: Any = None,
     complevel: Any = None,
+    output_format: Any = None,
 ) -> RunPlan:
     """The plan of a survey over the axes ``dims`` (:data:`engine.schema.DIMS` or
     :data:`engine.schema.LAUNCH_DIMS`) holding ``values``: every input checked by its one
@@ -141,7 +152,7 @@ def survey_plan(
     if energy_relative and dims == LAUNCH_DIMS:
         raise PlanError("energy_relative", "applies to an energy axis, not to launch states")
     precision = check_precision(precision)
-    path, fmt, compression, complevel = check_output(out, compression, complevel)
+    path, fmt, compression, complevel = check_output(out, compression, complevel, output_format)
     check_block_points(block_points)
     axes = check_axes(tuple(dims), values)
     block_points = check_block_points(block_points, tuple(a.size for a in axes))
@@ -160,6 +171,7 @@ def plan_from_survey(
     block_points: Any = None,
     compression: Any = None,
     complevel: Any = None,
+    output_format: Any = None,
 ) -> RunPlan:
     """The plan of a survey file's :class:`engine.surveyfile.Survey` (written to ``out``, or
     in memory), through the same checks as the API's (:func:`survey_plan`)."""
@@ -179,4 +191,5 @@ def plan_from_survey(
         out=out,
         compression=compression,
         complevel=complevel,
+        output_format=output_format,
     )

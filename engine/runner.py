@@ -43,14 +43,14 @@ import numpy as np
 from .backends import BackendError, check_address, open_backend
 from .evaluation import evaluate_block
 from .grid import Tiling
-from .io import OutputError, netcdf
-from .io import zarr as zarr_io
+from .io import OutputError
 from .io.atomic import not_regular, output_name_problem
-from .io.blocks import BlockStore, Scan, block_file_bytes, check_parts_dir, remove_store
+from .io.blocks import BlockStore, Scan, check_parts_dir, remove_store
 from .io.codecs import level
+from .io.formats import OutputFormat
 from .io.leftovers import is_debris
 from .io.lock import Locked, LockError, OutputLock, describe_holder
-from .io.manifest import Manifest, fingerprint, parts_dir, read_manifest, survey_variables
+from .io.manifest import fingerprint, parts_dir, read_manifest
 from .io.space import free_bytes
 from .io.summary import Summary
 from .io.zarrstore import RunStore
@@ -85,8 +85,9 @@ class _Store:
 
 
 def _inspect(
-    out: Path, survey: Survey, overwrite: bool, block_points: int | None, warn: Callable
-) -> _Store:
+    out: Path, survey: Survey, overwrite: bool, block_points: int | None, warn: Callable,
+    fmt: OutputFormat,
+) -> _Store:  # fmt: skip
     """Step 2 (reads only): RunError or AlreadyComplete, else the plan."""
     plan = _Store(fingerprint(survey))
     root = parts_dir(out)
@@ -95,11 +96,11 @@ def _inspect(
     except OutputError as exc:
         raise RunError(str(exc)) from None
     kind = not_regular(out, follow_links=False)
-    expected = ("a directory",) if zarr_io.is_zarr(out) else ()  # a Zarr store is one
+    expected = ("a directory",) if fmt.directory else ()  # a Zarr store is one
     if kind not in (None, "a symbolic link", *expected):
         raise RunError(f"output path {out} is {kind}; give a file name")
     if os.path.lexists(out) and not overwrite:
-        finished = zarr_io.backend_for(out).read_fingerprint(out)
+        finished = fmt.read_fingerprint(out)
         if finished != plan.fp:
             raise RunError(f"output file exists: {out} (use --overwrite to replace it)")
         if has_store and is_debris(root, finished):
@@ -112,7 +113,7 @@ def _inspect(
         plan.remove_first = "removed: it has no manifest (left by a killed run)"
         return plan
     try:  # with --overwrite too: a killed run --overwrite resumes when it is run again
-        plan.store = (RunStore if zarr_io.is_zarr(out) else BlockStore).open(root, warn)
+        plan.store = fmt.open_run(root, warn)
         why, problem = read_manifest(root).mismatch(survey), None
     except OutputError as exc:
         why, problem = None, exc
@@ -135,22 +136,19 @@ def _inspect(
     return plan
 
 
-def _check_space(out: Path, survey: Survey, tiling: Tiling, pending: list[int]) -> None:
+def _check_space(
+    out: Path, run: RunPlan, tiling: Tiling, pending: list[int], fmt: OutputFormat
+) -> None:
     """RunError unless the blocks still to compute and the output merged beside all of them
     fit on the output's file system."""
-    names = survey_variables(survey)
-    if zarr_io.is_zarr(out):  # no block files: the chunks are written into the store
-        blocks, merged = zarr_io.output_bytes(names, (sum(map(tiling.points, pending)),)), 0
-    else:
-        blocks = sum(block_file_bytes(names, tiling.points(i)) for i in pending)
-        merged = netcdf.output_bytes(names, tiling.shape)
+    blocks, merged = fmt.run_bytes(run.variables, tiling, pending)
     free = shutil.disk_usage(out.parent).free
     if blocks + merged > free:
         raise RunError(
             f"the survey needs up to {format_bytes(blocks + merged)} of disk "
             f"({format_bytes(blocks)} for the blocks still to compute + "
             f"{format_bytes(merged)} for the output merged beside them) but {out.parent} "
-            f"has {format_bytes(free)} free ({survey.size:,} points); use --force to run anyway"
+            f"has {format_bytes(free)} free ({run.size:,} points); use --force to run anyway"
         )
 
 
@@ -181,6 +179,7 @@ def run_survey(
     compression: str | None = None,
     complevel: int | None = None,
     check_space: bool = True,
+    output_format: str | None = None,
 ) -> RunStats:
     """Run ``survey`` into the netCDF file ``out``, streaming blocks and resuming a killed run.
 
@@ -192,15 +191,17 @@ def run_survey(
     ``on_block(index)`` is called after each block is safely stored (for tests and hooks).
     ``compression`` / ``complevel``: how the output's variables are compressed
     (:mod:`engine.io.codecs`; docs/output.md); None: the format's default (netCDF: zlib;
-    Zarr: blosc_lz4).
+    Zarr: blosc_lz4). ``output_format``: a format's name (:mod:`engine.io.formats`; None:
+    the format of ``out``'s name).
     """
-    try:  # every input checked once (engine.plan), before anything else
+    try:  # every input checked once (engine.checks), before anything else
         run = plan_from_survey(
-            survey, out, block_points=block_points, compression=compression, complevel=complevel
-        )
+            survey, out, block_points=block_points, compression=compression,
+            complevel=complevel, output_format=output_format,
+        )  # fmt: skip
     except ValueError as exc:
         raise RunError(str(exc)) from None
-    compression, complevel = run.output.compression, run.output.complevel
+    fmt, compression, complevel = run.output.format, run.output.compression, run.output.complevel
     if scheduler is not None:
         try:
             check_address(scheduler)
@@ -212,11 +213,11 @@ def run_survey(
     warn = warn or (lambda msg: print(f"conesurvey: warning: {msg}", file=sys.stderr))
     if not out.parent.is_dir():
         raise RunError(f"output directory does not exist: {out.parent}")
-    if run.output.format == "zarr" and (why := zarr_io.unavailable()):
+    if why := fmt.unavailable():
         raise RunError(why)  # an optional dependency: refused before anything is written
     with _take_lock(out, command):
         asked = None if block_points is None else run.output.block_points
-        plan = _inspect(out, survey, overwrite, asked, warn)
+        plan = _inspect(out, survey, overwrite, asked, warn, fmt)
         tiling = (
             plan.store.tiling
             if plan.store is not None
@@ -225,7 +226,7 @@ def run_survey(
         done = plan.scan.good
         pending = [i for i in range(tiling.nblocks) if i not in done]
         if check_space:
-            _check_space(out, survey, tiling, pending)
+            _check_space(out, run, tiling, pending, fmt)
         # Compile (or load from numba's cache) on one point of the grid before anything is
         # written: the engine may still refuse the survey. This also warms the cache before
         # dask workers start (concurrent first compiles race, numba#4807).
@@ -239,23 +240,16 @@ def run_survey(
         except BackendError as exc:
             raise RunFailed(f"{exc}; nothing was written") from None
         try:
-            store = _prepare(out, survey, plan, tiling, warn, level(compression, complevel))
+            store = _prepare(out, survey, plan, tiling, warn, level(compression, complevel), fmt)
             once = dict(fingerprint=plan.fp, command=command, overwrite=overwrite)
             blocks = _compute(store, backend, run, pending, len(done), progress, on_block)
-            if isinstance(store, RunStore):  # Zarr: the blocks wrote their chunks; commit
-                for _ in blocks:
-                    pass
-                t1 = time.perf_counter()
-                level_ = level(compression, complevel)
-                summary = _merge(store, survey, out, **once, complevel=level_)
-            else:  # netCDF: written while the blocks are computed
-                ended: list[float] = []  # when the last block was stored
-                incoming = _timed(blocks, ended)
-                summary = _merge(
-                    store, survey, out, **once, compression=compression, complevel=complevel,
-                    pending=pending, incoming=incoming, warn=warn,
-                )  # fmt: skip
-                t1 = ended[0] if ended else t0
+            ended: list[float] = []  # when the last block was stored
+            incoming = _timed(blocks, ended)
+            summary = _merge(
+                fmt, store, survey, out, **once, compression=compression, complevel=complevel,
+                pending=pending, incoming=incoming, warn=warn,
+            )  # fmt: skip
+            t1 = ended[0] if ended else t0
         finally:
             backend.close()
         try:
@@ -267,7 +261,7 @@ def run_survey(
         tiling.shape,
         summary.counts,
         summary.ranges,
-        survey.dims,
+        run.dims,
         summary.flags,
         compute_seconds=t1 - t0,
         write_seconds=time.perf_counter() - t1,
@@ -279,8 +273,9 @@ def run_survey(
 
 
 def _prepare(
-    out: Path, survey: Survey, plan: _Store, tiling: Tiling, warn: Callable, complevel: int
-) -> BlockStore | RunStore:
+    out: Path, survey: Survey, plan: _Store, tiling: Tiling, warn: Callable, complevel: int,
+    fmt: OutputFormat,
+) -> BlockStore | RunStore:  # fmt: skip
     """Step 4's first writes: remove what goes, create or tidy the store."""
     root = parts_dir(out)
     try:
@@ -290,9 +285,7 @@ def _prepare(
         if plan.store is not None:
             plan.store.discard(plan.scan)
             return plan.store
-        if zarr_io.is_zarr(out):
-            return zarr_io.create(root, survey, tiling, complevel, warn)
-        return BlockStore.create(root, Manifest.new(survey, tiling), warn)
+        return fmt.create(root, survey, tiling, complevel, warn)
     except OSError as exc:
         raise RunFailed(_cannot_write(exc, root)) from None
 
@@ -344,13 +337,16 @@ def _cannot_write(exc: OSError, where: Path) -> str:
     return f"cannot write {exc.filename or where}: {exc.strerror or exc}"
 
 
-def _merge(store: BlockStore | RunStore, survey: Survey, out: Path, **options: Any) -> Summary:
-    """The blocks merged into the output (netCDF: while they are computed,
-    :func:`engine.io.netcdf.merge`; Zarr: the final commit, :func:`engine.io.zarr.merge`):
+def _merge(
+    fmt: OutputFormat, store: BlockStore | RunStore, survey: Survey, out: Path, **options: Any
+) -> Summary:
+    """The blocks merged into the output by its format's ``commit`` (netCDF: while they are
+    computed, :func:`engine.io.netcdf.merge`; Zarr: the final commit,
+    :func:`engine.io.zarr.merge`):
     RunError if the output appeared meanwhile, RunFailed if it cannot be written or a block
     changed, and what the compute raised."""
     try:
-        return zarr_io.backend_for(out).merge(store, survey, out, **options)
+        return fmt.commit(store, survey, out, **options)
     except FileExistsError:
         raise RunError(
             f"output file exists: {out} (created while this run computed; use --overwrite)"

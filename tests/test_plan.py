@@ -170,7 +170,7 @@ def test_a_streamed_run_evaluates_the_plan_of_its_survey(monkeypatch, tmp_path):
         engine.runner.run_survey(survey, tmp_path / "out.nc", block_points=7, compression="none")
     plan = seen[0]
     assert plan == plan_from_survey(survey, tmp_path / "out.nc", block_points=7, compression="none")
-    assert (plan.output.path, plan.output.format) == (tmp_path / "out.nc", "netcdf")
+    assert (plan.output.path, plan.output.format.name) == (tmp_path / "out.nc", "netcdf")
     assert (plan.output.block_points, plan.output.compression) == (7, "none")
     assert plan.output.precision == "single"
     assert not (tmp_path / "out.nc").exists() and not (tmp_path / "out.nc.parts").exists()
