@@ -288,7 +288,7 @@ class _Reader(AxisReader):
             raise self.bad_value("title", title, "must not contain NUL (netCDF text ends there)")
         name = self.choice(doc.get("method", DEFAULT_METHOD), "method", tuple(METHODS))
         scene = self.scene(self.table(doc, "scene", "", required=False) or {})
-        with self.checked():  # each input by its one check (engine.plan)
+        with self.checked():  # each input by its one check (engine.checks)
             method = check_method(name, scene)
             rtol = check_rtol(doc.get("rtol", DEFAULT_RTOL), method)
             circular_tol = check_circular_tol(doc.get("circular_tol", DEFAULT_CIRCULAR_TOL))
@@ -338,7 +338,7 @@ class _Reader(AxisReader):
 
     @contextlib.contextmanager
     def checked(self) -> Iterator[None]:
-        """A :class:`engine.plan.PlanError` as a SurveyError at the field's key path."""
+        """A :class:`engine.checks.PlanError` as a SurveyError at the field's key path."""
         try:
             yield
         except PlanError as exc:
