@@ -44,7 +44,6 @@ from typing import Any
 
 import netCDF4
 
-from . import netcdf
 from . import zarr as zarr_io
 from .blocks import BlockStore, block_file_bytes
 from .codecs import COMPRESSIONS, DEFAULT_COMPRESSION, level
@@ -117,8 +116,9 @@ class OutputFormat:
 
 
 def _lazy(module: str, name: str) -> Callable[..., Any]:
-    """``module.name``, imported on the first call (the reader and the converter import this
-    registry: their functions are found when called)."""
+    """``module.name``, looked up at each call: the reader and the converter import this
+    registry (their functions are found when called), and a function replaced in its module
+    (a test's monkeypatch, a hook) is the one a row calls."""
 
     def call(*args: Any, **kwargs: Any) -> Any:
         return getattr(importlib.import_module(module, __package__), name)(*args, **kwargs)
@@ -147,34 +147,34 @@ NETCDF = OutputFormat(
     suffixes=(".nc", ".nc4", ".netcdf"),
     create=_create_blocks,
     open_run=BlockStore.open,
-    commit=netcdf.merge,
-    read_fingerprint=netcdf.read_fingerprint,
-    read_info=netcdf.read_info,
+    commit=_lazy(".netcdf", "merge"),
+    read_fingerprint=_lazy(".netcdf", "read_fingerprint"),
+    read_info=_lazy(".netcdf", "read_info"),
     compressions=(DEFAULT_COMPRESSION, *(c for c in COMPRESSIONS if c != DEFAULT_COMPRESSION)),
     open_result=_lazy(".results", "open_netcdf"),
     open_view=netCDF4.Dataset,
     write_copy=_lazy(".convert", "to_netcdf"),
-    write_survey=netcdf.write_survey,
+    write_survey=_lazy(".netcdf", "write_survey"),
 )
 
 ZARR = OutputFormat(
     name="zarr",
     label="Zarr",
     suffixes=(zarr_io.SUFFIX,),
-    create=zarr_io.create,
+    create=_lazy(".zarr", "create"),
     open_run=RunStore.open,
     commit=_zarr_commit,
-    read_fingerprint=zarr_io.read_fingerprint,
-    read_info=zarr_io.read_info,
+    read_fingerprint=_lazy(".zarr", "read_fingerprint"),
+    read_info=_lazy(".zarr", "read_info"),
     compressions=("blosc_lz4", "none"),
     directory=True,
-    unavailable=zarr_io.unavailable,
+    unavailable=_lazy(".zarr", "unavailable"),
     run_bytes=_zarr_run_bytes,
-    output_bytes=zarr_io.output_bytes,
+    output_bytes=_lazy(".zarr", "output_bytes"),
     open_result=_lazy(".results", "open_zarr"),
     open_view=ZarrView,
     write_copy=_lazy(".convert", "to_zarr"),
-    write_survey=zarr_io.write_survey,
+    write_survey=_lazy(".zarr", "write_survey"),
 )
 
 #: The registered formats by name; the first is the default for a name no row claims.
