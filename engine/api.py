@@ -2,20 +2,27 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
-from numbers import Integral, Real
 from typing import Any
 
 import numpy as np
 import xarray as xr
 
+from .checks import (
+    check_circular_tol,
+    check_horizon,
+    check_method,
+    check_numbers,
+    check_rtol,
+    check_scene,
+    check_values,
+)
 from .evaluation import evaluate_block, evaluate_flat, minimum_energy_flat
-from .fates import check_horizon
 from .grid import BLOCK_POINTS, Tiling
 from .kernels.geometry import CIRCULAR_TOL
 from .kernels.model import radial_energy as _radial_energy
-from .methods import DEFAULT_RTOL, check_method, check_rtol
+from .methods import DEFAULT_RTOL
+from .plan import RunPlan, survey_plan
 from .scene import Scene
 from .schema import (
     DIMS,
@@ -24,7 +31,6 @@ from .schema import (
     map_kind,
     result_attrs,
     result_variables,
-    survey_attrs,
     variable_attrs,
 )
 
@@ -34,104 +40,15 @@ __all__ = [
     "launch_survey",
     "minimum_energy",
     "radial_energy",
+    "run_plan",
     "validate_inputs",
 ]
 
 
-def _check_array(
-    name: str, values: np.ndarray, *, open_interval: tuple[float, float] | None = None
-):
-    bad = ~np.isfinite(values)
-    if bad.any():
-        raise ValueError(f"{name} must be finite; got {values[bad].flat[0]!r}")
-    if open_interval is not None:
-        lo, hi = open_interval
-        out = (values <= lo) | (values >= hi)
-        if out.any():
-            raise ValueError(
-                f"{name} must lie in the open interval ({lo:g}, {hi:.17g}); "
-                f"got {values[out].flat[0]!r}"
-            )
-
-
-def validate_axes(axes: dict[str, np.ndarray]) -> None:
-    """ValueError naming the first offending axis value (either kind of grid)."""
-    if "r0" in axes:
-        validate_inputs(axes["alpha"], 0.0, 0.0, 0.0)
-        for name in ("r0", "v0", "w0"):
-            _check_array(name, axes[name])
-        if (axes["r0"] <= 0.0).any():
-            raise ValueError(f"r0 must be > 0; got {axes['r0'][axes['r0'] <= 0.0][0]!r}")
-        return
-    validate_inputs(axes["alpha"], axes["energy"], axes["h"], axes["Lz"])
-
-
-def _check_numeric(name: str, value: Any) -> None:
-    """ValueError naming ``name`` unless ``value`` holds real numbers. Booleans, text (even
-    ``"0.5"``), complex numbers and dates are not numbers; a masked array with masked values
-    is refused (the engine has no masks: fill or drop them first), one without is its data."""
-    data = value.values if isinstance(value, xr.DataArray) else value
-    if np.ma.isMaskedArray(data):
-        masked = int(np.ma.count_masked(data))
-        if masked:
-            raise ValueError(
-                f"{name} has {masked} masked value(s); the engine does not carry masks: fill "
-                "them (numpy.ma.filled) or drop them (.compressed()) first"
-            )
-        data = np.ma.getdata(data)
-    arr = np.asarray(data)
-    kind = arr.dtype.kind
-    if kind == "O":
-        bad = [x for x in arr.flat if isinstance(x, bool | np.bool_) or not isinstance(x, Real)]
-        if bad:
-            raise ValueError(f"{name} must hold real numbers; got {bad[0]!r}")
-    elif kind not in "iuf":
-        what = {"b": "booleans", "U": "text", "S": "bytes", "c": "complex numbers"}
-        first = arr.flat[0] if arr.size else arr
-        raise ValueError(
-            f"{name} must hold real numbers, not {what.get(kind, arr.dtype.name)}; got {first!r}"
-        )
-
-
-def _check_flag(name: str, value: Any) -> bool:
-    """``value`` if it is True or False; ValueError otherwise (``"no"`` is not false)."""
-    if not isinstance(value, bool | np.bool_):
-        raise ValueError(f"{name} must be True or False; got {value!r}")
-    return bool(value)
-
-
-def _check_count(name: str, value: Any) -> int:
-    """``value`` if it is an integer >= 1 (not a boolean, not a float); ValueError otherwise."""
-    if isinstance(value, bool | np.bool_) or not isinstance(value, Integral) or value < 1:
-        raise ValueError(f"{name} must be a positive integer; got {value!r}")
-    return int(value)
-
-
 def validate_inputs(alpha, energy, h, Lz) -> None:
     """Raise ValueError naming the first offending argument (non-finite, alpha out of range)."""
-    _check_array("alpha", np.asarray(alpha, float), open_interval=(0.0, math.pi / 2))
-    _check_array("energy", np.asarray(energy, float))
-    _check_array("h", np.asarray(h, float))
-    _check_array("Lz", np.asarray(Lz, float))
-
-
-def _check_method_and_rtol(method: str, scene: Scene, rtol: float) -> float:
-    """ValueError for a method that is unknown or cannot honour the scene; rtol must be a
-    number, and lie in the registry's range where the method uses it."""
-    if check_method(method, scene).integrates:
-        return check_rtol(rtol)
-    if isinstance(rtol, bool | np.bool_) or not isinstance(rtol, Real):
-        raise ValueError(f"rtol must be a number; got {rtol!r}")
-    return rtol
-
-
-def _check_tol(circular_tol: float) -> float:
-    if isinstance(circular_tol, bool | np.bool_) or not isinstance(circular_tol, Real):
-        raise ValueError(f"circular_tol must be a number; got {circular_tol!r}")
-    t = float(circular_tol)
-    if not (t >= 0.0 and math.isfinite(t)):
-        raise ValueError(f"circular_tol must be finite and >= 0; got {circular_tol!r}")
-    return t
+    for name, value in (("alpha", alpha), ("energy", energy), ("h", h), ("Lz", Lz)):
+        check_values(name, value)
 
 
 def evaluate(
@@ -162,13 +79,14 @@ def evaluate(
     a friction limit follows each orbit from r_min to its fate (``fate`` and the variables after
     it), up to ``horizon_time`` [s] and/or ``horizon_revolutions`` (one is required then).
     """
-    scene = Scene() if scene is None else scene
-    rtol = _check_method_and_rtol(method, scene, rtol)
-    circular_tol = _check_tol(circular_tol)
-    horizon = check_horizon(method, scene, horizon_time, horizon_revolutions)
+    scene = check_scene(scene)
+    m = check_method(method, scene)
+    rtol = check_rtol(rtol, m)
+    circular_tol = check_circular_tol(circular_tol)
+    horizon = check_horizon(m, scene, horizon_time, horizon_revolutions)
     inputs = {"alpha": alpha, "energy": energy, "h": h, "Lz": Lz}
     for name, value in inputs.items():
-        _check_numeric(name, value)
+        check_numbers(name, value)
     if any(isinstance(v, xr.DataArray) for v in inputs.values()):
         das = xr.broadcast(
             *[xr.DataArray(v) if not isinstance(v, xr.DataArray) else v for v in inputs.values()]
@@ -207,7 +125,7 @@ def minimum_energy(alpha: Any, h: Any, Lz: Any, scene: Scene | None = None) -> n
     """V_min [J] of the effective potential at (alpha, h, Lz); NaN where V has no minimum."""
     scene = Scene() if scene is None else scene
     for name, value in (("alpha", alpha), ("h", h), ("Lz", Lz)):
-        _check_numeric(name, value)
+        check_numbers(name, value)
     views = np.broadcast_arrays(*[np.asarray(v, np.float64) for v in (alpha, h, Lz)])
     a, hh, lz = (np.array(x) for x in views)  # copies: numba warns on broadcast views
     validate_inputs(a, 0.0, hh, lz)
@@ -220,14 +138,6 @@ def radial_energy(E: Any, h: Any, scene: Scene | None = None) -> Any:
     (numbers or arrays)."""
     s = Scene() if scene is None else scene
     return _radial_energy.py_func(E, h, s.M, s.k)
-
-
-def _axis(name: str, values: Any) -> np.ndarray:
-    _check_numeric(name, values)
-    arr = np.atleast_1d(np.asarray(values, np.float64))
-    if arr.ndim != 1 or arr.size == 0:
-        raise ValueError(f"axis {name} must be a non-empty 1-D sequence; got shape {arr.shape}")
-    return arr
 
 
 def survey(
@@ -257,10 +167,13 @@ def survey(
     about ``block_points`` points (``chunk_points`` is its former name, still accepted).
     Fate maps (see :func:`evaluate`) start each orbit at its r_min.
     """
-    values = (alpha, energy, h, Lz)
-    return _grid(DIMS, values, scene, method, energy_relative, circular_tol, rtol, horizon_time,
-                 horizon_revolutions, progress, block_points if chunk_points is None else
-                 chunk_points)  # fmt: skip
+    plan = survey_plan(
+        DIMS, dict(alpha=alpha, energy=energy, h=h, Lz=Lz), scene, method,
+        energy_relative=energy_relative, circular_tol=circular_tol, rtol=rtol,
+        horizon_time=horizon_time, horizon_revolutions=horizon_revolutions,
+        block_points=block_points if chunk_points is None else chunk_points,
+    )  # fmt: skip
+    return run_plan(plan, progress)
 
 
 def launch_survey(
@@ -283,30 +196,23 @@ def launch_survey(
     ``w0`` = a omega_nu [m/s], on cones of half-aperture ``alpha``. Dims (alpha, r0, v0, w0);
     the invariants ``energy`` (calE), ``h`` and ``Lz`` of each launch are variables
     (:func:`engine.invariants`); fate maps start each orbit at its launch point."""
-    values = (alpha, r0, v0, w0)
-    return _grid(LAUNCH_DIMS, values, scene, method, False, circular_tol, rtol, horizon_time,
-                 horizon_revolutions, progress, block_points)  # fmt: skip
+    plan = survey_plan(
+        LAUNCH_DIMS, dict(alpha=alpha, r0=r0, v0=v0, w0=w0), scene, method,
+        circular_tol=circular_tol, rtol=rtol, horizon_time=horizon_time,
+        horizon_revolutions=horizon_revolutions, block_points=block_points,
+    )  # fmt: skip
+    return run_plan(plan, progress)
 
 
-def _grid(dims, values, scene, method, energy_relative, circular_tol, rtol, horizon_time,
-          horizon_revolutions, progress, points) -> xr.Dataset:  # fmt: skip
-    """A 4-D survey over the axes ``dims`` (invariants or launch states), block by block."""
-    scene = Scene() if scene is None else scene
-    rtol = _check_method_and_rtol(method, scene, rtol)
-    circular_tol = _check_tol(circular_tol)
-    horizon = check_horizon(method, scene, horizon_time, horizon_revolutions)
-    energy_relative = _check_flag("energy_relative", energy_relative)
-    points = _check_count("block_points", points)
-    axes = {n: _axis(n, v) for n, v in zip(dims, values, strict=True)}
-    validate_axes(axes)
-    shape = tuple(a.size for a in axes.values())
-    tiling = Tiling.for_grid(shape, points)
-    spec = dict(axes, dims=dims, scene=scene, method=method, energy_relative=energy_relative,
-                circular_tol=circular_tol, rtol=rtol, horizon=horizon)  # fmt: skip
+def run_plan(plan: RunPlan, progress: Callable[[int, int], None] | None = None) -> xr.Dataset:
+    """The survey of ``plan`` (:mod:`engine.plan`) in memory, block by block, as a Dataset
+    with dims ``plan.dims``; ``progress(done, total)`` after each block."""
+    shape = plan.shape
+    tiling = Tiling.for_grid(shape, plan.output.block_points)
     results: dict[str, np.ndarray] = {}
     done = 0
     for slices in tiling:
-        block = evaluate_block(spec, slices)
+        block = evaluate_block(plan, slices)
         for name, arr in block.items():
             if name not in results:
                 results[name] = np.empty(shape, arr.dtype)
@@ -314,9 +220,10 @@ def _grid(dims, values, scene, method, energy_relative, circular_tol, rtol, hori
         done += arr.size
         if progress is not None:
             progress(done, tiling.size)
-    kind = map_kind(method, scene)
+    dims, kind = plan.dims, plan.map_kind
     data_vars = {name: (dims, col, variable_attrs(name, kind)) for name, col in results.items()}
-    coords = {name: (name, arr, axis_attrs(name, energy_relative)) for name, arr in axes.items()}
-    attrs = survey_attrs(scene, method, circular_tol, rtol, energy_relative, horizon,
-                         launch=dims == LAUNCH_DIMS)  # fmt: skip
-    return xr.Dataset(data_vars, coords=coords, attrs=attrs)
+    coords = {
+        name: (name, np.array(arr), axis_attrs(name, plan.energy_relative))
+        for name, arr in zip(dims, plan.axes, strict=True)
+    }
+    return xr.Dataset(data_vars, coords=coords, attrs=plan.attrs())

@@ -14,7 +14,8 @@ workers (dask's ``KilledWorker``) or a cluster left without workers for
 ``DASK_CONESURVEY__NO_WORKERS_TIMEOUT``) raise :class:`BackendError`; the blocks stored so far
 are kept. A worker killed while others remain only costs its blocks in flight: the survey
 description travels as a task (not as scattered data, which dies with its worker), so the
-scheduler can recompute it anywhere.
+scheduler can recompute it anywhere. A block is computed from the run plan
+(:class:`engine.plan.RunPlan`), which travels whole.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ import numpy as np
 from .errortext import install_hint
 from .evaluation import evaluate_block
 from .grid import Tiling
+from .plan import RunPlan, plan_from_survey
 
 if TYPE_CHECKING:
     from .surveyfile import Survey
@@ -61,39 +63,27 @@ class BackendError(Exception):
     lost, no workers left); the message is one line."""
 
 
-def block_spec(survey: Survey) -> dict[str, Any]:
-    """What :func:`engine.evaluation.evaluate_block` needs (picklable, for dask workers too)."""
-    spec: dict[str, Any] = {d: np.array(getattr(survey, d)) for d in survey.dims}
-    spec.update(
-        dims=survey.dims,
-        scene=survey.scene,
-        method=survey.method,
-        energy_relative=survey.energy_relative,
-        circular_tol=survey.circular_tol,
-        rtol=survey.rtol,
-        horizon=survey.horizon,
-        dtypes=survey.variables(),  # float32 where the survey's precision is single
-    )
-    return spec
+def block_spec(survey: Survey) -> RunPlan:
+    """The run plan of ``survey`` (:func:`engine.plan.plan_from_survey`): what
+    :func:`compute_block` needs, picklable for dask workers too."""
+    return plan_from_survey(survey)
 
 
-def compute_block(
-    spec: dict[str, Any], tiling: Tiling, index: int
-) -> tuple[int, dict[str, np.ndarray]]:
+def compute_block(plan: RunPlan, tiling: Tiling, index: int) -> tuple[int, dict[str, np.ndarray]]:
     """Results of block ``index`` (module-level, so dask can ship it to workers), of the
-    survey's dtypes (float32 where its precision is single)."""
-    results = evaluate_block(spec, tiling.slices(index))
-    dtypes = spec.get("dtypes", {})
+    plan's dtypes (float32 where its precision is single)."""
+    results = evaluate_block(plan, tiling.slices(index))
+    dtypes = plan.variables
     return index, {n: a.astype(dtypes.get(n, a.dtype), copy=False) for n, a in results.items()}
 
 
 def write_block(
-    spec: dict[str, Any], tiling: Tiling, index: int, writer: Any
+    plan: RunPlan, tiling: Tiling, index: int, writer: Any
 ) -> tuple[int, dict[str, Any]]:
     """Compute block ``index`` and write it with ``writer`` where it was computed (a dask
     worker writes its own chunks, :class:`engine.io.zarrstore.ChunkWriter`); only the
     writer's receipt is returned."""
-    i, results = compute_block(spec, tiling, index)
+    i, results = compute_block(plan, tiling, index)
     return i, writer.write(i, tiling.slices(i), results)
 
 
@@ -141,13 +131,13 @@ class LocalBackend:
     """The pending blocks computed one after the other in this process."""
 
     def blocks(
-        self, spec: dict[str, Any], tiling: Tiling, pending: list[int], writer: Any = None
+        self, plan: RunPlan, tiling: Tiling, pending: list[int], writer: Any = None
     ) -> Blocks:
         for i in pending:
             yield (
-                compute_block(spec, tiling, i)
+                compute_block(plan, tiling, i)
                 if writer is None
-                else write_block(spec, tiling, i, writer)
+                else write_block(plan, tiling, i, writer)
             )
 
     def close(self) -> None:
@@ -230,13 +220,13 @@ class DaskBackend:
             ) from None
 
     def blocks(
-        self, spec: dict[str, Any], tiling: Tiling, pending: list[int], writer: Any = None
+        self, plan: RunPlan, tiling: Tiling, pending: list[int], writer: Any = None
     ) -> Blocks:
         """The pending blocks, as they complete (BackendError if the cluster fails); with a
         ``writer``, each worker writes the blocks it computes and returns the receipts."""
         try:
             n_workers = max(1, len(self.client.nthreads()))
-            spec_f = self.client.submit(_same, spec, pure=False)
+            plan_f = self.client.submit(_same, plan, pure=False)
         except Exception as exc:
             raise _lost(exc) from None
         todo = iter(pending)
@@ -246,9 +236,9 @@ class DaskBackend:
             i = next(todo, None)
             if i is not None:
                 fut = (
-                    self.client.submit(compute_block, spec_f, tiling, i, pure=False)
+                    self.client.submit(compute_block, plan_f, tiling, i, pure=False)
                     if writer is None
-                    else self.client.submit(write_block, spec_f, tiling, i, writer, pure=False)
+                    else self.client.submit(write_block, plan_f, tiling, i, writer, pure=False)
                 )
                 in_flight[fut] = i
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
@@ -33,6 +33,9 @@ from .schema import (
     map_kind,
     result_variables,
 )
+
+if TYPE_CHECKING:
+    from .plan import RunPlan
 
 __all__ = ["evaluate_flat", "evaluate_block", "minimum_energy_flat"]
 
@@ -155,12 +158,12 @@ def minimum_energy_flat(alpha: np.ndarray, h: np.ndarray, Lz: np.ndarray, scene:
     return out
 
 
-def evaluate_block(spec: dict[str, Any], slices: tuple[slice, ...]) -> dict[str, np.ndarray]:
+def evaluate_block(plan: RunPlan, slices: tuple[slice, ...]) -> dict[str, np.ndarray]:
     """Results on one hyperslab of the grid, each array shaped like the slab.
 
-    ``spec``: ``dims`` (:data:`engine.schema.DIMS`, the default, or
-    :data:`engine.schema.LAUNCH_DIMS`) and each axis (1-D float64), ``scene`` (Scene),
-    ``method``, ``energy_relative``, ``circular_tol``, ``rtol``, ``horizon`` (fate maps).
+    ``plan``: the validated run plan (:class:`engine.plan.RunPlan`): its dims
+    (:data:`engine.schema.DIMS` or :data:`engine.schema.LAUNCH_DIMS`) and axes, scene, method,
+    map kind, ``energy_relative``, ``circular_tol``, ``rtol`` and ``horizon`` (fate maps).
     With a relative energy axis the absolute energy (``energy_absolute``) is V_min + offset
     |V_min| from the slab's own V_min; where V has no minimum it is NaN and the point is classed
     forbidden (out_of_range where its numbers are, as :func:`evaluate_flat` says). On a grid
@@ -170,28 +173,24 @@ def evaluate_block(spec: dict[str, Any], slices: tuple[slice, ...]) -> dict[str,
     not depend on the energy once per (alpha, h, L_z); its numbers equal
     :func:`evaluate_flat`'s on the same points bit for bit.
     """
-    dims = spec.get("dims", DIMS)
-    sub = [
-        np.ascontiguousarray(np.asarray(spec[d])[s], np.float64)
-        for d, s in zip(dims, slices, strict=True)
-    ]
+    dims = plan.dims
+    sub = [np.ascontiguousarray(ax[s], np.float64) for ax, s in zip(plan.axes, slices, strict=True)]
     shape = tuple(x.size for x in sub)
-    scene = spec["scene"]
-    if tuple(dims) == DIMS and map_kind(spec["method"], scene) == "closed form":
-        res = _closed_form_grid(sub, scene, spec)
+    if tuple(dims) == DIMS and plan.map_kind == "closed form":
+        res = _closed_form_grid(sub, plan)
     else:
-        res = _flat_block(sub, dims, scene, spec)
+        res = _flat_block(sub, plan)
     return {name: col.reshape(shape) for name, col in res.items()}
 
 
-def _closed_form_grid(sub: list[np.ndarray], scene: Scene, spec: dict[str, Any]):
+def _closed_form_grid(sub: list[np.ndarray], plan: RunPlan):
     """The closed form on the grid of the axes ``sub`` (flat arrays in the grid's C order)."""
     n = math.prod(x.size for x in sub)
-    relative = bool(spec["energy_relative"])
+    scene, relative = plan.scene, plan.energy_relative
     cls, f = empty_outputs(n)
     e_abs = np.empty(n)
-    orbit_grid(*sub, relative, scene.params(), spec["circular_tol"], cls, f, e_abs)
-    wanted = result_variables(spec["method"], scene)
+    orbit_grid(*sub, relative, scene.params(), plan.circular_tol, cls, f, e_abs)
+    wanted = plan.variables
     out: dict[str, np.ndarray] = {"orbit_class": cls}
     for i, name in enumerate(BATCH_ROWS):
         if name in wanted:
@@ -201,24 +200,23 @@ def _closed_form_grid(sub: list[np.ndarray], scene: Scene, spec: dict[str, Any])
     return out
 
 
-def _flat_block(sub: list[np.ndarray], dims: tuple[str, ...], scene: Scene,
-                spec: dict[str, Any]):  # fmt: skip
+def _flat_block(sub: list[np.ndarray], plan: RunPlan):
     """Any map on the grid of the axes ``sub``, through :func:`evaluate_flat` on its points."""
+    scene = plan.scene
     A, X1, X2, X3 = (x.reshape(-1) for x in np.meshgrid(*sub, indexing="ij"))
     e_abs = None
     r_start = None
-    if dims == LAUNCH_DIMS:
+    if plan.dims == LAUNCH_DIMS:
         inv = invariants(A, X1, 0.0, X2, X3, scene)
         E, H, L, r_start = inv["energy"], inv["h"], inv["Lz"], X1
     else:
         E, H, L = X1, X2, X3
-        if spec["energy_relative"]:
+        if plan.energy_relative:
             vmin = minimum_energy_flat(A, H, L, scene)
             e_abs = vmin + E * np.abs(vmin)
             E = e_abs
-    res = evaluate_flat(A, E, H, L, scene, spec["method"], circular_tol=spec["circular_tol"],
-                        rtol=spec["rtol"], horizon=spec.get("horizon"),
-                        r_start=r_start)  # fmt: skip
+    res = evaluate_flat(A, E, H, L, scene, plan.method.name, circular_tol=plan.circular_tol,
+                        rtol=plan.rtol, horizon=plan.horizon, r_start=r_start)  # fmt: skip
     if e_abs is not None:
         undefined = np.isnan(e_abs)
         if undefined.any():

@@ -40,23 +40,23 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .backends import BackendError, block_spec, check_address, open_backend
+from .backends import BackendError, check_address, open_backend
 from .evaluation import evaluate_block
-from .grid import BLOCK_POINTS, MAX_BLOCKS, Tiling, grid_too_large
-from .io import OutputError, netcdf
-from .io import zarr as zarr_io
+from .grid import Tiling
+from .io import OutputError
 from .io.atomic import not_regular, output_name_problem
-from .io.blocks import BlockStore, Scan, block_file_bytes, check_parts_dir, remove_store
-from .io.codecs import DEFAULT_COMPRESSION, compression_keywords, level
+from .io.blocks import BlockStore, Scan, check_parts_dir, remove_store
+from .io.codecs import level
+from .io.formats import OutputFormat
 from .io.leftovers import is_debris
 from .io.lock import Locked, LockError, OutputLock, describe_holder
-from .io.manifest import Manifest, fingerprint, parts_dir, read_manifest, survey_variables
+from .io.manifest import fingerprint, parts_dir, read_manifest
 from .io.space import free_bytes
 from .io.summary import Summary
 from .io.zarrstore import RunStore
+from .plan import RunPlan, plan_from_survey
 from .progress import format_bytes
 from .runstats import AlreadyComplete, RunError, RunFailed, RunStats
-from .schema import DIMS
 
 if TYPE_CHECKING:
     from .surveyfile import Survey
@@ -71,12 +71,10 @@ __all__ = [
 
 
 _Block = tuple[int, dict[str, np.ndarray]]
-#: What --compression can be for a Zarr store (Blosc LZ4 with shuffle, or none).
-ZARR_COMPRESSIONS = ("blosc_lz4", "none")
 
 
 @dataclass
-class _Plan:
+class _Store:
     """What step 2 found: the store to resume (with its scan), or a store to remove first."""
 
     fp: str
@@ -87,21 +85,22 @@ class _Plan:
 
 
 def _inspect(
-    out: Path, survey: Survey, overwrite: bool, block_points: int | None, warn: Callable
-) -> _Plan:
+    out: Path, survey: Survey, overwrite: bool, block_points: int | None, warn: Callable,
+    fmt: OutputFormat,
+) -> _Store:  # fmt: skip
     """Step 2 (reads only): RunError or AlreadyComplete, else the plan."""
-    plan = _Plan(fingerprint(survey))
+    plan = _Store(fingerprint(survey))
     root = parts_dir(out)
     try:
         has_store = check_parts_dir(root)
     except OutputError as exc:
         raise RunError(str(exc)) from None
     kind = not_regular(out, follow_links=False)
-    expected = ("a directory",) if zarr_io.is_zarr(out) else ()  # a Zarr store is one
+    expected = ("a directory",) if fmt.directory else ()  # a Zarr store is one
     if kind not in (None, "a symbolic link", *expected):
         raise RunError(f"output path {out} is {kind}; give a file name")
     if os.path.lexists(out) and not overwrite:
-        finished = zarr_io.backend_for(out).read_fingerprint(out)
+        finished = fmt.read_fingerprint(out)
         if finished != plan.fp:
             raise RunError(f"output file exists: {out} (use --overwrite to replace it)")
         if has_store and is_debris(root, finished):
@@ -114,7 +113,7 @@ def _inspect(
         plan.remove_first = "removed: it has no manifest (left by a killed run)"
         return plan
     try:  # with --overwrite too: a killed run --overwrite resumes when it is run again
-        plan.store = (RunStore if zarr_io.is_zarr(out) else BlockStore).open(root, warn)
+        plan.store = fmt.open_run(root, warn)
         why, problem = read_manifest(root).mismatch(survey), None
     except OutputError as exc:
         why, problem = None, exc
@@ -137,39 +136,19 @@ def _inspect(
     return plan
 
 
-def _check_space(out: Path, survey: Survey, tiling: Tiling, pending: list[int]) -> None:
+def _check_space(
+    out: Path, run: RunPlan, tiling: Tiling, pending: list[int], fmt: OutputFormat
+) -> None:
     """RunError unless the blocks still to compute and the output merged beside all of them
     fit on the output's file system."""
-    names = survey_variables(survey)
-    if zarr_io.is_zarr(out):  # no block files: the chunks are written into the store
-        blocks, merged = zarr_io.output_bytes(names, (sum(map(tiling.points, pending)),)), 0
-    else:
-        blocks = sum(block_file_bytes(names, tiling.points(i)) for i in pending)
-        merged = netcdf.output_bytes(names, tiling.shape)
+    blocks, merged = fmt.run_bytes(run.variables, tiling, pending)
     free = shutil.disk_usage(out.parent).free
     if blocks + merged > free:
         raise RunError(
             f"the survey needs up to {format_bytes(blocks + merged)} of disk "
             f"({format_bytes(blocks)} for the blocks still to compute + "
             f"{format_bytes(merged)} for the output merged beside them) but {out.parent} "
-            f"has {format_bytes(free)} free ({survey.size:,} points); use --force to run anyway"
-        )
-
-
-def _check_scale(survey: Survey, block_points: int | None) -> None:
-    """RunError for a grid no run can hold, or one cut into more blocks than a run lists
-    (from the shape alone: constant time and memory)."""
-    if why := grid_too_large(dict(zip(survey.dims, survey.shape, strict=True))):
-        raise RunError(why)
-    try:
-        tiling = Tiling.for_grid(survey.shape, block_points or BLOCK_POINTS)
-    except ValueError as exc:
-        raise RunError(str(exc)) from None
-    if tiling.nblocks > MAX_BLOCKS:
-        fewer = -(-tiling.size // MAX_BLOCKS)
-        raise RunError(
-            f"{tiling.nblocks:,} blocks of {math.prod(tiling.block):,} points: a run lists at "
-            f"most {MAX_BLOCKS:,}; give --block-points {fewer} or more"
+            f"has {format_bytes(free)} free ({run.size:,} points); use --force to run anyway"
         )
 
 
@@ -200,6 +179,7 @@ def run_survey(
     compression: str | None = None,
     complevel: int | None = None,
     check_space: bool = True,
+    output_format: str | None = None,
 ) -> RunStats:
     """Run ``survey`` into the netCDF file ``out``, streaming blocks and resuming a killed run.
 
@@ -211,75 +191,65 @@ def run_survey(
     ``on_block(index)`` is called after each block is safely stored (for tests and hooks).
     ``compression`` / ``complevel``: how the output's variables are compressed
     (:mod:`engine.io.codecs`; docs/output.md); None: the format's default (netCDF: zlib;
-    Zarr: blosc_lz4).
+    Zarr: blosc_lz4). ``output_format``: a format's name (:mod:`engine.io.formats`; None:
+    the format of ``out``'s name).
     """
-    if compression is None:
-        compression = ZARR_COMPRESSIONS[0] if zarr_io.is_zarr(out) else DEFAULT_COMPRESSION
-    try:
-        compression_keywords(compression, complevel)
+    try:  # every input checked once (engine.checks), before anything else
+        run = plan_from_survey(
+            survey, out, block_points=block_points, compression=compression,
+            complevel=complevel, output_format=output_format,
+        )  # fmt: skip
     except ValueError as exc:
         raise RunError(str(exc)) from None
-    if zarr_io.is_zarr(out) and compression not in ZARR_COMPRESSIONS:
-        raise RunError(
-            f"compression {compression!r} is for netCDF output; a Zarr store is written with "
-            f"{' or '.join(ZARR_COMPRESSIONS)}"
-        )
+    fmt, compression, complevel = run.output.format, run.output.compression, run.output.complevel
     if scheduler is not None:
         try:
             check_address(scheduler)
         except ValueError as exc:
             raise RunError(str(exc)) from None
-    _check_scale(survey, block_points)
     out = Path(out)
     if why := output_name_problem(out):
         raise RunError(why)
     warn = warn or (lambda msg: print(f"conesurvey: warning: {msg}", file=sys.stderr))
     if not out.parent.is_dir():
         raise RunError(f"output directory does not exist: {out.parent}")
-    if zarr_io.is_zarr(out) and (why := zarr_io.unavailable()):
+    if why := fmt.unavailable():
         raise RunError(why)  # an optional dependency: refused before anything is written
     with _take_lock(out, command):
-        plan = _inspect(out, survey, overwrite, block_points, warn)
+        asked = None if block_points is None else run.output.block_points
+        plan = _inspect(out, survey, overwrite, asked, warn, fmt)
         tiling = (
             plan.store.tiling
             if plan.store is not None
-            else Tiling.for_grid(survey.shape, block_points or BLOCK_POINTS)
+            else Tiling.for_grid(run.shape, run.output.block_points)
         )
         done = plan.scan.good
         pending = [i for i in range(tiling.nblocks) if i not in done]
         if check_space:
-            _check_space(out, survey, tiling, pending)
-        spec = block_spec(survey)
+            _check_space(out, run, tiling, pending, fmt)
         # Compile (or load from numba's cache) on one point of the grid before anything is
         # written: the engine may still refuse the survey. This also warms the cache before
         # dask workers start (concurrent first compiles race, numba#4807).
         tc = time.perf_counter()
         compiling = getattr(progress, "compiling", contextlib.nullcontext)
         with compiling():  # a first run's compile is announced, not a silent wait
-            evaluate_block(spec, tuple(slice(0, 1) for _ in DIMS))
+            evaluate_block(run, tuple(slice(0, 1) for _ in run.dims))
         t0 = time.perf_counter()
         try:
             backend = open_backend(scheduler, workers)
         except BackendError as exc:
             raise RunFailed(f"{exc}; nothing was written") from None
         try:
-            store = _prepare(out, survey, plan, tiling, warn, level(compression, complevel))
+            store = _prepare(out, survey, plan, tiling, warn, level(compression, complevel), fmt)
             once = dict(fingerprint=plan.fp, command=command, overwrite=overwrite)
-            blocks = _compute(store, backend, spec, pending, len(done), progress, on_block)
-            if isinstance(store, RunStore):  # Zarr: the blocks wrote their chunks; commit
-                for _ in blocks:
-                    pass
-                t1 = time.perf_counter()
-                level_ = level(compression, complevel)
-                summary = _merge(store, survey, out, **once, complevel=level_)
-            else:  # netCDF: written while the blocks are computed
-                ended: list[float] = []  # when the last block was stored
-                incoming = _timed(blocks, ended)
-                summary = _merge(
-                    store, survey, out, **once, compression=compression, complevel=complevel,
-                    pending=pending, incoming=incoming, warn=warn,
-                )  # fmt: skip
-                t1 = ended[0] if ended else t0
+            blocks = _compute(store, backend, run, pending, len(done), progress, on_block)
+            ended: list[float] = []  # when the last block was stored
+            incoming = _timed(blocks, ended)
+            summary = _merge(
+                fmt, store, survey, out, **once, compression=compression, complevel=complevel,
+                pending=pending, incoming=incoming, warn=warn,
+            )  # fmt: skip
+            t1 = ended[0] if ended else t0
         finally:
             backend.close()
         try:
@@ -291,7 +261,7 @@ def run_survey(
         tiling.shape,
         summary.counts,
         summary.ranges,
-        survey.dims,
+        run.dims,
         summary.flags,
         compute_seconds=t1 - t0,
         write_seconds=time.perf_counter() - t1,
@@ -303,8 +273,9 @@ def run_survey(
 
 
 def _prepare(
-    out: Path, survey: Survey, plan: _Plan, tiling: Tiling, warn: Callable, complevel: int
-) -> BlockStore | RunStore:
+    out: Path, survey: Survey, plan: _Store, tiling: Tiling, warn: Callable, complevel: int,
+    fmt: OutputFormat,
+) -> BlockStore | RunStore:  # fmt: skip
     """Step 4's first writes: remove what goes, create or tidy the store."""
     root = parts_dir(out)
     try:
@@ -314,9 +285,7 @@ def _prepare(
         if plan.store is not None:
             plan.store.discard(plan.scan)
             return plan.store
-        if zarr_io.is_zarr(out):
-            return zarr_io.create(root, survey, tiling, complevel, warn)
-        return BlockStore.create(root, Manifest.new(survey, tiling), warn)
+        return fmt.create(root, survey, tiling, complevel, warn)
     except OSError as exc:
         raise RunFailed(_cannot_write(exc, root)) from None
 
@@ -324,7 +293,7 @@ def _prepare(
 def _compute(
     store: BlockStore | RunStore,
     backend: object,
-    spec: dict,
+    run: RunPlan,
     pending: list[int],
     reused: int,
     progress: Callable[[int, int], None] | None,
@@ -339,7 +308,7 @@ def _compute(
     stored = reused
     try:
         writer = getattr(store, "writer", None)  # Zarr: blocks write their own chunks
-        for i, res in backend.blocks(spec, tiling, pending, writer):  # type: ignore[attr-defined]
+        for i, res in backend.blocks(run, tiling, pending, writer):  # type: ignore[attr-defined]
             try:
                 clean = store.commit(i, res)
             except OSError as exc:
@@ -368,13 +337,16 @@ def _cannot_write(exc: OSError, where: Path) -> str:
     return f"cannot write {exc.filename or where}: {exc.strerror or exc}"
 
 
-def _merge(store: BlockStore | RunStore, survey: Survey, out: Path, **options: Any) -> Summary:
-    """The blocks merged into the output (netCDF: while they are computed,
-    :func:`engine.io.netcdf.merge`; Zarr: the final commit, :func:`engine.io.zarr.merge`):
+def _merge(
+    fmt: OutputFormat, store: BlockStore | RunStore, survey: Survey, out: Path, **options: Any
+) -> Summary:
+    """The blocks merged into the output by its format's ``commit`` (netCDF: while they are
+    computed, :func:`engine.io.netcdf.merge`; Zarr: the final commit,
+    :func:`engine.io.zarr.merge`):
     RunError if the output appeared meanwhile, RunFailed if it cannot be written or a block
     changed, and what the compute raised."""
     try:
-        return zarr_io.backend_for(out).merge(store, survey, out, **options)
+        return fmt.commit(store, survey, out, **options)
     except FileExistsError:
         raise RunError(
             f"output file exists: {out} (created while this run computed; use --overwrite)"

@@ -7,11 +7,11 @@ reader's error (``fail``) with the key path and the value for every problem (see
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 
+from .checks import axis_problem
 from .errortext import TomlChecker, toml_repr, toml_type
 
 __all__ = ["AxisReader", "MAX_AXIS_POINTS", "RELATIVE_TO", "SCALES", "frozen"]
@@ -23,8 +23,6 @@ SCALES = ("linear", "log")
 MAX_AXIS_POINTS = 10**8
 _RANGE_KEYS = ("start", "stop", "num", "scale")
 _AXIS_KEYS = ("values", *_RANGE_KEYS)
-#: Axes whose values must be positive (a launch radius).
-_POSITIVE = ("r0",)
 
 
 class AxisReader(TomlChecker):
@@ -50,11 +48,8 @@ class AxisReader(TomlChecker):
                     "give either values = [...] or start/stop/num, not both",
                 )
             values = self.values(table["values"], f"{path}.values")
-            for i, x in enumerate(values):
-                if name == "alpha":
-                    self.check_alpha(x, f"{path}.values[{i}]", table["values"][i])
-                if name in _POSITIVE:
-                    self.check_positive(x, f"{path}.values[{i}]", table["values"][i])
+            for i, x in enumerate(values.tolist()):
+                self.check_value(name, x, f"{path}.values[{i}]", table["values"][i])
             return values
         if not range_keys:
             raise self.fail(path, "give either values = [...] or start, stop and num")
@@ -69,12 +64,8 @@ class AxisReader(TomlChecker):
         if num > MAX_AXIS_POINTS:
             raise self.bad_value(f"{path}.num", num, f"must be <= {MAX_AXIS_POINTS:.0e} per axis")
         scale = self.choice(table.get("scale", "linear"), f"{path}.scale", SCALES)
-        if name == "alpha":
-            self.check_alpha(start, f"{path}.start", table["start"])
-            self.check_alpha(stop, f"{path}.stop", table["stop"])
-        if name in _POSITIVE:
-            self.check_positive(start, f"{path}.start", table["start"])
-            self.check_positive(stop, f"{path}.stop", table["stop"])
+        for key, x in (("start", start), ("stop", stop)):
+            self.check_value(name, x, f"{path}.{key}", table[key])
         if num == 1 and start != stop:
             raise self.bad_value(f"{path}.num", num, "must be > 1 when start != stop")
         if num > 1 and start == stop:
@@ -121,13 +112,11 @@ class AxisReader(TomlChecker):
             seen[x] = i
         return frozen(out)
 
-    def check_alpha(self, x: float, key: str, raw: Any) -> None:
-        if not 0.0 < x < math.pi / 2:
-            raise self.bad_value(key, raw, "alpha must lie in the open interval (0, pi/2) [radian]")
-
-    def check_positive(self, x: float, key: str, raw: Any) -> None:
-        if not x > 0.0:
-            raise self.bad_value(key, raw, "must be > 0 [m]")
+    def check_value(self, name: str, x: float, key: str, raw: Any) -> None:
+        """The value ``x`` of the axis ``name``, by the API's check
+        (:func:`engine.checks.axis_problem`)."""
+        if problem := axis_problem(name, x):
+            raise self.bad_value(key, raw, problem)
 
 
 def frozen(a: np.ndarray) -> np.ndarray:

@@ -55,29 +55,39 @@ naming the file, the key path (``axes.alpha.values[1]``) and the value (did-you-
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import os
 import re
 import tomllib
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .api import launch_survey as api_launch_survey
-from .api import survey as api_survey
+from .api import run_plan
+from .checks import (
+    PlanError,
+    check_circular_tol,
+    check_horizon,
+    check_method,
+    check_precision,
+    check_rtol,
+    check_scene,
+)
 from .errortext import toml_repr, toml_type
-from .fates import Horizon, check_horizon, check_mappable
+from .fates import Horizon
 from .grid import grid_too_large
 from .io.atomic import read_regular
 from .kernels.geometry import CIRCULAR_TOL as DEFAULT_CIRCULAR_TOL
-from .methods import DEFAULT_RTOL, METHODS, RTOL_RANGE, check_method, check_rtol
+from .methods import DEFAULT_RTOL, METHODS, Method
+from .plan import plan_from_survey
 from .scene import Scene
 from .schema import DIMS as AXES
-from .schema import LAUNCH_DIMS, map_kind, result_variables, survey_attrs
+from .schema import LAUNCH_DIMS, result_variables, survey_attrs
 from .surveyaxes import MAX_AXIS_POINTS, RELATIVE_TO, SCALES, AxisReader
 
 if TYPE_CHECKING:
@@ -100,10 +110,9 @@ DEFAULT_METHOD = "exact"
 MAX_SURVEY_BYTES = 4 << 20
 
 _TOP_KEYS = ("title", "method", "rtol", "circular_tol", "precision", "scene", "horizon", "axes")
-#: ``precision``: how the float result variables are stored (the axes stay float64; the
-#: integer ones, class, status and fate, are exact either way).
-PRECISIONS = ("double", "single")
 _HORIZON_KEYS = ("time", "revolutions")
+#: Key paths of the plan's fields that a survey file spells otherwise.
+_KEYS = {"horizon_time": "horizon.time", "horizon_revolutions": "horizon.revolutions"}
 _SCENE_FIELDS = tuple(f.name for f in dataclasses.fields(Scene) if not f.name.startswith("_"))
 
 
@@ -190,23 +199,9 @@ class Survey:
         return attrs
 
     def run(self, progress: Callable[[int, int], None] | None = None) -> xr.Dataset:
-        """Evaluate the survey in memory (:func:`engine.survey` or :func:`engine.launch_survey`);
-        ``progress(done, total)`` per block."""
-        horizon = self.horizon or Horizon()
-        kw: dict[str, Any] = dict(
-            scene=self.scene,
-            method=self.method,
-            circular_tol=self.circular_tol,
-            rtol=self.rtol,
-            horizon_time=horizon.time,
-            horizon_revolutions=horizon.revolutions,
-            progress=progress,
-        )
-        if self.launch:
-            ds = api_launch_survey(self.alpha, self.r0, self.v0, self.w0, **kw)
-        else:
-            ds = api_survey(self.alpha, self.energy, self.h, self.Lz,
-                            energy_relative=self.energy_relative, **kw)  # fmt: skip
+        """Evaluate the survey in memory (its plan, :func:`engine.plan.plan_from_survey`, run
+        by :func:`engine.api.run_plan`); ``progress(done, total)`` per block."""
+        ds = run_plan(plan_from_survey(self), progress)
         for name, dt in self.variables().items():
             if name in ds and ds[name].dtype != dt:
                 ds[name] = ds[name].astype(dt)
@@ -291,15 +286,12 @@ class _Reader(AxisReader):
         title = self.string(doc.get("title", "conesurvey survey"), "title")
         if "\0" in title:
             raise self.bad_value("title", title, "must not contain NUL (netCDF text ends there)")
-        method = self.choice(doc.get("method", DEFAULT_METHOD), "method", tuple(METHODS))
-        rtol = self.number(doc.get("rtol", DEFAULT_RTOL), "rtol")
-        if not 0.0 < rtol < 1.0:
-            raise self.bad_value("rtol", doc["rtol"], "must lie in the open interval (0, 1)")
-        circular_tol = self.number(doc.get("circular_tol", DEFAULT_CIRCULAR_TOL), "circular_tol")
-        if circular_tol < 0.0:
-            raise self.bad_value("circular_tol", doc["circular_tol"], "must be >= 0")
+        name = self.choice(doc.get("method", DEFAULT_METHOD), "method", tuple(METHODS))
         scene = self.scene(self.table(doc, "scene", "", required=False) or {})
-        self.method_for(method, scene, rtol, doc.get("rtol", DEFAULT_RTOL))
+        with self.checked():  # each input by its one check (engine.checks)
+            method = check_method(name, scene)
+            rtol = check_rtol(doc.get("rtol", DEFAULT_RTOL), method)
+            circular_tol = check_circular_tol(doc.get("circular_tol", DEFAULT_CIRCULAR_TOL))
         horizon = self.horizon(doc, method, scene)
         axes = self.table(doc, "axes", "", required=True)
         dims = LAUNCH_DIMS if any(n in axes for n in LAUNCH_DIMS[1:]) else AXES
@@ -322,11 +314,12 @@ class _Reader(AxisReader):
         if dims == LAUNCH_DIMS:
             arrays.update(energy=None, h=None, Lz=None)
         energy_relative = "relative_to" in axes.get("energy", {})
-        precision = self.choice(doc.get("precision", "double"), "precision", PRECISIONS)
+        with self.checked():
+            precision = check_precision(doc.get("precision", "double"))
         return Survey(
             precision=precision,
             title=title,
-            method=method,
+            method=method.name,
             rtol=rtol,
             circular_tol=circular_tol,
             scene=scene,
@@ -336,41 +329,24 @@ class _Reader(AxisReader):
             **arrays,
         )
 
-    def horizon(self, doc: dict, method: str, scene: Scene) -> Horizon | None:
+    def horizon(self, doc: dict, method: Method, scene: Scene) -> Horizon | None:
         """``[horizon]``: how long a fate map follows each orbit (the API's check)."""
         table = self.table(doc, "horizon", "", required=False) or {}
         self.check_keys(table, _HORIZON_KEYS, "horizon")
-        values = {k: self.number(table[k], f"horizon.{k}") for k in _HORIZON_KEYS if k in table}
-        for key, v in values.items():
-            if not v > 0.0:
-                raise self.bad_value(f"horizon.{key}", table[key], "must be > 0")
-        if not values and map_kind(method, scene) == "fate":
-            raise self.fail(
-                "horizon",
-                "a fate map follows each orbit to its first terminal event (spill, slip, rest, "
-                "vertex) or a horizon: add a [horizon] table with time = SECONDS and/or "
-                "revolutions = N",
-            )
-        try:
-            return check_horizon(method, scene, values.get("time"), values.get("revolutions"))
-        except ValueError as exc:
-            raise self.fail("horizon", str(exc)) from None
+        with self.checked():
+            return check_horizon(method, scene, table.get("time"), table.get("revolutions"))
 
-    def method_for(self, method: str, scene: Scene, rtol: float, raw_rtol: Any) -> None:
-        """The checks ``run`` makes (engine.methods): the method honours the scene's effects,
-        and an integrator's rtol lies in the registry's range."""
+    @contextlib.contextmanager
+    def checked(self) -> Iterator[None]:
+        """A :class:`engine.checks.PlanError` as a SurveyError at the field's key path."""
         try:
-            integrates = check_method(method, scene).integrates
-        except ValueError as exc:
-            raise self.fail("method", str(exc)) from None
-        if integrates:
-            try:
-                check_rtol(rtol)
-            except ValueError:
-                lo, hi = RTOL_RANGE
-                raise self.bad_value(
-                    "rtol", raw_rtol, f"must lie in [{lo:g}, {hi:g}] for the integrator {method}"
-                ) from None
+            yield
+        except PlanError as exc:
+            key = _KEYS.get(exc.field, exc.field).replace("Scene.", "scene.")
+            problem = exc.problem
+            if exc.has_value:
+                problem += f", got {toml_repr(exc.value)}"
+            raise self.fail(key, problem) from None
 
     def scene(self, table: dict) -> Scene:
         self.check_keys(table, _SCENE_FIELDS, "scene")
@@ -389,7 +365,7 @@ class _Reader(AxisReader):
             else:
                 kwargs[field.name] = self.number(value, key)
         try:
-            return check_mappable(Scene(**kwargs))
+            scene = Scene(**kwargs)
         except ValueError as exc:
             m = re.search(r"Scene\.(\w+)", str(exc))
             name = m.group(1) if m else ""
@@ -398,3 +374,5 @@ class _Reader(AxisReader):
             if m:  # "Scene.M must be > 0, got -1.0" -> "must be > 0, got -1.0"
                 message = message[m.end() :].strip()
             raise self.fail(key, message) from None
+        with self.checked():
+            return check_scene(scene)

@@ -6,6 +6,8 @@ import pytest
 
 import engine
 from engine.evaluation import evaluate_block, evaluate_flat, minimum_energy_flat
+from engine.plan import survey_plan
+from engine.schema import DIMS
 
 
 def test_block_results_equal_pointwise_evaluation():
@@ -15,14 +17,7 @@ def test_block_results_equal_pointwise_evaluation():
         h=np.array([-1.0, 1.0]),
         Lz=np.array([0.2, 0.5, 0.9]),
     )
-    spec = dict(
-        axes,
-        scene=engine.Scene(),
-        method="exact",
-        energy_relative=False,
-        circular_tol=1e-12,
-        rtol=1e-10,
-    )
+    spec = survey_plan(DIMS, axes, engine.Scene(), "exact", circular_tol=1e-12, rtol=1e-10)
     block = evaluate_block(spec, (slice(1, 2), slice(0, 3), slice(0, 2), slice(1, 3)))
     assert block["period"].shape == (1, 3, 2, 2)
     ds = engine.evaluate(0.7, 20.0, 1.0, 0.9)
@@ -44,9 +39,8 @@ def test_grid_path_equals_flat_path_bit_for_bit(relative, scene):
         h=np.array([-3.0, 0.0, 1.5]),
         Lz=np.array([-1.0, 0.0, 1e-6, 0.3, 2.0]),
     )
-    spec = dict(
-        axes, scene=scene, method="exact", energy_relative=relative, circular_tol=1e-12, rtol=1e-10
-    )
+    spec = survey_plan(DIMS, axes, scene, "exact", energy_relative=relative, circular_tol=1e-12,
+                       rtol=1e-10)  # fmt: skip
     block = evaluate_block(spec, (slice(0, 3), slice(0, 23), slice(0, 3), slice(0, 5)))
     A, E, H, L = (x.reshape(-1) for x in np.meshgrid(*axes.values(), indexing="ij"))
     if relative:
@@ -74,9 +68,10 @@ def test_threads_share_the_units_and_give_the_same_numbers():
     n = 5 * 512 + 37  # six units of 512 points, the last one short
     a, h, lz = rng.uniform(0.2, 1.4, n), rng.uniform(-2, 2, n), rng.uniform(0.05, 2, n)
     e = minimum_energy_flat(a, h, lz, engine.Scene()) * rng.uniform(0.5, 3.0, n)
-    spec = dict(alpha=np.linspace(0.2, 1.4, 3), energy=np.geomspace(1e-6, 10, 130),
-                h=np.linspace(-2, 2, 5), Lz=np.linspace(0.1, 2, 7), scene=engine.Scene(),
-                method="exact", energy_relative=True, circular_tol=1e-12, rtol=1e-10)  # fmt: skip
+    axes = dict(alpha=np.linspace(0.2, 1.4, 3), energy=np.geomspace(1e-6, 10, 130),
+                h=np.linspace(-2, 2, 5), Lz=np.linspace(0.1, 2, 7))  # fmt: skip
+    spec = survey_plan(DIMS, axes, engine.Scene(), "exact", energy_relative=True,
+                       circular_tol=1e-12, rtol=1e-10)  # fmt: skip
     grid = (slice(0, 3), slice(0, 130), slice(0, 5), slice(0, 7))
     before = numba.get_num_threads()
     try:

@@ -17,9 +17,9 @@ import shutil
 from pathlib import Path
 
 from ..io import OutputError, WriteError
-from ..io import zarr as zarr_io
 from ..io.atomic import output_name_problem
 from ..io.convert import convert, output_bytes
+from ..io.formats import format_for
 from ..io.lock import Locked, LockError, OutputLock, describe_holder
 from ..io.manifest import parts_dir
 from ..progress import format_bytes
@@ -64,7 +64,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _format(path: Path) -> str:
-    return "Zarr" if zarr_io.is_zarr(path) else "netCDF"
+    return format_for(path).label
 
 
 def _check_names(source: Path, out: Path) -> None:

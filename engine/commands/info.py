@@ -19,11 +19,10 @@ from pathlib import Path
 from typing import Any
 
 from ..io import OutputError
-from ..io import zarr as zarr_io
+from ..io.formats import format_for
 from ..io.leftovers import remove_leftovers
 from ..io.lock import Locked, LockError, OutputLock, describe_holder
 from ..io.manifest import MANIFEST, parts_dir, read_manifest
-from ..io.netcdf import read_info
 from ..surveyfile import SurveyError, parse_survey
 from . import Command, InputError
 
@@ -108,8 +107,7 @@ def _printable(text: str) -> str:
 def _info(args: argparse.Namespace, command: str) -> int:
     path = Path(args.file)
     try:
-        reader = zarr_io.read_info if zarr_io.is_zarr(path) else read_info
-        info = reader(path, verify=args.verify)
+        info = format_for(path).read_info(path, verify=args.verify)
     except OutputError as exc:
         raise InputError(str(exc)) from None
     notes = list(info.get("notes", []))

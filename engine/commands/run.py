@@ -18,10 +18,11 @@ import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
+from ..checks import PlanError, check_block_points
 from ..errortext import install_hint
 from ..grid import BLOCK_POINTS
-from ..io import zarr as zarr_io
 from ..io.codecs import COMPRESSIONS, DEFAULT_COMPRESSION, DEFAULT_LEVELS
+from ..io.formats import format_for
 from ..io.manifest import fingerprint
 from ..kernels.fate import FATE_NAMES
 from ..kernels.geometry import CLASS_NAMES
@@ -117,14 +118,14 @@ def add_arguments(run: argparse.ArgumentParser) -> None:
     )
     run.add_argument(
         "--block-points",
-        type=_positive_int,
+        type=_block_points,
         metavar="N",
         help=f"points per block computed and stored at a time (default {BLOCK_POINTS:,}); "
         "memory grows with N, not with the grid",
     )
     # The option's former name, hidden ("chunk" means the netCDF storage chunk): old scripts run.
     run.add_argument(
-        "--chunk-points", dest="block_points", type=_positive_int, help=argparse.SUPPRESS
+        "--chunk-points", dest="block_points", type=_block_points, help=argparse.SUPPRESS
     )
     run.add_argument(
         "--compression",
@@ -163,6 +164,18 @@ def add_arguments(run: argparse.ArgumentParser) -> None:
     )
 
 
+def _block_points(text: str) -> int:
+    """``--block-points N``, by the API's check (:func:`engine.checks.check_block_points`)."""
+    try:
+        n: int | str = int(text)
+    except ValueError:
+        n = text  # not an integer: refused below
+    try:
+        return check_block_points(n)
+    except PlanError as exc:
+        raise argparse.ArgumentTypeError(f"{exc.problem}, got {text!r}") from None
+
+
 def _positive_int(text: str) -> int:
     try:
         n = int(text)
@@ -176,7 +189,7 @@ def _positive_int(text: str) -> int:
 def _output(args: argparse.Namespace, source: Path) -> Path:
     """The output path; InputError if it is a directory, has no directory, or is the survey."""
     out = Path(args.output) if args.output else Path.cwd() / (source.stem + ".nc")
-    if out.is_dir() and not zarr_io.is_zarr(out):  # a Zarr store is a directory
+    if out.is_dir() and not format_for(out).directory:  # a Zarr store is a directory
         raise InputError(f"output path is a directory: {out}")
     if not out.parent.is_dir():
         raise InputError(f"output directory does not exist: {out.parent}")
@@ -230,7 +243,7 @@ def _finished_since(out: Path, survey: Survey, before: tuple[int, int] | None) -
     if now is None or now == before:
         return False
     try:
-        return zarr_io.backend_for(out).read_fingerprint(out) == fingerprint(survey)
+        return format_for(out).read_fingerprint(out) == fingerprint(survey)
     except (OSError, ValueError):
         return False
 

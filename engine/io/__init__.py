@@ -16,9 +16,12 @@
   :func:`~engine.io.netcdf.read_info` (:mod:`engine.io.netcdf_info`) for a finished file or an
   unfinished run.
 
-A second format (Zarr, say) is one more module with the functions of :mod:`engine.io.netcdf`'s
-backend interface. This module imports none of them, so importing one backend never imports
-another (and nothing here can form an import cycle).
+- :mod:`engine.io.formats`: the output formats, one row each (netCDF-4, Zarr), and
+  :func:`~engine.io.formats.format_for`, which every caller asks for the format of a path.
+
+A new format is one more row of :mod:`engine.io.formats` (docs/architecture.md). This module
+imports none of the backends, so importing one never imports another (and nothing here can
+form an import cycle).
 """
 
 from __future__ import annotations

@@ -27,15 +27,23 @@ import numpy as np
 
 from ..grid import BLOCK_POINTS, Tiling, block_shape
 from ..schema import DIMS, LAUNCH_DIMS
-from . import OutputError, WriteError, netcdf
+from . import OutputError, WriteError
 from . import zarr as zarr_io
 from .atomic import fsync_path, replacing
 from .cf import history_line
 from .codecs import compression_keywords
 from .contents import BLOCK_SCHEME, CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, SCHEME, ContentHasher
-from .zarrlayout import ZarrView
+from .formats import format_for
 
-__all__ = ["UNVERIFIED_ATTR", "Converted", "convert", "output_bytes", "remove_temporaries"]
+__all__ = [
+    "UNVERIFIED_ATTR",
+    "Converted",
+    "convert",
+    "output_bytes",
+    "remove_temporaries",
+    "to_netcdf",
+    "to_zarr",
+]
 
 #: Global attribute of a result converted from a source without a content checksum: its
 #: checksum covers what was read, and nothing says the source was sound. Carried by later
@@ -58,18 +66,18 @@ class Converted:
 
 
 class _Source:
-    """A finished result opened for reading through the netCDF4 interface (a netCDF file, or a
-    Zarr store through :class:`engine.io.zarrlayout.ZarrView`)."""
+    """A finished result opened for reading through the netCDF4 interface (its format's
+    ``open_view``: a netCDF file, or a Zarr store through
+    :class:`engine.io.zarrlayout.ZarrView`)."""
 
     def __init__(self, path: Path) -> None:
         self.path = path
-        self.nc: Any = None
+        fmt = format_for(path)
+        if fmt.open_view is None:
+            raise OutputError(f"{path}: {fmt.label} results cannot be converted")
         try:
-            if zarr_io.is_zarr(path):
-                self.ds: Any = ZarrView(path)
-            else:
-                self.nc = self.ds = netCDF4.Dataset(path)
-                self.ds.set_auto_maskandscale(False)
+            self.ds: Any = fmt.open_view(path)
+            self.ds.set_auto_maskandscale(False)
         except OutputError:
             raise
         except Exception as exc:  # a damaged or foreign file
@@ -115,8 +123,8 @@ class _Source:
             yield i, block
 
     def close(self) -> None:
-        if self.nc is not None:
-            self.nc.close()
+        if (close := getattr(self.ds, "close", None)) is not None:
+            close()
 
 
 def _var_attrs(var: Any) -> dict[str, Any]:
@@ -138,11 +146,14 @@ def convert(
     command: str = "conesurvey convert",
     overwrite: bool = False,
 ) -> Converted:
-    """Convert the finished result ``source`` to ``out`` (Zarr if its name ends in ``.zarr``,
-    else netCDF). OutputError if the source cannot be read, is not finished or is damaged;
-    FileExistsError if ``out`` exists and not ``overwrite``; nothing is left under ``out``
-    in any of these cases."""
+    """Convert the finished result ``source`` to ``out`` (in the format of its name,
+    :func:`engine.io.formats.format_for`). OutputError if the source cannot be read, is not
+    finished or is damaged; FileExistsError if ``out`` exists and not ``overwrite``; nothing
+    is left under ``out`` in any of these cases."""
     source, out = Path(source), Path(out)
+    fmt = format_for(out)
+    if fmt.write_copy is None:
+        raise OutputError(f"cannot convert to {fmt.label} output ({out})")
     remove_temporaries(out)
     src = _Source(source)
     try:
@@ -152,14 +163,13 @@ def convert(
         scheme = recorded.partition(":")[0] if isinstance(recorded, str) else None
         attrs = {k: v for k, v in src.attrs.items() if k != CHECKSUM_ATTR}
         if scheme not in (SCHEME, BLOCK_SCHEME):  # nothing to verify: the output says so
-            recorded, scheme = None, (BLOCK_SCHEME if zarr_io.is_zarr(out) else SCHEME)
+            recorded, scheme = None, (BLOCK_SCHEME if fmt.directory else SCHEME)
             attrs.setdefault(UNVERIFIED_ATTR, UNVERIFIED_TEXT.format(source=source.name))
         hasher = ContentHasher(src.tiling.block, scheme)
         old = attrs.get("history")
         attrs["history"] = history_line(command) + (f"\n{old}" if old else "")
         attrs[CHECKSUM_BLOCK_ATTR] = np.asarray(src.tiling.block, np.int64)
-        write = _to_zarr if zarr_io.is_zarr(out) else _to_netcdf
-        checksum = write(src, out, attrs, hasher, recorded, overwrite)
+        checksum = fmt.write_copy(src, out, attrs, hasher, recorded, overwrite)
     finally:
         src.close()
     return Converted(recorded, checksum, src.tiling.nblocks)
@@ -194,7 +204,8 @@ def _axes(src: _Source, hasher: ContentHasher) -> dict[str, tuple[np.ndarray, di
     return out
 
 
-def _to_zarr(src, out, attrs, hasher, recorded, overwrite) -> str:
+def to_zarr(src, out, attrs, hasher, recorded, overwrite) -> str:
+    """Write ``src`` (a result being converted) as the Zarr store ``out``; its checksum."""
     grids = {n: v for n, v in src.variables().items() if tuple(v.dimensions) == src.dims}
     layout = {
         "axes": _axes(src, hasher),
@@ -234,7 +245,8 @@ def _define_netcdf(nc: Any, src: _Source, hasher: ContentHasher) -> dict[str, An
     return variables
 
 
-def _to_netcdf(src, out, attrs, hasher, recorded, overwrite) -> str:
+def to_netcdf(src, out, attrs, hasher, recorded, overwrite) -> str:
+    """Write ``src`` (a result being converted) as the netCDF file ``out``; its checksum."""
     with replacing(out, overwrite=overwrite) as tmp:
         try:
             with netCDF4.Dataset(tmp, "w", format="NETCDF4") as nc:
@@ -260,5 +272,4 @@ def output_bytes(source: Path, out: Path) -> int:
         names = {n: np.dtype(v.dtype) for n, v in grids.items()}
     finally:
         src.close()
-    backend = zarr_io if zarr_io.is_zarr(Path(out)) else netcdf
-    return backend.output_bytes(names, src.tiling.shape)
+    return format_for(out).output_bytes(names, src.tiling.shape)

@@ -8,8 +8,8 @@ import os
 from pathlib import Path
 
 from . import OutputError
-from . import zarr as zarr_io
 from .blocks import check_parts_dir, remove_store
+from .formats import format_for
 from .lock import LockError, OutputLock
 from .manifest import MANIFEST, parts_dir, read_manifest
 
@@ -30,10 +30,10 @@ def is_debris(root: Path, finished: str | None) -> bool:
 def remove_leftovers(out: Path) -> bool:
     """Remove the block store left beside the finished output ``out`` by a killed cleanup
     (under the output's lock; nothing is done while a run holds it). Returns whether it did."""
-    root, backend = parts_dir(out), zarr_io.backend_for(out)
+    root, fmt = parts_dir(out), format_for(out)
     try:
         with OutputLock.acquire(out, "conesurvey info"):
-            if not check_parts_dir(root) or not is_debris(root, backend.read_fingerprint(out)):
+            if not check_parts_dir(root) or not is_debris(root, fmt.read_fingerprint(out)):
                 return False
             if not os.path.lexists(out):
                 return False

@@ -1,6 +1,6 @@
 """The netCDF-4 backend: CF-1.11 files, written crash-safely (:mod:`engine.io.atomic`).
 
-Backend interface (a second format, e.g. ``engine/io/zarr.py``, provides the same five):
+The netCDF row of :mod:`engine.io.formats` (the protocol of every format) is built from:
 
 - ``write_survey(ds, path, survey, *, command, overwrite) -> Path``: an in-memory survey
   Dataset with the survey's title, definition and scene;

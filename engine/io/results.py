@@ -37,12 +37,13 @@ from ..schema import DIMS, FINGERPRINT_ATTR, LAUNCH_DIMS, axis_attrs, map_kind, 
 from ..surveyfile import SurveyError, parse_survey
 from . import OutputError
 from .blocks import BlockStore
+from .formats import format_for
 from .manifest import parts_dir, read_manifest
-from .zarr import is_zarr, zarr_module
+from .zarr import zarr_module
 from .zarrlayout import STORE, UNFINISHED_ATTR
 from .zarrstore import RunStore
 
-__all__ = ["READ_POINTS", "Result", "open_result"]
+__all__ = ["READ_POINTS", "Result", "open_netcdf", "open_result", "open_zarr"]
 
 #: Points per tile when a finished file is read tile by tile (~16 MB of float64).
 READ_POINTS = 1 << 21
@@ -131,10 +132,11 @@ def open_result(path: str | os.PathLike[str]) -> Result:
     path = Path(path)
     if path.name.endswith(".parts") and path.is_dir():
         path = path.with_name(path.name[: -len(".parts")])
-    if is_zarr(path) and path.is_dir():
-        return _open_zarr(path)
-    if path.is_file():
-        return _open_netcdf(path)
+    fmt = format_for(path)
+    if fmt.open_result is not None and (path.is_dir() if fmt.directory else path.is_file()):
+        return fmt.open_result(path)
+    if path.is_file():  # a file under another name: netCDF-4 is the default format
+        return open_netcdf(path)
     if parts_dir(path).is_dir():
         return _open_parts(path)
     if path.is_dir():
@@ -142,7 +144,8 @@ def open_result(path: str | os.PathLike[str]) -> Result:
     raise OutputError(f"no such file: {path} (nor an unfinished run {parts_dir(path).name}/)")
 
 
-def _open_netcdf(path: Path) -> Result:
+def open_netcdf(path: Path) -> Result:
+    """A finished netCDF file (the netCDF row's ``open_result``)."""
     try:
         ds = xr.open_dataset(path, engine="netcdf4")
     except (OSError, ValueError) as exc:
@@ -150,7 +153,8 @@ def _open_netcdf(path: Path) -> Result:
     return _finished(path, ds, "netcdf", "chunksizes")
 
 
-def _open_zarr(path: Path) -> Result:
+def open_zarr(path: Path) -> Result:
+    """A finished Zarr store (the Zarr row's ``open_result``)."""
     zarr_module()
     try:
         with warnings.catch_warnings():

@@ -1,6 +1,6 @@
 """The Zarr backend: Zarr v3 stores with the netCDF file's variables, attributes and chunks.
 
-The same functions as :mod:`engine.io.netcdf` (its docstring states the interface):
+The Zarr row of :mod:`engine.io.formats` (its docstring states the protocol):
 :func:`write_survey`, :func:`merge` (here the final commit of a store whose chunks the workers
 wrote, :mod:`engine.io.zarrstore`), :func:`output_bytes`, :func:`read_fingerprint`,
 :func:`read_info`; and :func:`create` (a new run's store). ``xarray.open_zarr(OUT.zarr)`` reads
@@ -20,17 +20,15 @@ from __future__ import annotations
 import functools
 import os
 import shutil
-import sys
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..grid import Tiling
 from ..schema import FINGERPRINT_ATTR, axis_attrs, map_kind, variable_attrs
-from . import OutputError, netcdf
+from . import OutputError
 from .atomic import exists_error, fsync_dir, not_regular, refuse_special
 from .blocks import check_parts_dir, survey_dims
 from .cf import cf_attrs
@@ -58,9 +56,7 @@ if TYPE_CHECKING:
 __all__ = [
     "SUFFIX",
     "ZarrView",
-    "backend_for",
     "create",
-    "is_zarr",
     "merge",
     "output_bytes",
     "put_in_place",
@@ -72,16 +68,6 @@ __all__ = [
 ]
 
 SUFFIX = ".zarr"
-
-
-def is_zarr(path: Path) -> bool:
-    """Whether the output ``path`` is a Zarr store (its name ends in ``.zarr``)."""
-    return Path(path).suffix.lower() == SUFFIX
-
-
-def backend_for(out: Path) -> ModuleType:
-    """The output backend of ``out``: this module for a Zarr store's name, else netCDF."""
-    return sys.modules[__name__] if is_zarr(out) else netcdf
 
 
 def unavailable() -> str:

@@ -1,0 +1,296 @@
+"""The checks of a run's inputs: one function per input, whatever the entry point.
+
+The API (:func:`engine.survey`, :func:`engine.launch_survey`, :func:`engine.evaluate`), a
+survey file (:mod:`engine.surveyfile`, :mod:`engine.surveyaxes`) and ``conesurvey run`` call
+the same function for each input, so a bad value gets the same problem text wherever it comes
+from; :func:`engine.plan.survey_plan` calls them all, in a fixed order. A refusal is a
+:class:`PlanError` (a ValueError) naming the field and the value: the API shows ``"rtol must
+lie in ...; got 0.5"``, a survey file the key path (``"s.toml: rtol: must lie in ..., got
+0.5"``), and the CLI exits 2 with nothing written.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from numbers import Integral, Real
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .fates import Horizon, check_mappable
+from .grid import MAX_BLOCKS, Tiling, grid_too_large
+from .io.codecs import check_compression
+from .io.formats import OutputFormat, format_for
+from .methods import METHODS, RTOL_RANGE, Method, get_method
+from .methods import check_method as _registry_check_method
+from .scene import Scene
+from .schema import DIMS, LAUNCH_DIMS, map_kind
+
+__all__ = [
+    "PlanError",
+    "PRECISIONS",
+    "axis_problem",
+    "check_axes",
+    "check_block_points",
+    "check_circular_tol",
+    "check_energy_relative",
+    "check_horizon",
+    "check_method",
+    "check_numbers",
+    "check_output",
+    "check_precision",
+    "check_rtol",
+    "check_scene",
+    "check_values",
+]
+
+#: ``precision``: how the float result variables are stored (the axes stay float64; the
+#: integer ones, class, status and fate, are exact either way).
+PRECISIONS = ("double", "single")
+_NO_VALUE = object()
+
+
+class PlanError(ValueError):
+    """An input no run can take. ``field``: the input's name (an API keyword: ``rtol``,
+    ``horizon_time``, ``block_points``, an axis name ...); ``problem``: what is wrong, without
+    the field and the value (a survey file shows it under its own key path); ``value``: the
+    value refused (absent where the problem is not one value's)."""
+
+    def __init__(
+        self, field: str, problem: str, value: Any = _NO_VALUE, *, whole: bool = False
+    ) -> None:
+        self.field = field
+        self.problem = problem
+        self.value = value
+        got = "" if value is _NO_VALUE else f"; got {value!r}"
+        # ``whole``: the problem names the field itself ("method 'exact' cannot honour ...")
+        super().__init__(problem if whole else f"{field} {problem}{got}")
+
+    @property
+    def has_value(self) -> bool:
+        return self.value is not _NO_VALUE
+
+
+def _real(name: str, value: Any) -> float:
+    """``value`` as a float if it is a real number (not a boolean, not text)."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, Real):
+        raise PlanError(name, "must be a number", value)
+    try:
+        return float(value)
+    except OverflowError:  # an integer beyond the doubles: out of every range
+        return math.inf if value > 0 else -math.inf
+
+
+# --- one validating function per input ------------------------------------------------------
+
+
+def check_scene(scene: Any) -> Scene:
+    """The scene (None: the default :class:`Scene`) if a survey map can follow its effects."""
+    if scene is None:
+        return Scene()
+    if not isinstance(scene, Scene):
+        raise PlanError("scene", "must be an engine.Scene", scene)
+    try:
+        return check_mappable(scene)
+    except ValueError as exc:  # "Scene.mu_k makes ...": the field is the Scene's
+        m = re.match(r"(Scene\.\w+) ", str(exc))
+        name = m.group(1) if m else "scene"
+        raise PlanError(name, str(exc)[m.end() :] if m else str(exc)) from None
+
+
+def check_method(name: Any, scene: Scene) -> Method:
+    """The registered method ``name`` if it honours every effect of ``scene``."""
+    try:
+        get_method(name)
+    except ValueError:
+        raise PlanError("method", "must be one of " + ", ".join(METHODS), name) from None
+    try:
+        return _registry_check_method(name, scene)
+    except ValueError as exc:  # "method 'exact' cannot honour ..."
+        raise PlanError("method", str(exc), whole=True) from None
+
+
+def check_rtol(rtol: Any, method: Method) -> float:
+    """A relative tolerance in (0, 1); for an integrator, in its range :data:`RTOL_RANGE`."""
+    r = _real("rtol", rtol)
+    if not 0.0 < r < 1.0:
+        raise PlanError("rtol", "must lie in the open interval (0, 1)", rtol)
+    lo, hi = RTOL_RANGE
+    if method.integrates and not lo <= r <= hi:
+        raise PlanError("rtol", f"must lie in [{lo:g}, {hi:g}] for the integrator {method.name}",
+                        rtol)  # fmt: skip
+    return r
+
+
+def check_circular_tol(circular_tol: Any) -> float:
+    """The relative width of the circular class: finite and >= 0."""
+    t = _real("circular_tol", circular_tol)
+    if not (t >= 0.0 and math.isfinite(t)):
+        raise PlanError("circular_tol", "must be finite and >= 0", circular_tol)
+    return t
+
+
+def check_horizon(method: Method, scene: Scene, time: Any, revolutions: Any) -> Horizon | None:
+    """The horizon of a fate map (required there); None for other maps (refused if given)."""
+    values = {}
+    for name, v in (("horizon_time", time), ("horizon_revolutions", revolutions)):
+        if v is not None:
+            values[name] = _real(name, v)
+            if not values[name] > 0.0:
+                raise PlanError(name, "must be > 0", v)
+            if not math.isfinite(values[name]):
+                raise PlanError(name, "must be finite (leave it out for no limit)", v)
+    kind = map_kind(method.name, scene)
+    if kind == "fate" and not values:
+        raise PlanError(
+            "horizon",
+            "is required: a fate map follows each orbit to its first terminal event (spill, "
+            "slip, rest, vertex) or a horizon; give horizon_time [s] and/or horizon_revolutions "
+            "(a survey file: a [horizon] table with time and/or revolutions)",
+        )
+    if kind != "fate" and values:
+        raise PlanError(
+            "horizon",
+            "applies to fate maps only (an integrator on a scene with rolling resistance, a "
+            f"rim or a friction limit); this is a {kind} map",
+        )
+    if not values:
+        return None
+    return Horizon(values.get("horizon_time"), values.get("horizon_revolutions"))
+
+
+def check_energy_relative(value: Any) -> bool:
+    """``value`` if it is True or False (``"no"`` is not false)."""
+    if not isinstance(value, bool | np.bool_):
+        raise PlanError("energy_relative", "must be True or False", value)
+    return bool(value)
+
+
+def check_block_points(value: Any, shape: tuple[int, ...] | None = None) -> int:
+    """Points per block: an integer >= 1 (not a boolean, not a float) and, on a grid of
+    ``shape``, no more than :data:`engine.grid.MAX_BLOCKS` blocks."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, Integral) or value < 1:
+        raise PlanError("block_points", "must be a positive integer", value)
+    if shape is not None:
+        tiling = Tiling.for_grid(shape, int(value))
+        if tiling.nblocks > MAX_BLOCKS:
+            fewer = -(-tiling.size // MAX_BLOCKS)
+            raise PlanError(
+                "block_points",
+                f"cuts the grid into {tiling.nblocks:,} blocks of {math.prod(tiling.block):,} "
+                f"points: a run lists at most {MAX_BLOCKS:,}; give --block-points {fewer} or "
+                "more",
+                value,
+            )
+    return int(value)
+
+
+def check_precision(value: Any) -> str:
+    """How float results are stored: one of :data:`PRECISIONS`."""
+    if not isinstance(value, str) or value not in PRECISIONS:
+        raise PlanError("precision", "must be one of " + ", ".join(PRECISIONS), value)
+    return value
+
+
+def axis_problem(name: str, x: float) -> str:
+    """What is wrong with the value ``x`` on the axis ``name`` ("" if nothing): every axis is
+    finite, alpha lies in (0, pi/2), a launch radius r0 is > 0. The one check of an axis
+    value, for the API's arrays and a survey file's values and ranges alike."""
+    if not math.isfinite(x):
+        return "must be finite"
+    if name == "alpha" and not 0.0 < x < math.pi / 2:
+        return "must lie in the open interval (0, pi/2) [radian]"
+    if name == "r0" and not x > 0.0:
+        return "must be > 0 [m]"
+    return ""
+
+
+def check_numbers(name: str, value: Any) -> np.ndarray:
+    """``value`` as a float64 array if it holds real numbers. Booleans, text (even ``"0.5"``),
+    complex numbers and dates are not numbers; a masked array with masked values is refused
+    (the engine has no masks: fill or drop them first), one without is its data."""
+    data = value.values if hasattr(value, "dims") and hasattr(value, "values") else value
+    if np.ma.isMaskedArray(data):
+        masked = int(np.ma.count_masked(data))
+        if masked:
+            raise PlanError(
+                name,
+                f"has {masked} masked value(s); the engine does not carry masks: fill "
+                "them (numpy.ma.filled) or drop them (.compressed()) first",
+            )
+        data = np.ma.getdata(data)
+    arr = np.asarray(data)
+    kind = arr.dtype.kind
+    if kind == "O":
+        bad = [x for x in arr.flat if isinstance(x, bool | np.bool_) or not isinstance(x, Real)]
+        if bad:
+            raise PlanError(name, "must hold real numbers", bad[0])
+    elif kind not in "iuf":
+        what = {"b": "booleans", "U": "text", "S": "bytes", "c": "complex numbers"}
+        first = arr.flat[0] if arr.size else arr
+        raise PlanError(name, f"must hold real numbers, not {what.get(kind, arr.dtype.name)}",
+                        first)  # fmt: skip
+    return np.asarray(arr, np.float64)
+
+
+def check_values(name: str, values: np.ndarray) -> None:
+    """PlanError naming the first value of ``values`` (any shape) on the axis ``name`` that
+    :func:`axis_problem` refuses (vectorised: an axis may hold 10^8 points)."""
+    v = np.asarray(values, np.float64)
+    bad = ~np.isfinite(v)
+    if name == "alpha":
+        bad |= ~((v > 0.0) & (v < math.pi / 2))
+    elif name == "r0":
+        bad |= ~(v > 0.0)
+    if bad.any():
+        x = float(v[bad].flat[0])
+        raise PlanError(name, axis_problem(name, x), x)
+
+
+def check_axes(dims: tuple[str, ...], values: dict[str, Any]) -> tuple[np.ndarray, ...]:
+    """The axes ``dims`` as read-only 1-D float64 arrays: each non-empty, every value passing
+    :func:`axis_problem`, the grid not too large for a run."""
+    if dims not in (DIMS, LAUNCH_DIMS):
+        raise PlanError("dims", f"must be {DIMS} or {LAUNCH_DIMS}", dims)
+    out = []
+    for name in dims:
+        arr = np.array(np.atleast_1d(check_numbers(name, values[name])), np.float64)
+        if arr.ndim != 1 or arr.size == 0:
+            raise PlanError(name, f"must be a non-empty 1-D sequence, not of shape {arr.shape}")
+        check_values(name, arr)
+        arr.setflags(write=False)
+        out.append(arr)
+    if why := grid_too_large({n: a.size for n, a in zip(dims, out, strict=True)}):
+        raise PlanError("axes", f"span too many points: {why}")
+    return tuple(out)
+
+
+def check_output(
+    path: str | os.PathLike[str] | None,
+    compression: Any,
+    complevel: Any,
+    output_format: Any = None,
+) -> tuple[Path | None, OutputFormat, str, int | None]:
+    """The output: its path (None: in memory), its format's row (:mod:`engine.io.formats`:
+    ``output_format`` by name, else the one of the path's name), the compression (None: the
+    format's default) and its level."""
+    p = None if path is None else Path(path)
+    try:
+        fmt = format_for(p, output_format)
+    except ValueError as exc:
+        raise PlanError("output_format", str(exc), output_format, whole=True) from None
+    if compression is None:
+        compression = fmt.default_compression
+    try:
+        check_compression(compression, complevel)
+    except ValueError as exc:
+        name = "complevel" if str(exc).startswith("complevel") else "compression"
+        raise PlanError(name, str(exc), whole=True) from None
+    try:
+        fmt.check_compression(compression)
+    except ValueError as exc:
+        raise PlanError("compression", str(exc), compression, whole=True) from None
+    return p, fmt, compression, complevel

@@ -1,0 +1,195 @@
+"""The run plan: a survey's inputs validated once and frozen, handed to whatever runs it.
+
+A survey reaches the engine from the API (:func:`engine.survey`, :func:`engine.launch_survey`),
+from a survey file (:mod:`engine.surveyfile`) or from ``conesurvey run``; each way builds one
+:class:`RunPlan` (:func:`survey_plan`, :func:`plan_from_survey`), which the evaluation
+(:func:`engine.evaluation.evaluate_block`), the backends (:mod:`engine.backends`) and the runner
+(:mod:`engine.runner`) take. Every input is checked by its one function in :mod:`engine.checks`.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .checks import (
+    PlanError,
+    check_axes,
+    check_block_points,
+    check_circular_tol,
+    check_energy_relative,
+    check_horizon,
+    check_method,
+    check_output,
+    check_precision,
+    check_rtol,
+    check_scene,
+)
+from .fates import Horizon
+from .grid import BLOCK_POINTS
+from .io.codecs import DEFAULT_COMPRESSION
+from .io.formats import OutputFormat, format_for
+from .kernels.geometry import CIRCULAR_TOL
+from .methods import DEFAULT_RTOL, Method
+from .scene import Scene
+from .schema import LAUNCH_DIMS, map_kind, result_variables, survey_attrs
+
+if TYPE_CHECKING:
+    from .surveyfile import Survey
+
+__all__ = ["OutputPlan", "PlanError", "RunPlan", "plan_from_survey", "survey_plan"]
+
+
+# --- the plan ---------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class OutputPlan:
+    """Where and how the results are written: ``path`` (None: an in-memory Dataset), its
+    ``format`` (the row of :mod:`engine.io.formats`), ``compression``/``complevel``,
+    ``precision`` (float results as float64 or float32) and ``block_points`` (points per
+    block). Pickled with its format's name (a dask worker finds the row in its registry)."""
+
+    path: Path | None = None
+    format: OutputFormat = field(default_factory=format_for)
+    compression: str = DEFAULT_COMPRESSION
+    complevel: int | None = None
+    precision: str = "double"
+    block_points: int = BLOCK_POINTS
+
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        return _output_plan, (self.path, self.format.name, self.compression, self.complevel,
+                              self.precision, self.block_points)  # fmt: skip
+
+
+def _output_plan(path, format_name, *rest) -> OutputPlan:
+    return OutputPlan(path, format_for(name=format_name), *rest)
+
+
+@dataclass(frozen=True, eq=False)
+class RunPlan:
+    """A validated survey run, built once (:func:`survey_plan`, :func:`plan_from_survey`) and
+    read by the evaluation, the backends, the runner and the writers; picklable (a dask
+    worker gets it whole)."""
+
+    dims: tuple[str, ...]
+    axes: tuple[np.ndarray, ...]
+    scene: Scene
+    method: Method
+    map_kind: str
+    rtol: float
+    circular_tol: float
+    horizon: Horizon | None
+    energy_relative: bool
+    variables: dict[str, np.dtype]
+    output: OutputPlan = field(default_factory=OutputPlan)
+
+    def axis(self, name: str) -> np.ndarray:
+        return self.axes[self.dims.index(name)]
+
+    @property
+    def launch(self) -> bool:
+        return self.dims == LAUNCH_DIMS
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return tuple(a.size for a in self.axes)
+
+    @property
+    def size(self) -> int:
+        return math.prod(self.shape)
+
+    def attrs(self) -> dict[str, Any]:
+        """The global attributes of its results (:func:`engine.schema.survey_attrs`)."""
+        return survey_attrs(self.scene, self.method.name, self.circular_tol, self.rtol,
+                            self.energy_relative, self.horizon, self.launch)  # fmt: skip
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, RunPlan):
+            return NotImplemented
+        same_axes = len(self.axes) == len(other.axes) and all(
+            np.array_equal(a, b) for a, b in zip(self.axes, other.axes, strict=True)
+        )
+        rest = ("dims", "scene", "method", "map_kind", "rtol", "circular_tol", "horizon",
+                "energy_relative", "variables", "output")  # fmt: skip
+        return same_axes and all(getattr(self, n) == getattr(other, n) for n in rest)
+
+    __hash__ = None  # type: ignore[assignment]
+
+
+def survey_plan(
+    dims: tuple[str, ...],
+    values: dict[str, Any],
+    scene: Any = None,
+    method: Any = "exact",
+    *,
+    energy_relative: Any = False,
+    circular_tol: Any = CIRCULAR_TOL,
+    rtol: Any = DEFAULT_RTOL,
+    horizon_time: Any = None,
+    horizon_revolutions: Any = None,
+    block_points: Any = BLOCK_POINTS,
+    precision: Any = "double",
+    out: str | os.PathLike[str] | None = None,
+    compression: Any = None,
+    complevel: Any = None,
+    output_format: Any = None,
+) -> RunPlan:
+    """The plan of a survey over the axes ``dims`` (:data:`engine.schema.DIMS` or
+    :data:`engine.schema.LAUNCH_DIMS`) holding ``values``: every input checked by its one
+    function, in this order (the first problem is raised, a :class:`PlanError`)."""
+    scene = check_scene(scene)
+    m = check_method(method, scene)
+    rtol = check_rtol(rtol, m)
+    circular_tol = check_circular_tol(circular_tol)
+    horizon = check_horizon(m, scene, horizon_time, horizon_revolutions)
+    energy_relative = check_energy_relative(energy_relative)
+    if energy_relative and dims == LAUNCH_DIMS:
+        raise PlanError("energy_relative", "applies to an energy axis, not to launch states")
+    precision = check_precision(precision)
+    path, fmt, compression, complevel = check_output(out, compression, complevel, output_format)
+    check_block_points(block_points)
+    axes = check_axes(tuple(dims), values)
+    block_points = check_block_points(block_points, tuple(a.size for a in axes))
+    names = result_variables(m.name, scene, energy_relative, dims == LAUNCH_DIMS)
+    if precision == "single":
+        names = {n: np.dtype(np.float32) if dt.kind == "f" else dt for n, dt in names.items()}
+    output = OutputPlan(path, fmt, compression, complevel, precision, block_points)
+    return RunPlan(tuple(dims), axes, scene, m, map_kind(m.name, scene), rtol, circular_tol,
+                   horizon, energy_relative, names, output)  # fmt: skip
+
+
+def plan_from_survey(
+    survey: Survey,
+    out: str | os.PathLike[str] | None = None,
+    *,
+    block_points: Any = None,
+    compression: Any = None,
+    complevel: Any = None,
+    output_format: Any = None,
+) -> RunPlan:
+    """The plan of a survey file's :class:`engine.surveyfile.Survey` (written to ``out``, or
+    in memory), through the same checks as the API's (:func:`survey_plan`)."""
+    horizon = survey.horizon or Horizon()
+    return survey_plan(
+        survey.dims,
+        {d: getattr(survey, d) for d in survey.dims},
+        survey.scene,
+        survey.method,
+        energy_relative=survey.energy_relative,
+        circular_tol=survey.circular_tol,
+        rtol=survey.rtol,
+        horizon_time=horizon.time,
+        horizon_revolutions=horizon.revolutions,
+        block_points=BLOCK_POINTS if block_points is None else block_points,
+        precision=survey.precision,
+        out=out,
+        compression=compression,
+        complevel=complevel,
+        output_format=output_format,
+    )
