@@ -11,7 +11,7 @@ two free cores: below that it measures what the machine's other jobs left). Both
 give the same outputs bit for bit (checked here too). The load average is printed before and
 after, and the serial share of the map through ``engine.evaluate`` (scripts/bench_common.py).
 
-    python scripts/bench_fates.py [--points 400] [--rounds 3] [--min-time 1.0]
+    python scripts/bench_fates.py [--points 400] [--rounds 3] [--min-time 1.0] [--where]
 """
 
 from __future__ import annotations
@@ -27,7 +27,8 @@ from bench_common import MACHINE, load, serial_share
 import engine
 from engine.integrated import fate_points
 from engine.kernels.fate import FATE_NAMES, FATE_ROWS
-from engine.kernels.model import P_THETA_MAX
+from engine.kernels.lanes_step import LANES, lanes_attempt, lanes_control_fate, layout
+from engine.kernels.model import P_THETA_MAX, state_size_of
 from engine.methods import METHODS
 
 SCENE = engine.Scene(c_rr=0.02, rim=4.0)
@@ -95,6 +96,52 @@ class Timed:
         self.cpu = min(self.cpu, (c1 - c0) / self.calls)
 
 
+@numba.njit(nogil=True)
+def _attempts(method, effects, W, rtol, n):
+    numba.literally(method)
+    numba.literally(effects)
+    for _ in range(n):
+        lanes_attempt(method, effects, W, rtol)
+
+
+@numba.njit(nogil=True)
+def _controls(method, effects, W, n, active, h):
+    numba.literally(method)
+    numba.literally(effects)
+    for _ in range(n):
+        for lane in range(LANES):  # every lane active, every attempt of the same size
+            W[active * LANES + lane] = 1.0
+            W[h * LANES + lane] = 1e-3
+        lanes_control_fate(method, effects, W, 10**12)
+
+
+def where_time_goes(rounds: int, calls: int = 200_000) -> tuple[float, float]:
+    """CPU time [ns] per orbit and step of the lanes' two vector parts, each timed alone on a
+    work array of plausible values (the task's scene at alpha 0.7): the step (the tableau's
+    stages, the error and its root) and the step-size control (the PI controller, the terminal
+    events' functions, the step budget, the horizon)."""
+    method, effects = METHODS[METHOD].kernel_id, SCENE.effects_mask
+    ly = layout(method, state_size_of(effects))
+    W = np.random.default_rng(1).uniform(0.5, 1.5, ly.n_slots * LANES)
+    for k, v in enumerate(SCENE.params(0.7)):
+        W[(ly.P + k) * LANES : (ly.P + k + 1) * LANES] = v if math.isfinite(v) else 1e300
+    W[ly.H * LANES : (ly.H + 1) * LANES] = 1e-3
+    W[ly.T_END * LANES : (ly.T_END + 1) * LANES] = 1e9
+    parts = (
+        lambda w, n: _attempts(method, effects, w, RTOL, n),
+        lambda w, n: _controls(method, effects, w, n, ly.ACTIVE, ly.H),
+    )
+    best = [math.inf, math.inf]
+    for j, part in enumerate(parts):
+        part(W.copy(), 1)
+        for _ in range(rounds):
+            w = W.copy()
+            c0 = time.thread_time()
+            part(w, calls)
+            best[j] = min(best[j], 1e9 * (time.thread_time() - c0) / (calls * LANES))
+    return best[0], best[1]
+
+
 def same_bits(a: FateMap, b: FateMap) -> bool:
     return all(
         np.array_equal(x.view(np.int64) if x.dtype == np.float64 else x,
@@ -111,6 +158,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--tiny", action="store_true", help="a seconds-long smoke run (tests/test_scripts.py)"
     )
+    ap.add_argument("--where", action="store_true", help="also time the lanes' step and control")
     args = ap.parse_args(argv)
     if args.tiny:
         args.points, args.rounds, args.min_time = 16, 1, 0.0
@@ -158,6 +206,12 @@ def main(argv: list[str] | None = None) -> int:
         f"2-thread speedup of the fate map (wall): lanes {sp['lanes']:.2f}, one orbit per thread "
         f"{sp['scalar']:.2f}, compute-only control loop {sp['control']:.2f} (same rounds)"
     )
+    if args.where:
+        step, control = where_time_goes(args.rounds)
+        print(f"where the lanes' time goes (CPU ns per orbit and step, each part timed alone): "
+              f"the step {step:.0f}, the step-size control {control:.0f} (scalar code: the "
+              "terminal events' functions and the PI controller's power do not vectorise)"
+              )  # fmt: skip
     print(
         f"serial share of engine.evaluate's fate map at 1 thread (wall time outside the fate "
         f"kernel: validation, the closed form, assembly): {serial:.1%} (goal <= 3%)"

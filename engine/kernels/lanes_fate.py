@@ -47,7 +47,7 @@ from .lanes_step import (
 )
 from .model import N_PARAMS, set_alpha
 from .protocol import BUFFER_FULL, OK, TERMINAL_EFFECTS, terminal_between
-from .rk import step_allowed
+from .rk import clip_step, step_allowed
 from .rk_events import rk_dense, step_events
 
 #: Columns of a fate lane's floats: the time its run started at (restarts), the time and work
@@ -62,14 +62,9 @@ def _clip(method, effects, l, W):
     """Clip lane l's next attempt to its T_END as :func:`.rk.rk_run` clips it (LAST set)."""
     ly = lanes_layout(method, effects)
     L = LANES
-    t = W[ly.T * L + l]
-    h = W[ly.H * L + l]
-    t_end = W[ly.T_END * L + l]
-    if t + h >= t_end:
-        W[ly.H * L + l] = t_end - t
-        W[ly.LAST * L + l] = 1.0
-    else:
-        W[ly.LAST * L + l] = 0.0
+    h, last = clip_step(W[ly.T * L + l], W[ly.H * L + l], W[ly.T_END * L + l])
+    W[ly.H * L + l] = h
+    W[ly.LAST * L + l] = 1.0 if last else 0.0
 
 
 @kernel(inline="always")

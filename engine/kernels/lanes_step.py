@@ -31,7 +31,7 @@ from numba.extending import intrinsic, overload
 from .._jit import kernel
 from .model import N_PARAMS, rates5, rates6, rates9, rates10, state_size_of
 from .protocol import OK, TERMINAL_EFFECTS, terminal_between
-from .rk import step_allowed, step_decide, step_error
+from .rk import clip_step, step_allowed, step_decide, step_error
 from .rk_codegen import GEN_OPTS, literal_int, rk_method_id, unrolled_step_lines
 from .rk_events import apsis_crossed
 from .tableaux import RK_TABLEAUX
@@ -170,8 +170,8 @@ def control_source(method: int, n: int, terminal: bool, fate: bool = False) -> s
     if fate:  # the next attempt clipped to T_END, as rk_run clips it to t_end
         lines += [
             "        nxt = act & ok & (simple | (not acc))",
-            f"        clip = nxt & (t2 + h2 >= {w(ly.T_END)})",
-            f"        h2 = ({w(ly.T_END)} - t2) if clip else h2",
+            f"        h_clip, clip = clip_step(t2, h2, {w(ly.T_END)})",
+            "        h2 = h_clip if nxt else h2",
             f"        {w(ly.LAST)} = (1.0 if clip else 0.0) if nxt else {w(ly.LAST)}",
         ]
     lines += [
@@ -197,6 +197,7 @@ _NAMESPACE = {
     "step_error": step_error,
     "step_decide": step_decide,
     "step_allowed": step_allowed,
+    "clip_step": clip_step,
     "apsis_crossed": apsis_crossed,
     "terminal_between": terminal_between,
     "OK": OK,
