@@ -9,9 +9,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._jit import call_specialized
+from .integrated import fate_points
 from .kernels.effects import REVOLUTIONS
-from .kernels.fate import FATE_ROWS, fate_points
+from .kernels.fate import FATE_ROWS
 from .kernels.geometry import BOUNDED, CIRCULAR, HYPERBOLIC, RADIAL
 from .kernels.model import P_THETA_MAX
 from .methods import check_method
@@ -141,9 +141,8 @@ def fates(
     out_f = np.empty((len(FATE_ROWS), n))
     out_n = np.zeros(n, np.int64)
     if n:
-        args = (alpha, energy, h, Lz, start, params, m.kernel_id, effects, float(rtol),
-                horizon.t_max, int(max_steps), out_fate, out_f, out_n)  # fmt: skip
-        call_specialized(fate_points, args, (6, 7))
+        fate_points(alpha, energy, h, Lz, start, params, m.kernel_id, effects, float(rtol),
+                    horizon.t_max, int(max_steps), out_fate, out_f, out_n)  # fmt: skip
     res = {"fate": out_fate}
     res.update({name: out_f[i] for i, name in enumerate(FATE_ROWS)})
     res["n_steps"] = out_n

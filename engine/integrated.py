@@ -18,7 +18,9 @@ import numba
 import numpy as np
 
 from ._jit import call_specialized
+from .kernels.fate import fate_points as _fate_points_kernel
 from .kernels.lanes import integrate_points_lanes as _lanes_kernel
+from .kernels.lanes_fate import fate_points_lanes as _fate_lanes_kernel
 from .kernels.orbit import PERIOD_ROWS
 from .kernels.orbit import integrate_points as _integrate_points_kernel
 from .kernels.protocol import STATUS_MESSAGES, UNSUPPORTED
@@ -26,7 +28,13 @@ from .methods import DEFAULT_RTOL, METHODS, check_method, check_rtol
 from .scene import Scene
 from .schema import period_variables
 
-__all__ = ["evaluate_integrated", "integrate_points", "STATUS_MESSAGES", "DEFAULT_MAX_STEPS"]
+__all__ = [
+    "evaluate_integrated",
+    "integrate_points",
+    "fate_points",
+    "STATUS_MESSAGES",
+    "DEFAULT_MAX_STEPS",
+]
 
 #: Step budget per orbit (accepted + rejected steps); beyond it the status is MAX_STEPS.
 DEFAULT_MAX_STEPS = 1_000_000
@@ -74,6 +82,36 @@ def integrate_points(
     args = (alpha, energy, h, Lz, params, method, effects, rtol, max_steps, out_f, out_n,
             out_status)  # fmt: skip
     call_specialized(_integrate_points_kernel, args, (5, 6))
+
+
+def fate_points(
+    alpha: np.ndarray,
+    energy: np.ndarray,
+    h: np.ndarray,
+    Lz: np.ndarray,
+    r_start: np.ndarray,
+    params: np.ndarray,
+    method: int,
+    effects: int,
+    rtol: float,
+    t_horizon: float,
+    max_steps: int,
+    out_fate: np.ndarray,
+    out_f: np.ndarray,
+    out_n: np.ndarray,
+    *,
+    lanes: bool = True,
+) -> None:
+    """Every point's fate (:func:`engine.kernels.fate.fate_points`, same arguments and outputs),
+    in parallel: a Runge-Kutta ``method`` runs several orbits at once on the SIMD lanes
+    (:mod:`engine.kernels.lanes_fate`, the same results bit for bit; ``lanes=False`` runs one
+    orbit per thread, for comparison), other methods one orbit per thread."""
+    args = (alpha, energy, h, Lz, r_start, params, method, effects, rtol, t_horizon, max_steps)
+    if lanes and _BY_ID[method].family == "runge-kutta":
+        args += (numba.get_num_threads(), out_fate, out_f, out_n)
+        call_specialized(_fate_lanes_kernel, args, (6, 7))
+        return
+    call_specialized(_fate_points_kernel, args + (out_fate, out_f, out_n), (6, 7))
 
 
 def evaluate_integrated(

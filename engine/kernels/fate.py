@@ -130,45 +130,114 @@ def come_to_rest(y, p, effects):
 
 
 @kernel
+def starts_at_rest(effects, y, p):
+    """Whether a run from y ends before it starts: a sphere at rest where rolling resistance
+    holds it (and friction can: else it slips at once). Returns (ended, fate)."""
+    if effects & ROLLING_RESISTANCE:
+        if y[2] == 0.0 and y[3] == 0.0:
+            _, at_rest = come_to_rest(y, p, effects)
+            if at_rest == RESTED:
+                return True, FATE_REST
+            if at_rest == SLIPPED:
+                return True, FATE_SLIPPED
+    return False, ROLLING
+
+
+@kernel
+def after_run(effects, status, y, p, t):
+    """What follows a run that ended with ``status`` at state y (time t [s] since the start):
+    the fate, or (a stop by rolling resistance the sphere does not stay in) a restart from
+    rest, y carried to zero speed in place. Returns (ended, fate, t [s])."""
+    if status != RESTED:
+        return True, _fate_of_status(status), t
+    dt, at_rest = come_to_rest(y, p, effects)
+    t += dt
+    if at_rest == RESTED:
+        return True, FATE_REST, t
+    if at_rest == SLIPPED:
+        return True, FATE_SLIPPED, t
+    return False, ROLLING, t
+
+
+@kernel
 def fate_run(method, effects, p, y0, orbit, rtol, atol, t_horizon, max_steps):
     """Integrate from y0 at t = 0 to the first terminal event or ``t_horizon`` [s].
 
     Returns (fate, t [s], final state, steps taken). A stop by rolling resistance either ends
     the run (the sphere stays at rest, or slips there) or restarts it from rest (module
     docstring); a sphere that starts at rest where the resistance holds it stays at t = 0.
+    The lanes (:mod:`.lanes_fate`) follow the same steps with :func:`starts_at_rest` and
+    :func:`after_run`.
     """
     n = y0.shape[0]
     y = y0.copy()
     ev_t, ev_kind, ev_y = event_buffers(4, n)
     t0 = 0.0
     steps = 0
-    if effects & ROLLING_RESISTANCE:
-        if y[2] == 0.0 and y[3] == 0.0:
-            _, at_rest = come_to_rest(y, p, effects)
-            if at_rest == RESTED:
-                return FATE_REST, 0.0, y, steps
-            if at_rest == SLIPPED:
-                return FATE_SLIPPED, 0.0, y, steps
+    ended, fate = starts_at_rest(effects, y, p)
+    if ended:
+        return fate, 0.0, y, steps
     for _ in range(MAX_RESTARTS):
         res = run(method, effects, y, p, orbit, rtol, atol, t_horizon - t0, np.int64(-1),
                   max_steps - steps, np.int64(RECORD_NONE), 0.0, ev_t, ev_kind, ev_y, ev_t,
                   ev_y, ev_y)  # fmt: skip
-        status = res[0]
         steps += res[1] + res[2]
-        t = t0 + res[3]
         copy_into(res[4], y)
-        if status != RESTED:
-            return _fate_of_status(status), t, y, steps
-        dt, at_rest = come_to_rest(y, p, effects)
-        t += dt
-        if at_rest == RESTED:
-            return FATE_REST, t, y, steps
-        if at_rest == SLIPPED:
-            return FATE_SLIPPED, t, y, steps
+        ended, fate, t = after_run(effects, res[0], y, p, t0 + res[3])
+        if ended:
+            return fate, t, y, steps
         t0 = t
         if steps >= max_steps:
             break
     return FAILED, t0, y, steps
+
+
+@kernel
+def fate_start(effects, p, energy, h, Lz, r_start, rtol):
+    """Where the fate run of the orbit (calE, h, L_z) from ``r_start`` starts (:func:`fate_of`),
+    with the rest threshold set in p: (result, y0, t0 [s], work0 [J], atol). ``result`` is
+    :func:`fate_of`'s tuple where the orbit ends at its start (fate >= 0; y0 and atol empty),
+    fate -1 where it runs from y0 at t0 (a radial orbit: the edge of the vertex region, reached
+    with the work work0 of the resistance)."""
+    nan = math.nan
+    none = np.empty(0)
+    if not (r_start >= 0.0 and math.isfinite(energy) and math.isfinite(Lz)):
+        return (NO_ORBIT, nan, nan, nan, nan, nan, nan, 0), none, 0.0, 0.0, none
+    if r_start > p[P_RIM]:  # beyond the rim: the closed form's off_cone
+        return (NO_ORBIT, nan, nan, nan, nan, nan, nan, 0), none, 0.0, 0.0, none
+    ok, r1, r2, rc = orbit_start(p, energy, h, Lz)
+    if not ok:
+        r1 = r_start
+        r2 = math.inf
+    t0 = 0.0
+    work0 = 0.0
+    if r_start == 0.0:  # a radial orbit from the vertex: to the edge of its region
+        y0, t0, work0 = _leave_vertex(p, effects, energy, h)
+        if t0 < 0.0:
+            return (FATE_VERTEX, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0), none, 0.0, 0.0, none
+        r1 = y0[0]
+    else:
+        y0 = initial_state(p, effects, r_start, energy, h, Lz)
+        y0[2] = 0.0  # a turning point: the start of a map's orbit, or a launch with u0 = 0
+        if r_start <= p[P_R_VERTEX]:  # inside the vertex region: at its r_min it leaves
+            if motion_rates(y0[0], 0.0, y0[3], y0[4], p, effects)[2] <= 0.0:
+                return (FATE_VERTEX, 0.0, r_start, 0.0, 0.0, 0.0, 0.0, 0), none, 0.0, 0.0, none
+    sc = tolerance_scales(p, effects, y0, energy, h, Lz, min(r1, y0[0]), r2, rc)
+    p[P_V_REST] = REST_SPEED * rtol * max(sc[2], abs(y0[3]))
+    atol = sc * rtol
+    return (-1, nan, nan, nan, nan, nan, nan, 0), y0, t0, work0, atol
+
+
+@kernel
+def fate_result(effects, p, y0, t0, work0, fate, t, y, steps):
+    """:func:`fate_of`'s result tuple of a run from y0 (started at t0 [s] with the work work0
+    [J] done) that ended with ``fate`` at state y, t [s] after its start, in ``steps``."""
+    E0 = invariants(y0, p)[0] + work0  # the energy at the start (the vertex for radial orbits)
+    E1 = invariants(y, p)[0]
+    work = y[state_size(effects) - 1] if effects & DISSIPATIVE else 0.0
+    scale = max(abs(E0), kinetic_energy(y0, p))
+    drift = abs(E1 + work - E0) / scale
+    return fate, t0 + t, y[0], y[1], abs(y[1]) / (2.0 * math.pi), E0 - E1, drift, steps
 
 
 @kernel
@@ -180,39 +249,12 @@ def fate_of(method, effects, p, energy, h, Lz, r_start, rtol, t_horizon, max_ste
     Returns (fate, time [s], r [m], theta [rad], revolutions, energy lost [J], drift of the
     energy balance E + W [1], W the work of the dissipative forces, steps).
     """
-    nan = math.nan
-    if not (r_start >= 0.0 and math.isfinite(energy) and math.isfinite(Lz)):
-        return NO_ORBIT, nan, nan, nan, nan, nan, nan, 0
-    if r_start > p[P_RIM]:  # beyond the rim: the closed form's off_cone
-        return NO_ORBIT, nan, nan, nan, nan, nan, nan, 0
-    ok, r1, r2, rc = orbit_start(p, energy, h, Lz)
-    if not ok:
-        r1 = r_start
-        r2 = math.inf
-    t0 = 0.0
-    work0 = 0.0
-    if r_start == 0.0:  # a radial orbit from the vertex: to the edge of its region
-        y0, t0, work0 = _leave_vertex(p, effects, energy, h)
-        if t0 < 0.0:
-            return FATE_VERTEX, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0
-        r1 = y0[0]
-    else:
-        y0 = initial_state(p, effects, r_start, energy, h, Lz)
-        y0[2] = 0.0  # a turning point: the start of a map's orbit, or a launch with u0 = 0
-        if r_start <= p[P_R_VERTEX]:  # inside the vertex region: at its r_min it leaves
-            if motion_rates(y0[0], 0.0, y0[3], y0[4], p, effects)[2] <= 0.0:
-                return FATE_VERTEX, 0.0, r_start, 0.0, 0.0, 0.0, 0.0, 0
-    sc = tolerance_scales(p, effects, y0, energy, h, Lz, min(r1, y0[0]), r2, rc)
-    p[P_V_REST] = REST_SPEED * rtol * max(sc[2], abs(y0[3]))
-    atol = sc * rtol
+    res, y0, t0, work0, atol = fate_start(effects, p, energy, h, Lz, r_start, rtol)
+    if res[0] >= 0:
+        return res
     fate, t, y, steps = fate_run(method, effects, p, y0, (energy, h, Lz), rtol, atol,
                                  t_horizon - t0, max_steps)  # fmt: skip
-    E0 = invariants(y0, p)[0] + work0  # the energy at the start (the vertex for radial orbits)
-    E1 = invariants(y, p)[0]
-    work = y[state_size(effects) - 1] if effects & DISSIPATIVE else 0.0
-    scale = max(abs(E0), kinetic_energy(y0, p))
-    drift = abs(E1 + work - E0) / scale
-    return fate, t0 + t, y[0], y[1], abs(y[1]) / (2.0 * math.pi), E0 - E1, drift, steps
+    return fate_result(effects, p, y0, t0, work0, fate, t, y, steps)
 
 
 @kernel
@@ -251,14 +293,20 @@ def fate_points(alpha, energy, h, Lz, r_start, params, method, effects, rtol, t_
     for i in prange(alpha.shape[0]):
         p = params.copy()
         set_alpha(p, alpha[i])
-        fate, t, r, th, rev, lost, drift, steps = fate_of(
-            method, effects, p, energy[i], h[i], Lz[i], r_start[i], rtol, t_horizon, max_steps
-        )
-        out_fate[i] = fate
-        out_f[0, i] = t
-        out_f[1, i] = r
-        out_f[2, i] = th
-        out_f[3, i] = rev
-        out_f[4, i] = lost
-        out_f[5, i] = drift
-        out_n[i] = steps
+        res = fate_of(method, effects, p, energy[i], h[i], Lz[i], r_start[i], rtol, t_horizon,
+                      max_steps)  # fmt: skip
+        store_fate(out_fate, out_f, out_n, i, res)
+
+
+@kernel
+def store_fate(out_fate, out_f, out_n, i, res):
+    """Write :func:`fate_of`'s result tuple for point i (``out_f`` rows :data:`FATE_ROWS`)."""
+    fate, t, r, th, rev, lost, drift, steps = res
+    out_fate[i] = fate
+    out_f[0, i] = t
+    out_f[1, i] = r
+    out_f[2, i] = th
+    out_f[3, i] = rev
+    out_f[4, i] = lost
+    out_f[5, i] = drift
+    out_n[i] = steps

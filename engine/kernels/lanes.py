@@ -29,12 +29,12 @@ from numba import literally, prange
 from .._jit import kernel, parallel_kernel
 from .lanes_step import (
     LANES,
-    Layout,
     borrow,
     fetch_add,
     lanes_attempt,
     lanes_control,
     lanes_layout,
+    split_owned,
 )
 from .model import N_PARAMS, rhs, set_alpha
 from .orbit import (
@@ -60,31 +60,26 @@ from .rk_events import apsis_crossed, apsis_newton, step_events
 
 #: Events a lane can hold (one period: two apsides and a terminal event).
 EV_CAP = 4
-# Columns of the int array I: the lane's point (-1: idle), its apsides and events so far.
-_ORBIT, _N_APS, _N_EV = 0, 1, 2
-# Positions in the layout tuple (lanes_step.Layout): constant indices in the kernels.
-(_n, _S, _NS, _Y, _K, _YN, _AT, _H, _ERR, _P, _T, _EOLD, _GAPS, _REJ, _NACC, _NREJ, _ACT, _FLAG,
- _HNEXT, _POL, _HSTEP, _IAPS, _STOP, _SAVE_Y, _SAVE_K, _NSLOTS) = range(26)  # fmt: skip
-assert len(Layout._fields) == 26 and Layout._fields[_POL] == "POLISH"
+#: Columns of the int array I: the lane's point (-1: idle), its apsides and events so far.
+ORBIT, N_APS, N_EV = 0, 1, 2
 
 
 @kernel(inline="always")
 def _lane_start(method, effects, l, i, alpha, energy, hh, Lz, params, rtol, max_steps, W, I,
                 LY0, LEV, LEVK, p, K, buf, ev_t, ev_kind, ev_y):  # fmt: skip
-    """Start point i in lane l the way :func:`.orbit.one_period` and :func:`.rk.rk_run` start
-    it. Returns OK when it runs, else the status it ends with at once (its parameters are then
-    in p, its events in ev_*)."""
+    """Start point i in lane l the way :func:`.orbit.one_period` starts it. Returns OK when it
+    runs, else the status it ends with at once (its parameters are then in p, its events in
+    ev_*)."""
     ly = lanes_layout(method, effects)
-    n = ly[_n]
     L = LANES
     for k in range(N_PARAMS):
         p[k] = params[k]
     set_alpha(p, alpha[i])
-    I[l, _ORBIT] = i
-    I[l, _N_APS] = 0
-    I[l, _N_EV] = 0
-    for s in (_T, _REJ, _NACC, _NREJ, _ACT, _POL):
-        W[ly[s] * L + l] = 0.0
+    I[l, ORBIT] = i
+    I[l, N_APS] = 0
+    I[l, N_EV] = 0
+    for s in (ly.T, ly.REJECTED, ly.N_ACC, ly.N_REJ, ly.ACTIVE, ly.POLISH):
+        W[s * L + l] = 0.0
     ok, r1, r2, rc = orbit_start(p, energy[i], hh[i], Lz[i])
     if not ok:
         return NOT_BOUNDED
@@ -92,31 +87,49 @@ def _lane_start(method, effects, l, i, alpha, energy, hh, Lz, params, rtol, max_
     y0[2] = 0.0
     atol = tolerance_scales(p, effects, y0, energy[i], hh[i], Lz[i], r1, r2, rc)
     atol *= rtol
-    for j in range(n):
+    for j in range(ly.n):
         LY0[l, j] = y0[j]
+    return lane_begin(method, effects, l, y0, atol, p, rtol, max_steps, W, I, LEV, LEVK, K, buf,
+                      ev_t, ev_kind, ev_y)  # fmt: skip
+
+
+@kernel(inline="always")
+def lane_begin(method, effects, l, y0, atol, p, rtol, max_steps, W, I, LEV, LEVK, K, buf, ev_t,
+               ev_kind, ev_y):  # fmt: skip
+    """Begin a run of lane l from y0 at t = 0 as :func:`.rk.rk_run` begins one (the terminal
+    events on at the start, the first step): its parameters p and tolerances atol into W, its
+    step counts as they are (a fate run's restarts go on counting). Returns OK when it runs,
+    else the status it ends with at once (its events in ev_* and the lane's events)."""
+    ly = lanes_layout(method, effects)
+    n = ly.n
+    L = LANES
+    for k in range(N_PARAMS):
+        W[(ly.P + k) * L + l] = p[k]
+    for j in range(n):
+        W[(ly.ATOL + j) * L + l] = atol[j]
+    W[ly.T * L + l] = 0.0
+    W[ly.REJECTED * L + l] = 0.0
+    W[ly.POLISH * L + l] = 0.0
     rhs(y0, p, effects, K, 0)
     status, n_ev, n_tr = start_protocol(effects, y0, p, RECORD_NONE, ev_t, ev_kind, ev_y, ev_t,
                                         ev_y)  # fmt: skip
-    _save_events(l, n_ev, ev_t, ev_kind, ev_y, LEV, LEVK)
-    I[l, _N_EV] = n_ev
+    save_events(l, n_ev, ev_t, ev_kind, ev_y, LEV, LEVK)
+    I[l, N_EV] = n_ev
     if status != OK:
         return status
     h = initial_step(method, effects, y0, K, p, rtol, atol, buf)
     for j in range(n):
-        W[(ly[_Y] + j) * L + l] = y0[j]
-        W[(ly[_K] + j) * L + l] = K[0, j]
-        W[(ly[_AT] + j) * L + l] = atol[j]
-    for k in range(N_PARAMS):
-        W[(ly[_P] + k) * L + l] = p[k]
-    W[ly[_H] * L + l] = h
-    W[ly[_EOLD] * L + l] = ERR_FLOOR
-    W[ly[_GAPS] * L + l] = y0[2] if y0[2] != 0.0 else K[0, 2]
-    W[ly[_ACT] * L + l] = 1.0
-    return step_allowed(0, max_steps, h, 0.0)
+        W[(ly.Y + j) * L + l] = y0[j]
+        W[(ly.K + j) * L + l] = K[0, j]
+    W[ly.H * L + l] = h
+    W[ly.ERR_OLD * L + l] = ERR_FLOOR
+    W[ly.G_APS * L + l] = y0[2] if y0[2] != 0.0 else K[0, 2]
+    W[ly.ACTIVE * L + l] = 1.0
+    return step_allowed(W[ly.N_ACC * L + l] + W[ly.N_REJ * L + l], max_steps, h, 0.0)
 
 
 @kernel(inline="always")
-def _save_events(l, n_ev, ev_t, ev_kind, ev_y, LEV, LEVK):
+def save_events(l, n_ev, ev_t, ev_kind, ev_y, LEV, LEVK):
     """Copy the first n_ev events of the scratch buffers into lane l's row of LEV, LEVK."""
     n = ev_y.shape[1]
     for e in range(n_ev):
@@ -127,7 +140,7 @@ def _save_events(l, n_ev, ev_t, ev_kind, ev_y, LEV, LEVK):
 
 
 @kernel(inline="always")
-def _load_events(l, n_ev, LEV, LEVK, ev_t, ev_kind, ev_y):
+def load_events(l, n_ev, LEV, LEVK, ev_t, ev_kind, ev_y):
     """Copy lane l's first n_ev events into the scratch buffers."""
     n = ev_y.shape[1]
     for e in range(n_ev):
@@ -138,9 +151,9 @@ def _load_events(l, n_ev, LEV, LEVK, ev_t, ev_kind, ev_y):
 
 
 @kernel(inline="always")
-def _lane_params(method, effects, l, W, p):
+def lane_params(method, effects, l, W, p):
     """Lane l's parameter array, into p."""
-    oP = lanes_layout(method, effects)[_P]
+    oP = lanes_layout(method, effects).P
     for k in range(N_PARAMS):
         p[k] = W[(oP + k) * LANES + l]
 
@@ -152,16 +165,35 @@ def _lane_finish(method, effects, l, status, W, I, LY0, p, ev_t, ev_kind, ev_y, 
     events in ev_*) and idle the lane: one period as :func:`.orbit.one_period` reduces it."""
     ly = lanes_layout(method, effects)
     L = LANES
-    i = I[l, _ORBIT]
-    n_ev = I[l, _N_EV]
+    i = I[l, ORBIT]
+    n_ev = I[l, N_EV]
     y0 = LY0[l]
-    n_acc = np.int64(W[ly[_NACC] * L + l])
-    res = (status, n_acc, np.int64(W[ly[_NREJ] * L + l]), W[ly[_T] * L + l], y0, n_ev, 0)
+    n_acc = np.int64(W[ly.N_ACC * L + l])
+    res = (status, n_acc, np.int64(W[ly.N_REJ * L + l]), W[ly.T * L + l], y0, n_ev, 0)
     store_period(out_f, out_n, out_status, i, reduce_period(effects, p, y0, res, ev_t, ev_kind,
                                                             ev_y))  # fmt: skip
-    I[l, _ORBIT] = -1
-    W[ly[_ACT] * L + l] = 0.0
-    W[ly[_H] * L + l] = 0.0
+    I[l, ORBIT] = -1
+    W[ly.ACTIVE * L + l] = 0.0
+    W[ly.H * L + l] = 0.0
+
+
+@kernel(inline="always")
+def lane_load_step(method, effects, l, W, p, K, ys, yn, buf):
+    """Lane l's accepted step on scalar copies (p holds its parameters): y into ys, y_new into
+    yn, the stages into K with the dense output's extra stages. Returns the step size."""
+    ly = lanes_layout(method, effects)
+    n, S, ns = ly.n, ly.S, ly.ns
+    L = LANES
+    h = W[ly.H * L + l]
+    for j in range(n):
+        ys[j] = W[(ly.Y + j) * L + l]
+        yn[j] = W[(ly.YN + j) * L + l]
+    for i in range(ns + 1):
+        for j in range(n):
+            K[i, j] = W[(ly.K + i * n + j) * L + l]
+    if S > ns + 1:
+        rk_dense_stages(method, effects, ys, h, p, K, buf)
+    return h
 
 
 @kernel(inline="always")
@@ -171,41 +203,33 @@ def _lane_events(method, effects, l, term_cross, W, I, LEV, LEVK, p, K, K2, ys, 
     of the lane; p holds its parameters). Returns (stops, status); an apsis found here sets
     the lane up to polish it on its next vector step (:func:`_lane_polished` ends the step)."""
     ly = lanes_layout(method, effects)
-    n, S, ns = ly[_n], ly[_S], ly[_NS]
+    n, ns = ly.n, ly.ns
     L = LANES
-    h = W[ly[_H] * L + l]
-    for j in range(n):
-        ys[j] = W[(ly[_Y] + j) * L + l]
-        yn[j] = W[(ly[_YN] + j) * L + l]
-    for i in range(ns + 1):
-        for j in range(n):
-            K[i, j] = W[(ly[_K] + i * n + j) * L + l]
-    if S > ns + 1:
-        rk_dense_stages(method, effects, ys, h, p, K, buf)
-    n_ev0 = I[l, _N_EV]
-    _load_events(l, n_ev0, LEV, LEVK, ev_t, ev_kind, ev_y)
+    h = lane_load_step(method, effects, l, W, p, K, ys, yn, buf)
+    n_ev0 = I[l, N_EV]
+    load_events(l, n_ev0, LEV, LEVK, ev_t, ev_kind, ev_y)
     ok, th_stop, stop_status, g_aps, n_aps, n_ev, i_aps, th_aps = step_events(
-        method, effects, ys, yn, K, h, W[ly[_T] * L + l], p, buf, brent, K2,
-        W[ly[_GAPS] * L + l], I[l, _N_APS], period_apsides(effects), ev_t, ev_kind, ev_y, n_ev0,
+        method, effects, ys, yn, K, h, W[ly.T * L + l], p, buf, brent, K2,
+        W[ly.G_APS * L + l], I[l, N_APS], period_apsides(effects), ev_t, ev_kind, ev_y, n_ev0,
         term_cross, False)  # fmt: skip
-    W[ly[_GAPS] * L + l] = g_aps
-    I[l, _N_APS] = n_aps
+    W[ly.G_APS * L + l] = g_aps
+    I[l, N_APS] = n_aps
     if not ok:
-        I[l, _N_EV] = EV_CAP
-        _save_events(l, EV_CAP, ev_t, ev_kind, ev_y, LEV, LEVK)
+        I[l, N_EV] = EV_CAP
+        save_events(l, EV_CAP, ev_t, ev_kind, ev_y, LEV, LEVK)
         return True, BUFFER_FULL
-    I[l, _N_EV] = n_ev
-    _save_events(l, n_ev, ev_t, ev_kind, ev_y, LEV, LEVK)
+    I[l, N_EV] = n_ev
+    save_events(l, n_ev, ev_t, ev_kind, ev_y, LEV, LEVK)
     stops = th_stop <= 1.0
     if i_aps >= 0:  # polish the apsis on the next vector step: from y, a step of th h
         for j in range(n):
-            W[(ly[_SAVE_Y] + j) * L + l] = yn[j]
-            W[(ly[_SAVE_K] + j) * L + l] = W[(ly[_K] + ns * n + j) * L + l]
-        W[ly[_HSTEP] * L + l] = h
-        W[ly[_H] * L + l] = th_aps * h
-        W[ly[_IAPS] * L + l] = i_aps
-        W[ly[_STOP] * L + l] = stop_status if stops else -1.0
-        W[ly[_POL] * L + l] = 1.0
+            W[(ly.SAVE_Y + j) * L + l] = yn[j]
+            W[(ly.SAVE_K + j) * L + l] = W[(ly.K + ns * n + j) * L + l]
+        W[ly.H_STEP * L + l] = h
+        W[ly.H * L + l] = th_aps * h
+        W[ly.I_APS * L + l] = i_aps
+        W[ly.STOP * L + l] = stop_status if stops else -1.0
+        W[ly.POLISH * L + l] = 1.0
         return False, OK
     return stops, stop_status
 
@@ -217,46 +241,46 @@ def _lane_polished(method, effects, l, max_steps, W, LEV, out, f):
     output's stands where the correction is not small), then the lane ends (STOP) or goes on
     from the end of the step the apsis lies in. Returns (stops, status)."""
     ly = lanes_layout(method, effects)
-    n, ns = ly[_n], ly[_NS]
+    n, ns = ly.n, ly.ns
     L = LANES
     for j in range(n):
-        out[j] = W[(ly[_YN] + j) * L + l]
-        f[j] = W[(ly[_K] + ns * n + j) * L + l]
-    h = W[ly[_HSTEP] * L + l]
-    t = W[ly[_T] * L + l]
-    applied, t_aps = apsis_newton(out, f, h, t + W[ly[_H] * L + l])
+        out[j] = W[(ly.YN + j) * L + l]
+        f[j] = W[(ly.K + ns * n + j) * L + l]
+    h = W[ly.H_STEP * L + l]
+    t = W[ly.T * L + l]
+    applied, t_aps = apsis_newton(out, f, h, t + W[ly.H * L + l])
     if applied:
-        e = np.int64(W[ly[_IAPS] * L + l]) * (n + 1)
+        e = np.int64(W[ly.I_APS * L + l]) * (n + 1)
         LEV[l, e] = t_aps
         for j in range(n):
             LEV[l, e + 1 + j] = out[j]
-    W[ly[_POL] * L + l] = 0.0
-    stop = W[ly[_STOP] * L + l]
+    W[ly.POLISH * L + l] = 0.0
+    stop = W[ly.STOP * L + l]
     if stop >= 0.0:
         return True, np.int64(stop)
     for j in range(n):
-        W[(ly[_YN] + j) * L + l] = W[(ly[_SAVE_Y] + j) * L + l]
-        W[(ly[_K] + ns * n + j) * L + l] = W[(ly[_SAVE_K] + j) * L + l]
-    W[ly[_H] * L + l] = h
-    status = _lane_advance(method, effects, l, max_steps, W)
+        W[(ly.YN + j) * L + l] = W[(ly.SAVE_Y + j) * L + l]
+        W[(ly.K + ns * n + j) * L + l] = W[(ly.SAVE_K + j) * L + l]
+    W[ly.H * L + l] = h
+    status = lane_advance(method, effects, l, max_steps, W)
     return status != OK, status
 
 
 @kernel(inline="always")
-def _lane_advance(method, effects, l, max_steps, W):
+def lane_advance(method, effects, l, max_steps, W):
     """Move lane l to the end of its accepted step (y, f(y), t, the next step size); returns
     the status of the next attempt (:func:`.rk.step_allowed`)."""
     ly = lanes_layout(method, effects)
-    n, ns = ly[_n], ly[_NS]
+    n, ns = ly.n, ly.ns
     L = LANES
-    W[ly[_T] * L + l] += W[ly[_H] * L + l]
+    W[ly.T * L + l] += W[ly.H * L + l]
     for j in range(n):
-        W[(ly[_Y] + j) * L + l] = W[(ly[_YN] + j) * L + l]
-        W[(ly[_K] + j) * L + l] = W[(ly[_K] + ns * n + j) * L + l]
-    h = W[ly[_HNEXT] * L + l]
-    W[ly[_H] * L + l] = h
-    n_steps = W[ly[_NACC] * L + l] + W[ly[_NREJ] * L + l]
-    return step_allowed(n_steps, max_steps, h, W[ly[_T] * L + l])
+        W[(ly.Y + j) * L + l] = W[(ly.YN + j) * L + l]
+        W[(ly.K + j) * L + l] = W[(ly.K + ns * n + j) * L + l]
+    h = W[ly.H_NEXT * L + l]
+    W[ly.H * L + l] = h
+    n_steps = W[ly.N_ACC * L + l] + W[ly.N_REJ * L + l]
+    return step_allowed(n_steps, max_steps, h, W[ly.T * L + l])
 
 
 @kernel(inline="always")
@@ -267,25 +291,25 @@ def _lane_flagged(method, effects, l, max_steps, W, I, LEV, LEVK, p, K, K2, ys, 
     end; FLAG 2, no further attempt allowed. Returns (stops, status)."""
     ly = lanes_layout(method, effects)
     L = LANES
-    if W[ly[_FLAG] * L + l] == 2.0:
-        n_steps = W[ly[_NACC] * L + l] + W[ly[_NREJ] * L + l]
-        return True, step_allowed(n_steps, max_steps, W[ly[_H] * L + l], W[ly[_T] * L + l])
+    if W[ly.FLAG * L + l] == 2.0:
+        n_steps = W[ly.N_ACC * L + l] + W[ly.N_REJ * L + l]
+        return True, step_allowed(n_steps, max_steps, W[ly.H * L + l], W[ly.T * L + l])
     term = False
     if effects & TERMINAL_EFFECTS:
-        _lane_params(method, effects, l, W, p)
-        for j in range(ly[_n]):
-            ys[j] = W[(ly[_Y] + j) * L + l]
-            yn[j] = W[(ly[_YN] + j) * L + l]
+        lane_params(method, effects, l, W, p)
+        for j in range(ly.n):
+            ys[j] = W[(ly.Y + j) * L + l]
+            yn[j] = W[(ly.YN + j) * L + l]
         term = terminal_between(effects, ys, yn, p)
-    if W[ly[_FLAG] * L + l] == 3.0:
+    if W[ly.FLAG * L + l] == 3.0:
         return _lane_polished(method, effects, l, max_steps, W, LEV, ys, yn)
-    if term or apsis_crossed(W[ly[_GAPS] * L + l], W[(ly[_YN] + 2) * L + l]):
-        _lane_params(method, effects, l, W, p)
+    if term or apsis_crossed(W[ly.G_APS * L + l], W[(ly.YN + 2) * L + l]):
+        lane_params(method, effects, l, W, p)
         stops, status = _lane_events(method, effects, l, term, W, I, LEV, LEVK, p, K,
                                      K2, ys, yn, buf, brent, ev_t, ev_kind, ev_y)  # fmt: skip
-        if stops or W[ly[_POL] * L + l] != 0.0:
+        if stops or W[ly.POLISH * L + l] != 0.0:
             return stops, status
-    status = _lane_advance(method, effects, l, max_steps, W)
+    status = lane_advance(method, effects, l, max_steps, W)
     return status != OK, status
 
 
@@ -298,15 +322,15 @@ def lanes_worker(method, effects, alpha, energy, hh, Lz, params, rtol, max_steps
     point ends takes the next from ``queue`` (int64[1]: the next point's index, shared by the
     workers) until every point is taken."""
     ly = lanes_layout(method, effects)
-    n, S = ly[_n], ly[_S]
+    n, S = ly.n, ly.S
     L = LANES
     # One owner per dtype; the worker uses borrowed views of them.
-    sizes = (ly[_NSLOTS] * L, n * L, EV_CAP * (n + 1) * L, N_PARAMS, 2 * S * n, 3 * n, 8, EV_CAP,
+    sizes = (ly.n_slots * L, n * L, EV_CAP * (n + 1) * L, N_PARAMS, 2 * S * n, 3 * n, 8, EV_CAP,
              EV_CAP * n)  # fmt: skip
     own_f = np.zeros(sum(sizes))
     own_i = np.full(3 * L, -1, np.int64)
     own_k = np.zeros((L + 1) * EV_CAP, np.int8)
-    parts = _split(own_f, sizes)
+    parts = split_owned(own_f, sizes)
     W = parts[0]
     LY0 = parts[1].reshape((L, n))
     LEV = parts[2].reshape((L, EV_CAP * (n + 1)))
@@ -329,7 +353,7 @@ def lanes_worker(method, effects, alpha, energy, hh, Lz, params, rtol, max_steps
     while True:
         running = 0
         for l in range(L):  # refill idle lanes; points that end at their start are written
-            while I[l, _ORBIT] < 0:
+            while I[l, ORBIT] < 0:
                 i = fetch_add(queue, 1)
                 if i >= n_points:
                     break
@@ -339,35 +363,24 @@ def lanes_worker(method, effects, alpha, energy, hh, Lz, params, rtol, max_steps
                 if status != OK:
                     _lane_finish(method, effects, l, status, W, I, LY0, p, ev_t, ev_kind, ev_y,
                                  out_f, out_n, out_status)  # fmt: skip
-            running += I[l, _ORBIT] >= 0
+            running += I[l, ORBIT] >= 0
         if running == 0:
             break
         lanes_attempt(method, effects, W, rtol)
         lanes_control(method, effects, W, max_steps)
         for l in range(L):
-            if W[ly[_FLAG] * L + l] == 0.0:
+            if W[ly.FLAG * L + l] == 0.0:
                 continue
             stops, status = _lane_flagged(method, effects, l, max_steps, W, I, LEV,
                                           LEVK, p, K, K2, ys, yn, buf, brent, ev_t, ev_kind,
                                           ev_y)  # fmt: skip
             if stops:
-                _lane_params(method, effects, l, W, p)
-                _load_events(l, I[l, _N_EV], LEV, LEVK, ev_t, ev_kind, ev_y)
+                lane_params(method, effects, l, W, p)
+                load_events(l, I[l, N_EV], LEV, LEVK, ev_t, ev_kind, ev_y)
                 _lane_finish(method, effects, l, status, W, I, LY0, p, ev_t, ev_kind, ev_y, out_f,
                              out_n, out_status)  # fmt: skip
     # The owners live to here: the borrowed views above hold no reference of their own.
     own_f[0] = own_i[0] + own_k[0]
-
-
-@kernel
-def _split(own, sizes):
-    """Borrowed consecutive pieces of ``own`` of the given sizes."""
-    out = []
-    start = 0
-    for size in sizes:
-        out.append(borrow(own[start : start + size]))
-        start += size
-    return out
 
 
 @parallel_kernel

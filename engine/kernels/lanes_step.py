@@ -28,9 +28,10 @@ from typing import NamedTuple
 from numba.core import cgutils, types
 from numba.extending import intrinsic, overload
 
+from .._jit import kernel
 from .model import N_PARAMS, rates5, rates6, rates9, rates10, state_size_of
 from .protocol import OK, TERMINAL_EFFECTS, terminal_between
-from .rk import step_allowed, step_decide, step_error
+from .rk import clip_step, step_allowed, step_decide, step_error
 from .rk_codegen import GEN_OPTS, literal_int, rk_method_id, unrolled_step_lines
 from .rk_events import apsis_crossed
 from .tableaux import RK_TABLEAUX
@@ -41,12 +42,15 @@ LANES = 4
 #: step to finish in scalar code (events), 2 out of steps or step size, 3 a polishing step
 #: taken (POLISH: the lane's attempt was the step to an apsis at theta h, :mod:`.lanes`; the
 #: step it lies in was H_STEP, event I_APS, then STOP: the status to end with, or -1).
+#: A fate run (:mod:`.lanes_fate`) also has T_END, the time its step is clipped to (a horizon),
+#: and LAST, set where the step about to be taken was clipped to it (the run's last).
 LANE_SCALARS = ("T", "ERR_OLD", "G_APS", "REJECTED", "N_ACC", "N_REJ", "ACTIVE", "FLAG", "H_NEXT",
-                "POLISH", "H_STEP", "I_APS", "STOP")  # fmt: skip
+                "POLISH", "H_STEP", "I_APS", "STOP", "T_END", "LAST")  # fmt: skip
 
 
 class Layout(NamedTuple):
-    """Slot numbers of the work array (times LANES: the offset of lane 0)."""
+    """Slot numbers of the work array (times LANES: the offset of lane 0). The kernels read
+    them by name (``ly.YN``): :func:`lanes_layout` gives them the layout as a constant."""
 
     n: int  # state components
     S: int  # all stages of the tableau
@@ -71,6 +75,8 @@ class Layout(NamedTuple):
     H_STEP: int
     I_APS: int
     STOP: int
+    T_END: int
+    LAST: int
     SAVE_Y: int  # y_new and f(y_new) of a step whose apsis is being polished
     SAVE_K: int
     n_slots: int
@@ -122,14 +128,16 @@ def attempt_source(method: int, n: int) -> str:
     return "\n".join(lines) + "\n"
 
 
-def control_source(method: int, n: int, terminal: bool) -> str:
+def control_source(method: int, n: int, terminal: bool, fate: bool = False) -> str:
     """Source of ``impl(method, effects, W, max_steps)``: the step-size decision of every
     active lane, as :func:`.rk.rk_run` takes it, written with selects. A lane whose accepted
     step crossed an apsis or (with ``terminal`` events compiled in) has a terminal event
     (:func:`.protocol.terminal_between` y and y_new) keeps its state and gets FLAG 1; an
     accepted step without one moves the lane to y_new; a lane that may not take another
     attempt (:func:`.rk.step_allowed`) gets FLAG 2; a lane that took a polishing step keeps
-    everything and gets FLAG 3."""
+    everything and gets FLAG 3. A ``fate`` run (:mod:`.lanes_fate`) looks for no apsides and
+    clips the next attempt to T_END as rk_run clips to t_end (setting LAST; an accepted LAST
+    step gets FLAG 1)."""
     ly = layout(method, n)
     ctl = repr(RK_TABLEAUX[method].controller())
     w = _w
@@ -146,9 +154,10 @@ def control_source(method: int, n: int, terminal: bool) -> str:
         f"        eold = {w(ly.ERR_OLD)}",
         f"        acc, h_new, h_next, eold2, rej2 = step_decide(({w(ly.ERR)}, {w(ly.ERR, 1)}), "
         f"h, eold, {w(ly.REJECTED)} != 0.0, {ctl})",
-        f"        aps = apsis_crossed({w(ly.G_APS)}, {w(ly.YN, 2)})",
+        f"        aps = {'False' if fate else f'apsis_crossed({w(ly.G_APS)}, {w(ly.YN, 2)})'}",
         f"        term = {term}",
-        "        simple = act & acc & (not aps) & (not term)",
+        f"        last = {f'{w(ly.LAST)} != 0.0' if fate else 'False'}",
+        "        simple = act & acc & (not aps) & (not term) & (not last)",
         f"        n_acc = {w(ly.N_ACC)} + (1.0 if act & acc else 0.0)",
         f"        n_rej = {w(ly.N_REJ)} + (1.0 if act & (not acc) else 0.0)",
         "        t2 = t + h if simple else t",
@@ -158,6 +167,13 @@ def control_source(method: int, n: int, terminal: bool) -> str:
     for j in range(n):
         lines.append(f"        {w(ly.Y, j)} = {w(ly.YN, j)} if simple else {w(ly.Y, j)}")
         lines.append(f"        {w(ly.K, j)} = {w(ly.K + ly.ns * n, j)} if simple else {w(ly.K, j)}")
+    if fate:  # the next attempt clipped to T_END, as rk_run clips it to t_end
+        lines += [
+            "        nxt = act & ok & (simple | (not acc))",
+            f"        h_clip, clip = clip_step(t2, h2, {w(ly.T_END)})",
+            "        h2 = h_clip if nxt else h2",
+            f"        {w(ly.LAST)} = (1.0 if clip else 0.0) if nxt else {w(ly.LAST)}",
+        ]
     lines += [
         f"        {w(ly.T)} = t2",
         f"        {w(ly.H)} = h2",
@@ -181,6 +197,7 @@ _NAMESPACE = {
     "step_error": step_error,
     "step_decide": step_decide,
     "step_allowed": step_allowed,
+    "clip_step": clip_step,
     "apsis_crossed": apsis_crossed,
     "terminal_between": terminal_between,
     "OK": OK,
@@ -192,7 +209,7 @@ def _compiled(kind: str, method: int, n: int, terminal: bool):
     if kind == "attempt":
         src = attempt_source(method, n)
     else:
-        src = control_source(method, n, terminal)
+        src = control_source(method, n, terminal, kind == "fate control")
     namespace = dict(_NAMESPACE)
     exec(compile(src, f"<conesurvey lanes {kind} method={method} n={n}>", "exec"), namespace)  # noqa: S102
     return namespace["impl"]
@@ -213,8 +230,15 @@ def lanes_control(method, effects, W, max_steps):
     raise NotImplementedError("lanes_control runs inside numba kernels only")
 
 
+def lanes_control_fate(method, effects, W, max_steps):
+    """The step-size decision of every lane of a fate run (:func:`control_source` with
+    ``fate``). Jit-only."""
+    raise NotImplementedError("lanes_control_fate runs inside numba kernels only")
+
+
 def lanes_layout(method, effects):
-    """:func:`layout` of the literal method and effect set, as constants. Jit-only."""
+    """:func:`layout` of the literal method and effect set, a constant :class:`Layout` (read
+    by name). Jit-only."""
     raise NotImplementedError("lanes_layout runs inside numba kernels only")
 
 
@@ -228,9 +252,14 @@ def _ol_lanes_control(method, effects, W, max_steps):
     return _compiled("control", rk_method_id(method), *_effects(effects))
 
 
+@overload(lanes_control_fate, jit_options=GEN_OPTS)
+def _ol_lanes_control_fate(method, effects, W, max_steps):
+    return _compiled("fate control", rk_method_id(method), *_effects(effects))
+
+
 @overload(lanes_layout, jit_options=GEN_OPTS)
 def _ol_lanes_layout(method, effects):
-    consts = tuple(layout(rk_method_id(method), _effects(effects)[0]))
+    consts = layout(rk_method_id(method), _effects(effects)[0])
 
     def impl(method, effects):
         return consts
@@ -257,6 +286,17 @@ def borrow(typingctx, arr):
         return dst._getvalue()
 
     return arr(arr), codegen
+
+
+@kernel
+def split_owned(own, sizes):
+    """Borrowed consecutive pieces of ``own`` of the given sizes."""
+    out = []
+    start = 0
+    for size in sizes:
+        out.append(borrow(own[start : start + size]))
+        start += size
+    return out
 
 
 @intrinsic

@@ -198,8 +198,9 @@ def event_value(kind, y, p, effects):
 @kernel
 def terminal_fired(kind, g):
     """True where the terminal event function value g means the event has happened (the rim
-    is reached at g = 0, slipping needs g > 0)."""
-    return g > 0.0 or (kind != SLIP and g == 0.0)
+    is reached at g = 0, slipping needs g > 0). Without a branch (``|``, ``&``), so that the
+    lanes' step-size control stays vector code (:mod:`.lanes_step`)."""
+    return (g > 0.0) | ((kind != SLIP) & (g == 0.0))
 
 
 @kernel
@@ -210,7 +211,7 @@ def terminal_crossed(kind, g0, g1):
     at its r_min inside the region leaves it: the closed form's convention); the others fire
     wherever they hold at the end of the step."""
     if kind == REST or kind == VERTEX:
-        return g0 < 0.0 and terminal_fired(kind, g1)
+        return (g0 < 0.0) & terminal_fired(kind, g1)
     return terminal_fired(kind, g1)
 
 
@@ -228,14 +229,16 @@ def terminal_at(effects, y, p):
 
 @kernel
 def terminal_between(effects, y, ynew, p):
-    """Whether any terminal event happens in the step from y to ynew."""
+    """Whether any terminal event happens in the step from y to ynew. Every event function is
+    evaluated and the answers combined without an early exit: no branch, so the lanes' control
+    runs it as vector code (a run evaluates them all anyway on every step without an event)."""
+    hit = False
     for kind in range(FIRST_TERMINAL, LAST_TERMINAL + 1):
         if kind_enabled(effects, kind):
             g1 = event_value(kind, ynew, p, effects)
             g0 = event_value(kind, y, p, effects) if kind == REST or kind == VERTEX else -1.0
-            if terminal_crossed(kind, g0, g1):
-                return True
-    return False
+            hit = hit | terminal_crossed(kind, g0, g1)
+    return hit
 
 
 @kernel

@@ -124,6 +124,15 @@ def step_allowed(n_steps, max_steps, h, t):
 
 
 @kernel
+def clip_step(t, h, t_end):
+    """(h, last): the attempt of size h [s] from t [s], cut to end at t_end [s] where it would
+    reach it (then the run's last step). One rule for :func:`rk_run` and the lanes."""
+    if t + h >= t_end:
+        return t_end - t, True
+    return h, False
+
+
+@kernel
 def initial_step(method, effects, y0, K, p, rtol, atol, ytmp):
     """Starting step [s] (Hairer, Norsett & Wanner I, II.4, as in scipy's select_initial_step).
 
@@ -273,10 +282,7 @@ def rk_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_step
         status = step_allowed(n_acc + n_rej, max_steps, h, t)
         if status != OK:
             break
-        last = False
-        if t + h >= t_end:
-            h = t_end - t
-            last = True
+        h, last = clip_step(t, h, t_end)
         err = rk_attempt(method, effects, y, h, pt, K, ynew, rtol, atol)
         e = step_error(err, ynew[0], ctl)
         accepted, h, h_next, err_old, rejected = step_decide(e, h, err_old, rejected, ctl)

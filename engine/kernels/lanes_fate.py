@@ -1,0 +1,272 @@
+"""Fate maps on the SIMD lanes: :func:`.fate.fate_points` for the Runge-Kutta methods, its
+results bit for bit.
+
+Each lane follows one orbit to its fate the way :func:`.fate.fate_of` does, with the same
+pieces: its start (:func:`.fate.fate_start`: the rest threshold, a radial orbit's way out of
+the vertex region), a start at rest (:func:`.fate.starts_at_rest`), runs as
+:func:`.rk.rk_run` takes them (:func:`.lanes.lane_begin`, the vectorised step and a step-size
+control that looks for no apsides and clips the last step to the horizon as rk_run clips it to
+t_end: :func:`.lanes_step.lanes_control_fate`), what follows a run (:func:`.fate.after_run`: a
+stop by rolling resistance ends the fate or restarts the run from rest in the same lane) and
+the result (:func:`.fate.fate_result`). A lane whose orbit has its fate takes the next point
+from the queue the threads share (tests/kernels/test_lanes_fate.py checks every output
+against the scalar kernel's).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import literally, prange
+
+from .._jit import kernel, parallel_kernel
+from .fate import (
+    FAILED,
+    MAX_RESTARTS,
+    after_run,
+    fate_result,
+    fate_start,
+    starts_at_rest,
+    store_fate,
+)
+from .lanes import (
+    EV_CAP,
+    ORBIT,
+    lane_advance,
+    lane_begin,
+    lane_load_step,
+    lane_params,
+)
+from .lanes_step import (
+    LANES,
+    borrow,
+    fetch_add,
+    lanes_attempt,
+    lanes_control_fate,
+    lanes_layout,
+    split_owned,
+)
+from .model import N_PARAMS, set_alpha
+from .protocol import BUFFER_FULL, OK, TERMINAL_EFFECTS, terminal_between
+from .rk import clip_step, step_allowed
+from .rk_events import rk_dense, step_events
+
+#: Columns of a fate lane's floats: the time its run started at (restarts), the time and work
+#: of the way out of the vertex region, and the horizon counted from there (:func:`.fate.fate_of`).
+F_T0, F_TV, F_WORK0, F_HORIZON = 0, 1, 2, 3
+#: Column of the int array after :data:`.lanes.ORBIT` ... :data:`.lanes.N_EV`: restarts so far.
+RESTARTS = 3
+
+
+@kernel(inline="always")
+def _clip(method, effects, l, W):
+    """Clip lane l's next attempt to its T_END as :func:`.rk.rk_run` clips it (LAST set)."""
+    ly = lanes_layout(method, effects)
+    L = LANES
+    h, last = clip_step(W[ly.T * L + l], W[ly.H * L + l], W[ly.T_END * L + l])
+    W[ly.H * L + l] = h
+    W[ly.LAST * L + l] = 1.0 if last else 0.0
+
+
+@kernel(inline="always")
+def _finish(method, effects, l, fate, t, y, steps, W, I, F, LY0, p, out_fate, out_f, out_n):
+    """Write lane l's point (its fate at state y, t [s] into its run) and idle the lane."""
+    ly = lanes_layout(method, effects)
+    L = LANES
+    i = I[l, ORBIT]
+    res = fate_result(effects, p, LY0[l], F[l, F_TV], F[l, F_WORK0], fate, t, y, steps)
+    store_fate(out_fate, out_f, out_n, i, res)
+    I[l, ORBIT] = -1
+    W[ly.ACTIVE * L + l] = 0.0
+    W[ly.H * L + l] = 0.0
+
+
+@kernel(inline="always")
+def _run_ended(method, effects, l, status, t_run, y, rtol, max_steps, W, I, F, LY0, LEV, LEVK,
+               p, K, buf, at, ev_t, ev_kind, ev_y, out_fate, out_f, out_n):  # fmt: skip
+    """Lane l's run ended with ``status`` at state y (in place), t_run [s] into the run (p: its
+    parameters): :func:`.fate.fate_run`'s loop. Returns True when the lane runs again (a
+    restart from rest), False when its point is written."""
+    ly = lanes_layout(method, effects)
+    L = LANES
+    while True:
+        steps = np.int64(W[ly.N_ACC * L + l] + W[ly.N_REJ * L + l])
+        ended, fate, t = after_run(effects, status, y, p, F[l, F_T0] + t_run)
+        if ended:
+            _finish(method, effects, l, fate, t, y, steps, W, I, F, LY0, p, out_fate, out_f,
+                    out_n)  # fmt: skip
+            return False
+        F[l, F_T0] = t
+        I[l, RESTARTS] += 1
+        if steps >= max_steps or I[l, RESTARTS] >= MAX_RESTARTS:
+            _finish(method, effects, l, FAILED, t, y, steps, W, I, F, LY0, p, out_fate, out_f,
+                    out_n)  # fmt: skip
+            return False
+        W[ly.T_END * L + l] = F[l, F_HORIZON] - t
+        for j in range(ly.n):
+            at[j] = W[(ly.ATOL + j) * L + l]
+        status = lane_begin(method, effects, l, y, at, p, rtol, max_steps, W, I, LEV, LEVK, K,
+                            buf, ev_t, ev_kind, ev_y)  # fmt: skip
+        if status == OK:
+            _clip(method, effects, l, W)
+            return True
+        t_run = 0.0
+
+
+@kernel(inline="always")
+def _lane_start(method, effects, l, i, alpha, energy, hh, Lz, r_start, params, rtol, t_horizon,
+                max_steps, W, I, F, LY0, LEV, LEVK, p, K, buf, y, ev_t, ev_kind, ev_y, out_fate,
+                out_f, out_n):  # fmt: skip
+    """Start point i in lane l as :func:`.fate.fate_of` starts it. Returns True when it runs;
+    False when its point is written (it ended at its start)."""
+    ly = lanes_layout(method, effects)
+    L = LANES
+    for k in range(N_PARAMS):
+        p[k] = params[k]
+    set_alpha(p, alpha[i])
+    I[l, ORBIT] = i
+    I[l, RESTARTS] = 0
+    W[ly.N_ACC * L + l] = 0.0
+    W[ly.N_REJ * L + l] = 0.0
+    W[ly.ACTIVE * L + l] = 0.0
+    res, y0, t0, work0, atol = fate_start(effects, p, energy[i], hh[i], Lz[i], r_start[i], rtol)
+    if res[0] >= 0:
+        store_fate(out_fate, out_f, out_n, i, res)
+        I[l, ORBIT] = -1
+        return False
+    for j in range(ly.n):
+        LY0[l, j] = y0[j]
+        y[j] = y0[j]
+    F[l, F_T0] = 0.0
+    F[l, F_TV] = t0
+    F[l, F_WORK0] = work0
+    F[l, F_HORIZON] = t_horizon - t0
+    ended, fate = starts_at_rest(effects, y, p)
+    if ended:
+        _finish(method, effects, l, fate, 0.0, y, 0, W, I, F, LY0, p, out_fate, out_f, out_n)
+        return False
+    W[ly.T_END * L + l] = F[l, F_HORIZON] - 0.0
+    status = lane_begin(method, effects, l, y, atol, p, rtol, max_steps, W, I, LEV, LEVK, K, buf,
+                        ev_t, ev_kind, ev_y)  # fmt: skip
+    if status == OK:
+        _clip(method, effects, l, W)
+        return True
+    return _run_ended(method, effects, l, status, 0.0, y, rtol, max_steps, W, I, F, LY0, LEV,
+                      LEVK, p, K, buf, atol, ev_t, ev_kind, ev_y, out_fate, out_f,
+                      out_n)  # fmt: skip
+
+
+@kernel(inline="always")
+def _lane_flagged(method, effects, l, max_steps, W, p, K, K2, ys, yn, y, buf, brent, ev_t,
+                  ev_kind, ev_y):  # fmt: skip
+    """Finish lane l's attempt the control flagged, as :func:`.rk.rk_run` finishes a step of a
+    run that looks for no apsides: FLAG 2, no further attempt allowed; FLAG 1, an accepted
+    step with a terminal event (the run stops there, its state the dense output's) or the
+    last step to the horizon. Returns (ended, status, t [s] into the run), the state in y."""
+    ly = lanes_layout(method, effects)
+    n = ly.n
+    L = LANES
+    t = W[ly.T * L + l]
+    if W[ly.FLAG * L + l] != 2.0:
+        lane_params(method, effects, l, W, p)
+        h = lane_load_step(method, effects, l, W, p, K, ys, yn, buf)
+        if effects & TERMINAL_EFFECTS and terminal_between(effects, ys, yn, p):
+            ok, th_stop, stop_status, g_aps, n_aps, n_ev, i_aps, th_aps = step_events(
+                method, effects, ys, yn, K, h, t, p, buf, brent, K2, 1.0, 0, -1, ev_t, ev_kind,
+                ev_y, 0, True, False)  # fmt: skip
+            if not ok:
+                for j in range(n):
+                    y[j] = ys[j]
+                return True, BUFFER_FULL, t
+            if th_stop <= 1.0:
+                rk_dense(method, ys, K, h, th_stop, y)
+                return True, stop_status, t + th_stop * h
+        if W[ly.LAST * L + l] != 0.0:
+            for j in range(n):
+                y[j] = yn[j]
+            return True, OK, W[ly.T_END * L + l]
+        status = lane_advance(method, effects, l, max_steps, W)
+        if status == OK:
+            _clip(method, effects, l, W)
+            return False, OK, t
+        t = W[ly.T * L + l]
+    else:
+        n_steps = W[ly.N_ACC * L + l] + W[ly.N_REJ * L + l]
+        status = step_allowed(n_steps, max_steps, W[ly.H * L + l], t)
+    for j in range(n):
+        y[j] = W[(ly.Y + j) * L + l]
+    return True, status, t
+
+
+@kernel
+def lanes_fate_worker(method, effects, alpha, energy, hh, Lz, r_start, params, rtol, t_horizon,
+                      max_steps, queue, out_fate, out_f, out_n):  # fmt: skip
+    """Follow points LANES at a time to their fates (:func:`.fate.fate_of`), into out_fate,
+    out_f (rows :data:`.fate.FATE_ROWS`) and out_n (steps); a lane whose point has its fate
+    takes the next from ``queue`` (int64[1], shared by the workers)."""
+    ly = lanes_layout(method, effects)
+    n, S = ly.n, ly.S
+    L = LANES
+    sizes = (ly.n_slots * L, n * L, EV_CAP * (n + 1) * L, N_PARAMS, 2 * S * n, 5 * n, 8, EV_CAP,
+             EV_CAP * n, 4 * L)  # fmt: skip
+    own_f = np.zeros(sum(sizes))
+    own_i = np.full(4 * L, -1, np.int64)
+    own_k = np.zeros((L + 1) * EV_CAP, np.int8)
+    parts = split_owned(own_f, sizes)
+    W = parts[0]
+    LY0 = parts[1].reshape((L, n))
+    LEV = parts[2].reshape((L, EV_CAP * (n + 1)))
+    p = parts[3]
+    K = parts[4][: S * n].reshape((S, n))
+    K2 = parts[4][S * n :].reshape((S, n))
+    ys, yn, y, at, buf = (parts[5][:n], parts[5][n : 2 * n], parts[5][2 * n : 3 * n],
+                          parts[5][3 * n : 4 * n], parts[5][4 * n :])  # fmt: skip
+    brent, ev_t, ev_y = parts[6], parts[7], parts[8].reshape((EV_CAP, n))
+    F = parts[9].reshape((L, 4))
+    I = borrow(own_i.reshape((L, 4)))  # noqa: E741
+    LEVK = borrow(own_k[: L * EV_CAP].reshape((L, EV_CAP)))
+    ev_kind = borrow(own_k[L * EV_CAP :])
+    alpha, energy, hh, Lz, r_start = (borrow(alpha), borrow(energy), borrow(hh), borrow(Lz),
+                                      borrow(r_start))  # fmt: skip
+    params, out_fate, out_f, out_n = borrow(params), borrow(out_fate), borrow(out_f), borrow(out_n)
+    n_points = alpha.shape[0]
+    while True:
+        running = 0
+        for l in range(L):  # refill idle lanes; points that end at their start are written
+            while I[l, ORBIT] < 0:
+                i = fetch_add(queue, 1)
+                if i >= n_points:
+                    break
+                _lane_start(method, effects, l, i, alpha, energy, hh, Lz, r_start, params, rtol,
+                            t_horizon, max_steps, W, I, F, LY0, LEV, LEVK, p, K, buf, y, ev_t,
+                            ev_kind, ev_y, out_fate, out_f, out_n)  # fmt: skip
+            running += I[l, ORBIT] >= 0
+        if running == 0:
+            break
+        lanes_attempt(method, effects, W, rtol)
+        lanes_control_fate(method, effects, W, max_steps)
+        for l in range(L):
+            if W[ly.FLAG * L + l] == 0.0:
+                continue
+            ended, status, t = _lane_flagged(method, effects, l, max_steps, W, p, K, K2, ys, yn,
+                                             y, buf, brent, ev_t, ev_kind, ev_y)  # fmt: skip
+            if ended:
+                lane_params(method, effects, l, W, p)
+                _run_ended(method, effects, l, status, t, y, rtol, max_steps, W, I, F, LY0, LEV,
+                           LEVK, p, K, buf, at, ev_t, ev_kind, ev_y, out_fate, out_f,
+                           out_n)  # fmt: skip
+    # The owners live to here: the borrowed views above hold no reference of their own.
+    own_f[0] = own_i[0] + own_k[0]
+
+
+@parallel_kernel
+def fate_points_lanes(alpha, energy, h, Lz, r_start, params, method, effects, rtol, t_horizon,
+                      max_steps, n_workers, out_fate, out_f, out_n):  # fmt: skip
+    """:func:`.fate.fate_points` for a Runge-Kutta ``method`` (literal, like ``effects``), its
+    results bit for bit: ``n_workers`` :func:`lanes_fate_worker` (one per thread) taking points
+    from one queue."""
+    literally(method)
+    literally(effects)
+    queue = np.zeros(1, np.int64)
+    for _ in prange(max(1, min(n_workers, alpha.shape[0]))):
+        lanes_fate_worker(method, effects, alpha, energy, h, Lz, r_start, params, rtol, t_horizon,
+                          max_steps, queue, out_fate, out_f, out_n)  # fmt: skip
