@@ -41,6 +41,7 @@ from .kernels.roots import free_fall_r_min
 from .methods import DEFAULT_RTOL, check_method, check_rtol
 from .scene import Scene
 from .schema import TRAJECTORY, effect_variables
+from .simulate_hybrid import hybrid_trajectory
 
 __all__ = ["simulate", "DEFAULT_MAX_STEPS"]
 
@@ -115,6 +116,9 @@ def simulate(
     *,
     dt_out: float | None = None,
     max_steps: int = DEFAULT_MAX_STEPS,
+    u0: float = 0.0,
+    slip_u: float = 0.0,
+    slip_v: float = 0.0,
 ) -> xr.Dataset:
     """Integrate one trajectory from the inner turning point r_min (u = 0, theta = 0, t = 0).
 
@@ -131,6 +135,16 @@ def simulate(
     rtol : relative tolerance, in [1e-14, 1e-3].
     dt_out : output spacing [s] on the dense output; None records every step.
     max_steps : step budget.
+    u0, slip_u, slip_v : radial speed at the start and the contact point's slip velocity
+        (along the generatrix and the parallel) [m/s]; nonzero only on a scene with ``mu_k``.
+
+    On a scene with kinetic friction ``mu_k`` the trajectory follows the ball through its modes
+    (rolling, sliding, rolling again; docs/physics.md "Sliding, rolling again, and spin
+    friction"), to ``t_end`` only: the variables add ``mode``, ``p1``, ``p2``, ``slip_speed``,
+    the energy and the work of each dissipation; the events are the mode changes and ends of
+    :func:`engine.story.story` (slip, roll, spin_stop, spin_go, rest, spill, vertex, horizon,
+    failed) with the state there (``event_u``, ``event_v``, ``event_w``, ``event_p1``,
+    ``event_p2``), ``attrs["fate"]`` the story's fate.
 
     Returns
     -------
@@ -184,10 +198,23 @@ def simulate(
             raise ValueError(f"dt_out must be > 0; got {dt_out!r}")
     if int(max_steps) < 1:
         raise ValueError(f"max_steps must be >= 1; got {max_steps!r}")
+    launch = {n: _real(n, x) for n, x in (("u0", u0), ("slip_u", slip_u), ("slip_v", slip_v))}
+    if scene.mu_k is None:
+        moving = [f"{n}={x!r}" for n, x in launch.items() if x != 0.0]
+        if moving:
+            raise ValueError(f"{', '.join(moving)}: a launch that slides or moves radially "
+                             "needs kinetic friction, Scene.mu_k")  # fmt: skip
+    elif periods is not None:
+        raise ValueError(f"periods={periods!r}: a scene with mu_k (sliding) has no radial "
+                         "period to count; give t_end instead")  # fmt: skip
 
     effects = scene.effects_mask
     p = scene.params(alpha)
     r0, r1, r2, rc, cls_name = _start_radius(alpha, energy, h, Lz, scene, p, periods)
+    if scene.mu_k is not None:
+        return hybrid_trajectory(alpha, energy, h, Lz, r0, scene, m.kernel_id, method, rtol,
+                                 t_end, dt_out, int(max_steps), launch["u0"], launch["slip_u"],
+                                 launch["slip_v"], cls_name)  # fmt: skip
     y0 = initial_state(p, effects, r0, energy, h, Lz)
     y0[2] = 0.0  # r0 is a turning point
     sc = tolerance_scales(p, effects, y0, energy, h, Lz, r1, r2, rc)
