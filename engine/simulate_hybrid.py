@@ -19,7 +19,6 @@ from ._version import __version__
 from .hybrid import HYBRID_STATE, hybrid_setup
 from .kernels.hybrid import HYBRID_FATE_NAMES, hybrid_story
 from .kernels.hybrid_step import HYBRID_EVENT_NAMES
-from .kernels.trajectory import trace_stretches
 from .kernels.model import N_PARAMS, P_K, P_M, set_alpha
 from .kernels.protocol import (
     AT_VERTEX,
@@ -40,6 +39,7 @@ from .kernels.sliding import (
     hybrid_energy,
     spin_hold_margin,
 )
+from .kernels.trajectory import trace_stretches
 from .scene import Scene
 from .schema import TRAJECTORY, Variable
 
