@@ -1,6 +1,6 @@
-"""Kernels of the single trajectory (:func:`engine.simulate`).
-
-The sampled trajectory of a hybrid story (a scene with ``mu_k``).
+"""Kernels of the single trajectory (:func:`engine.simulate`): a rolling run across stops
+(:func:`solve_restarting`, the fate maps' own rest/restart loop) and the sampled trajectory
+of a hybrid story (a scene with ``mu_k``).
 
 A story (:func:`.hybrid.hybrid_story`) gives the mode changes: their times and states. Between
 two of them the mode (rolling or sliding) and the spin stick do not change, so each stretch is
@@ -19,6 +19,7 @@ import numpy as np
 from numba import literally
 
 from .._jit import kernel
+from .fate import run_restarting
 from .hybrid_step import decide, hybrid_attempt, step_controller
 from .protocol import BUFFER_FULL, EPS, MAX_STEPS, NONFINITE, OK, STEP_TOO_SMALL
 from .rk_codegen import tableau
@@ -116,3 +117,15 @@ def trace_stretches(method, hp, seg_t0, seg_t1, seg_y, seg_mode, seg_stuck, rtol
     if n_rec > cap:
         return BUFFER_FULL, cap, steps
     return OK, n_rec, steps
+
+
+@kernel
+def solve_restarting(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_steps,
+                     record, dt_out, ev_t, ev_kind, ev_y, tr_t, tr_y, tr_rate):  # fmt: skip
+    """:func:`.fate.run_restarting` (the run protocol across stops by rolling resistance)
+    compiled for a literal method and effect set: the entry point of a rolling trajectory."""
+    literally(method)
+    literally(effects)
+    return run_restarting(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides,
+                          max_steps, record, dt_out, ev_t, ev_kind, ev_y, tr_t, tr_y,
+                          tr_rate)  # fmt: skip
