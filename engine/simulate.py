@@ -10,7 +10,7 @@ import xarray as xr
 
 from ._jit import call_specialized
 from ._version import __version__
-from .kernels.fate import REST_SPEED, come_to_rest
+from .kernels.fate import REST_SPEED
 from .kernels.geometry import BOUNDED, CIRCULAR, CIRCULAR_TOL, CLASS_NAMES, HYPERBOLIC, ideal_orbit
 from .kernels.model import (
     ATTITUDE,
@@ -21,26 +21,23 @@ from .kernels.model import (
     invariants,
     invariants_of,
 )
-from .kernels.orbit import initial_state, orbit_start, solve, tolerance_scales
+from .kernels.orbit import initial_state, orbit_start, tolerance_scales
 from .kernels.protocol import (
-    APOCENTRE,
     BUFFER_FULL,
     FAILURE,
     HORIZON,
     NORMAL_ENDS,
     OK,
     RECORD_EVERY_DT,
-    RECORD_NONE,
     RECORD_STEPS,
-    RESTED,
-    SLIP,
-    SLIPPED,
     STATUS_MESSAGES,
 )
 from .kernels.roots import free_fall_r_min
+from .kernels.trajectory import solve_restarting
 from .methods import DEFAULT_RTOL, check_method, check_rtol
 from .scene import Scene
 from .schema import TRAJECTORY, effect_variables
+from .simulate_hybrid import hybrid_trajectory
 
 __all__ = ["simulate", "DEFAULT_MAX_STEPS"]
 
@@ -115,6 +112,9 @@ def simulate(
     *,
     dt_out: float | None = None,
     max_steps: int = DEFAULT_MAX_STEPS,
+    u0: float = 0.0,
+    slip_u: float = 0.0,
+    slip_v: float = 0.0,
 ) -> xr.Dataset:
     """Integrate one trajectory from the inner turning point r_min (u = 0, theta = 0, t = 0).
 
@@ -131,6 +131,16 @@ def simulate(
     rtol : relative tolerance, in [1e-14, 1e-3].
     dt_out : output spacing [s] on the dense output; None records every step.
     max_steps : step budget.
+    u0, slip_u, slip_v : radial speed at the start and the contact point's slip velocity
+        (along the generatrix and the parallel) [m/s]; nonzero only on a scene with ``mu_k``.
+
+    On a scene with kinetic friction ``mu_k`` the trajectory follows the ball through its modes
+    (rolling, sliding, rolling again; docs/physics.md "Sliding, rolling again, and spin
+    friction"), to ``t_end`` only: the variables add ``mode``, ``p1``, ``p2``, ``slip_speed``,
+    the energy and the work of each dissipation; the events are the mode changes and ends of
+    :func:`engine.story.story` (slip, roll, spin_stop, spin_go, rest, spill, vertex, horizon,
+    failed) with the state there (``event_u``, ``event_v``, ``event_w``, ``event_p1``,
+    ``event_p2``), ``attrs["fate"]`` the story's fate.
 
     Returns
     -------
@@ -184,10 +194,23 @@ def simulate(
             raise ValueError(f"dt_out must be > 0; got {dt_out!r}")
     if int(max_steps) < 1:
         raise ValueError(f"max_steps must be >= 1; got {max_steps!r}")
+    launch = {n: _real(n, x) for n, x in (("u0", u0), ("slip_u", slip_u), ("slip_v", slip_v))}
+    if scene.mu_k is None:
+        moving = [f"{n}={x!r}" for n, x in launch.items() if x != 0.0]
+        if moving:
+            raise ValueError(f"{', '.join(moving)}: a launch that slides or moves radially "
+                             "needs kinetic friction, Scene.mu_k")  # fmt: skip
+    elif periods is not None:
+        raise ValueError(f"periods={periods!r}: a scene with mu_k (sliding) has no radial "
+                         "period to count; give t_end instead")  # fmt: skip
 
     effects = scene.effects_mask
     p = scene.params(alpha)
     r0, r1, r2, rc, cls_name = _start_radius(alpha, energy, h, Lz, scene, p, periods)
+    if scene.mu_k is not None:
+        return hybrid_trajectory(alpha, energy, h, Lz, r0, scene, m.kernel_id, method, rtol,
+                                 t_end, dt_out, int(max_steps), launch["u0"], launch["slip_u"],
+                                 launch["slip_v"], cls_name)  # fmt: skip
     y0 = initial_state(p, effects, r0, energy, h, Lz)
     y0[2] = 0.0  # r0 is a turning point
     sc = tolerance_scales(p, effects, y0, energy, h, Lz, r1, r2, rc)
@@ -202,8 +225,9 @@ def simulate(
 
 
 class _Run:
-    """One trajectory, integrated in segments: a sphere that rolling resistance stops and that
-    cannot stay at rest starts again from rest (velocity zeroed), with time running on."""
+    """One trajectory: a sphere that rolling resistance stops and that cannot stay at rest
+    starts again from rest, with time running on (the fate maps' own loop,
+    :func:`.kernels.fate.run_restarting`)."""
 
     def __init__(self, kernel_id, effects, p, orbit, rtol, atol, max_steps):
         self.args = (kernel_id, effects, None, p, orbit, rtol, atol)
@@ -211,13 +235,12 @@ class _Run:
         self.n_acc = self.n_rej = 0
         self.t_final = 0.0
         self.y_final = np.empty(0)
-        self.tr: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-        self.ev: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
 
     def capacities(self, cap_ev: int, cap_tr: int) -> None:
         self.cap_ev, self.cap_tr = cap_ev, cap_tr
 
-    def _segment(self, y0, t_end, n_apsides, record, dt_out):
+    def follow(self, y0, t_stop, n_apsides, record, dt_out) -> int:
+        """Integrate to the end; returns the final status."""
         kid, effects, _, p, orbit, rtol, atol = self.args
         n = y0.shape[0]
         while True:  # integration is deterministic: a run that ran out of room is redone larger
@@ -225,56 +248,24 @@ class _Run:
                   np.empty((self.cap_ev, n)))  # fmt: skip
             tr = (np.empty(self.cap_tr), np.empty((self.cap_tr, n)),
                   np.empty((self.cap_tr if effects & ATTITUDE else 0, n)))  # fmt: skip
-            args = (kid, effects, y0, p, orbit, rtol, atol, t_end, n_apsides,
-                    self.max_steps - self.n_acc - self.n_rej, record, dt_out, *ev, *tr)  # fmt: skip
-            res = call_specialized(solve, args, (0, 1))
+            args = (kid, effects, y0, p, orbit, rtol, atol, t_stop, n_apsides, self.max_steps,
+                    record, dt_out, *ev, *tr)  # fmt: skip
+            res = call_specialized(solve_restarting, args, (0, 1))
             if int(res[0]) != BUFFER_FULL:
-                return res, ev, tr
-            self.cap_ev *= 4 if int(res[5]) == self.cap_ev else 1
-            self.cap_tr *= 4 if int(res[6]) == self.cap_tr else 1
-
-    def follow(self, y0, t_stop, n_apsides, record, dt_out) -> int:
-        """Integrate to the end; returns the final status. A stop is carried from the rest
-        threshold to zero speed (:func:`.kernels.fate.come_to_rest`): the rest event and the
-        last recorded state move there."""
-        t0 = 0.0
-        y = y0
-        while True:
-            res, ev, tr = self._segment(y, t_stop - t0, n_apsides, record, dt_out)
-            status, n_ev, n_tr = int(res[0]), int(res[5]), int(res[6])
-            self.n_acc += int(res[1])
-            self.n_rej += int(res[2])
-            first = 1 if self.tr else 0  # a restart repeats the state it starts from
-            self.tr.append((tr[0][first:n_tr] + t0, tr[1][first:n_tr], tr[2][first:n_tr]))
-            self.ev.append((ev[0][:n_ev] + t0, ev[1][:n_ev], ev[2][:n_ev]))
-            self.t_final = t0 + float(res[3])
-            self.y_final = np.array(res[4], copy=True)
-            if n_apsides > 0:
-                n_apsides -= int(np.count_nonzero(ev[1][:n_ev] <= APOCENTRE))
-            if status != RESTED:
-                return status
-            y = np.array(res[4], copy=True)
-            dt, at_rest = come_to_rest(y, self.args[3], self.args[1])
-            self.t_final += dt
-            ev_t, ev_kind, ev_y = self.ev[-1]
-            ev_t[-1] = self.t_final
-            ev_y[-1] = y
-            self.y_final = y
-            if record != RECORD_NONE:
-                t_tr, y_tr, rate_tr = self.tr[-1]
-                self.tr[-1] = (np.append(t_tr, self.t_final), np.vstack([y_tr, y]),
-                               np.vstack([rate_tr, np.zeros_like(rate_tr[:1])]))  # fmt: skip
-            if at_rest == SLIPPED:
-                ev_kind[-1] = SLIP
-                return SLIPPED
-            if at_rest != OK:
-                return status
-            t0 = self.t_final
+                break
+            full_ev, full_tr = int(res[5]) >= self.cap_ev - 1, int(res[6]) >= self.cap_tr - 1
+            self.cap_ev *= 4 if full_ev or not full_tr else 1
+            self.cap_tr *= 4 if full_tr or not full_ev else 1
+        status, n_ev, n_tr = int(res[0]), int(res[5]), int(res[6])
+        self.n_acc, self.n_rej = int(res[1]), int(res[2])
+        self.t_final = float(res[3])
+        self.y_final = np.array(res[4], copy=True)
+        self.tr = (tr[0][:n_tr], tr[1][:n_tr], tr[2][:n_tr])
+        self.ev = (ev[0][:n_ev], ev[1][:n_ev], ev[2][:n_ev])
+        return status
 
     def arrays(self) -> tuple[np.ndarray, ...]:
-        t, Y, rate = (np.concatenate(x) for x in zip(*self.tr, strict=True))
-        ev_t, ev_kind, ev_y = (np.concatenate(x) for x in zip(*self.ev, strict=True))
-        return t, Y, rate, ev_t, ev_kind, ev_y
+        return (*self.tr, *self.ev)
 
 
 def _dataset(scene, effects, p, method, rtol, alpha, energy, h, Lz, cls_name, y0, status,

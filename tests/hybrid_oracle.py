@@ -6,9 +6,13 @@ contact constraint (the centre on the cone z = rho cot(alpha) of the centre's po
 normal force from the constraint's second derivative, and at the contact either the tangential
 force that keeps the contact point at rest (solved from d/dt(slip) = 0, a 2x2 linear system) or
 kinetic Coulomb friction against the slip. Spin friction and rolling resistance are couples
-against the normal and tangential parts of Omega. scipy's solve_ivp (DOP853, rtol 1e-12) with
-events: the slip (needed friction reaches mu N), the return to rolling (slip speed down to
-1e-9 of the speed scale, then the sticking impulse), the rim.
+against the normal and tangential parts of Omega. Spin stick: when the spin about the normal,
+Omega . n, reaches zero and the couple that keeps it zero, -I Omega . dn/dt, is within
+c_spin a N, static spin friction holds it there (that couple then acts) until the couple it
+needs exceeds c_spin a N; otherwise the spin passes through zero. scipy's solve_ivp (DOP853,
+rtol 1e-12) with events: the slip (needed friction reaches mu N), the return to rolling (slip
+speed down to 1e-9 of the speed scale, then the sticking impulse), the spin reaching zero
+(spin_stop, whether or not it then sticks), the stuck spin's release (spin_go), the rim.
 """
 
 from __future__ import annotations
@@ -54,22 +58,31 @@ class Oracle:
         return V - self.a * np.cross(W, self.normal(X))
 
     # ---------------------------------------------------------------- dynamics
-    def couples(self, X, W, N):
+    def spin_hold(self, X, V, W):
+        """The couple about n [N m] that keeps Omega . n constant: -I Omega . dn/dt (the
+        contact force's torque is tangential, so it alone sets d(Omega . n)/dt)."""
+        return -self.I * (W @ self.normal_rate(X, V))
+
+    def couples(self, X, V, W, N, spin):
+        """Rolling resistance, and the spin couple: ``spin`` = 0 stuck (the holding couple),
+        +1 or -1 the sign of the spin's motion (kinetic spin friction against it)."""
         n = self.normal(X)
         wn = W @ n
         wt = W - wn * n
         T = np.zeros(3)
         if np.linalg.norm(wt) > 0:
             T -= self.c_rr * N * self.a * wt / np.linalg.norm(wt)
-        if wn != 0.0:
-            T -= self.c_spin * self.a * N * math.copysign(1.0, wn) * n
+        if spin == 0:
+            T += self.spin_hold(X, V, W) * n
+        elif self.c_spin > 0.0:
+            T -= self.c_spin * self.a * N * spin * n
         return T
 
-    def accelerations(self, X, V, W, f):
+    def accelerations(self, X, V, W, f, spin=1):
         n = self.normal(X)
         N = self.normal_force(X, V)
         A = -self.g * ZHAT + (N * n + f) / self.M
-        tau = np.cross(-self.a * n, f) + self.couples(X, W, N)
+        tau = np.cross(-self.a * n, f) + self.couples(X, V, W, N, spin)
         return A, tau / self.I
 
     def slip_rate(self, X, V, W, f):
@@ -94,8 +107,11 @@ class Oracle:
         f12 = np.linalg.solve(Mx, -np.array([t1 @ b, t2 @ b]))
         return f12[0] * t1 + f12[1] * t2
 
-    def rhs(self, t, y, mode, start_dir):
+    def rhs(self, t, y, mode, start_dir, spin):
         X, V, W = y[0:3], y[3:6], y[6:9]
+        if spin != 0:  # the spin's sign, or the way it leaves zero
+            wn = W @ self.normal(X)
+            spin = math.copysign(1.0, wn) if wn != 0.0 else spin
         if mode == "rolling":
             f = self.rolling_force(X, V, W)
         else:
@@ -105,7 +121,7 @@ class Oracle:
                 f = -self.mu_k * self.normal_force(X, V) * S / sl
             else:
                 f = self.mu_k * self.normal_force(X, V) * start_dir
-        A, Wd = self.accelerations(X, V, W, f)
+        A, Wd = self.accelerations(X, V, W, f, spin)
         return np.concatenate([V, A, Wd])
 
     # ---------------------------------------------------------------- invariants
@@ -134,7 +150,8 @@ class Oracle:
 
     # ---------------------------------------------------------------- the story
     def run(self, y0, mode, t_end, speed, max_switches=50):
-        """Events [(kind, t, y)] ('slip', 'roll', 'spill') up to t_end."""
+        """Events [(kind, t, y)] ('slip', 'roll', 'spin_stop', 'spin_go', 'spill') up to t_end;
+        (events, final state, final mode)."""
         events = []
         t = 0.0
         y = np.array(y0, float)
@@ -142,14 +159,17 @@ class Oracle:
         start_dir = np.zeros(3)
         if mode == "sliding" and np.linalg.norm(self.slip(y[0:3], y[3:6], y[6:9])) == 0:
             raise ValueError("a sliding start needs a slip")
+        wn0 = y[6:9] @ self.normal(y[0:3])
+        spin = math.copysign(1.0, wn0) if wn0 != 0.0 else 1.0
+        if self.c_spin > 0 and wn0 == 0.0 and not self.spin_moves(y):
+            spin = 0
+
+        def rim(t, y, *_):
+            return np.linalg.norm(y[0:3]) - self.rim
+
+        rim.terminal = True
+        rim.direction = 1
         for _ in range(max_switches):
-
-            def rim(t, y, *_):
-                return np.linalg.norm(y[0:3]) - self.rim
-
-            rim.terminal = True
-            rim.direction = 1
-
             if mode == "rolling":
 
                 def switch(t, y, *_):
@@ -165,20 +185,43 @@ class Oracle:
 
                 switch.direction = -1
             switch.terminal = True
+
+            def spin_event(t, y, *_, sgn=spin):
+                X, V, W = y[0:3], y[3:6], y[6:9]
+                if sgn == 0:  # stuck: the couple it needs reaches c_spin a N
+                    return abs(self.spin_hold(X, V, W)) - self.spin_limit(X, V)
+                return sgn * (W @ self.normal(X)) if self.c_spin > 0 else 1.0
+
+            spin_event.terminal = True
+            spin_event.direction = 1 if spin == 0 else -1
             if mode == "rolling" and switch(t, y) > 0.0:  # static friction cannot hold it
-                sol = None
+                kind, t_ev, y_ev = "switch", t, y
             else:
                 sol = solve_ivp(
                     self.rhs, (t, t_end), y, method="DOP853", rtol=1e-12, atol=1e-14 * speed,
-                    events=(rim, switch), args=(mode, start_dir), dense_output=False,
+                    events=(rim, switch, spin_event), args=(mode, start_dir, spin),
+                    dense_output=False,
                 )  # fmt: skip
                 if sol.status == 0:
                     return events, sol.y[:, -1], mode
-                if sol.t_events[0].size:
-                    events.append(("spill", sol.t_events[0][0], sol.y_events[0][0]))
-                    return events, sol.y_events[0][0], mode
-                t = sol.t_events[1][0]
-                y = sol.y_events[1][0]
+                hits = [(te[0], i) for i, te in enumerate(sol.t_events) if te.size]
+                t_ev, i_ev = min(hits)
+                y_ev = sol.y_events[i_ev][0]
+                kind = ("spill", "switch", "spin")[i_ev]
+            t, y = t_ev, y_ev.copy()
+            if kind == "spill":
+                events.append(("spill", t, y))
+                return events, y, mode
+            if kind == "spin":  # the spin about the normal is zero from here (as located)
+                n = self.normal(y[0:3])
+                y[6:9] -= (y[6:9] @ n) * n
+                if spin == 0:
+                    events.append(("spin_go", t, y.copy()))
+                    spin = -math.copysign(1.0, self.spin_hold(y[0:3], y[3:6], y[6:9]))
+                else:
+                    events.append(("spin_stop", t, y.copy()))
+                    spin = -spin if self.spin_moves(y) else 0
+                continue
             if mode == "rolling":
                 X, V, W = y[0:3], y[3:6], y[6:9]
                 f = self.rolling_force(X, V, W)
@@ -190,6 +233,16 @@ class Oracle:
                 mode = "rolling"
                 events.append(("roll", t, y.copy()))
         raise RuntimeError("too many switches")
+
+    def spin_limit(self, X, V):
+        """The most static spin friction gives [N m], c_spin a N (with the engine's relative
+        band of 1e-9, docs/physics.md "Spin stick")."""
+        return self.c_spin * self.a * self.normal_force(X, V) * (1 + 1e-9)
+
+    def spin_moves(self, y):
+        """Whether a spin at zero cannot stay stuck: the holding couple exceeds the limit."""
+        X, V, W = y[0:3], y[3:6], y[6:9]
+        return abs(self.spin_hold(X, V, W)) > self.spin_limit(X, V)
 
 
 def start_state(alpha, r0, u0, v0, w0, slip_u, slip_v, a):

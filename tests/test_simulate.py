@@ -235,3 +235,100 @@ def test_step_budget_ends_the_trajectory_with_a_failed_event():
     assert ds.attrs["status_message"] == "maximum number of steps reached"
     assert ds.event_kind.attrs["flag_meanings"].split()[int(ds.event_kind[-1])] == "failed"
     assert ds.sizes["time"] >= 2
+
+
+# ------------------------------------------------------------------------------ sliding (mu_k)
+#: (alpha, scene keywords, r, v, w of a point on the rolling orbit, u0, slip_u, slip_v): a
+#: thrown ball that rolls and whose spin friction stops, releases and stops the spin again; a
+#: backspin throw that rolls again; a rolling ball that never slips.
+HYBRID_CASES = {
+    "spin stick": (0.25, dict(mu=0.6, mu_k=0.5, c_spin=0.2), 0.3, 0.8, 0.3, 0.5, 0.5, 0.0),
+    "backspin": (0.6, dict(mu=0.6, mu_k=0.5), 0.3, 0.6, 0.5, 1.0, 2.5, 0.0),
+    "rolls on": (1.0, dict(mu=0.05, mu_k=0.04), 0.2, 0.9, -1.5, 0.0, 0.0, 0.0),
+}
+HYBRID_KINDS = {
+    "spin stick": ["roll", "spin_stop", "spin_go", "spin_stop", "horizon"],
+    "backspin": ["roll", "horizon"],
+    "rolls on": ["horizon"],
+}
+
+
+@pytest.mark.parametrize("name", list(HYBRID_CASES))
+def test_hybrid_trajectory_follows_the_story(name):
+    """On a scene with mu_k, simulate lists the mode changes of engine.story on the same launch
+    and samples each stretch in its mode. The events come from the same story kernel, started
+    from the state simulate reports at t = 0 (rounding apart): the roll is located where the
+    slip speed falls to 10 rtol x the speed scale, so rounding of the start moves it by about
+    rtol x (speed / slip rate) ~ 1e-11 s at rtol 1e-11; 1e-8 s leaves a margin for the event
+    locator. The samples are a second integration of each stretch from the story's state at
+    its start (rtol 1e-11): the end state agrees with the story's to 1e-9 relative, and the
+    energy balance E + W - E0 (the three works integrated beside the state) to 1e-9 of E0."""
+    from engine.launch import invariants
+    from engine.simulate_hybrid import HYBRID_EVENT_KINDS
+    from engine.story import story
+
+    alpha, kw, r, v, w, u0, su, sv = HYBRID_CASES[name]
+    sc = engine.Scene(M=1.0, a=0.01, k=0.4, rim=1.0, **kw)
+    inv = invariants(alpha, r, 0.0, v, w, sc)
+    ds = simulate(alpha, float(inv["energy"]), float(inv["h"]), float(inv["Lz"]), sc,
+                  t_end=0.5, method="dop853", rtol=1e-11, u0=u0, slip_u=su, slip_v=sv)  # fmt: skip
+    kinds = [HYBRID_EVENT_KINDS[k] for k in ds.event_kind.values]
+    assert kinds == HYBRID_KINDS[name]
+    assert ds.event_kind.attrs["flag_meanings"].split() == list(HYBRID_EVENT_KINDS)
+    out = story(alpha, float(ds.r[0]), float(ds.v[0]), float(ds.w[0]), u0=u0, slip_u=su,
+                slip_v=sv, scene=sc, rtol=1e-11, horizon_time=0.5)  # fmt: skip
+    assert [e["kind"] for e in out["events"]] == kinds[:-1] and out["fate"] == ds.attrs["fate"]
+    for e, t, r_ev in zip(out["events"], ds.event_time.values, ds.event_r.values, strict=False):
+        assert t == pytest.approx(e["t"], abs=1e-8), e["kind"]
+        assert r_ev == pytest.approx(e["state"]["r"], rel=1e-8), e["kind"]
+    assert float(ds.r[-1]) == pytest.approx(out["fate_r"], rel=1e-9)
+    assert float(ds.theta[-1]) == pytest.approx(out["fate_theta"], rel=1e-9)
+    # the start: the launch; time increasing; the end at the horizon
+    assert ds.u[0] == u0 and float(ds.slip_speed[0]) == pytest.approx(math.hypot(su, sv))
+    assert np.all(np.diff(ds.time) > 0) and ds.time[-1] == 0.5 == ds.event_time[-1]
+    # the mode: sliding until the roll, rolling after it (no slip speed while rolling)
+    t_roll = ds.event_time.values[kinds.index("roll")] if "roll" in kinds else 0.0
+    mode = ds.mode.values
+    np.testing.assert_array_equal(mode, np.where(ds.time < t_roll, 1, 0))
+    speed = float(np.hypot(ds.u, ds.v).max())
+    assert float(ds.slip_speed.values[mode == 0].max()) <= 1e-12 * speed
+    if t_roll:
+        assert float(ds.slip_speed.values[mode == 1][1:].min()) > 0.0
+    # the spin stuck between spin_stop and spin_go: w = 0 exactly there
+    if "spin_go" in kinds:
+        t_stop, t_go = ds.event_time.values[[kinds.index("spin_stop"), kinds.index("spin_go")]]
+        assert np.all(ds.w.values[(ds.time >= t_stop) & (ds.time < t_go)] == 0.0)
+    E0 = ds.attrs["E0"]
+    assert float(np.abs(ds.balance_drift).max()) <= 1e-9 * E0
+    assert np.all(np.diff(ds.energy) <= 1e-9 * E0)  # E never rises
+    if t_roll or "spin_stop" in kinds:  # the roll and the spin's stop cost energy
+        assert float(ds.E_drift[-1]) < -1e-6 * E0
+
+
+def test_hybrid_trajectory_samples_on_dt_out_agree_with_a_tighter_run():
+    alpha, kw, r, v, w, u0, su, sv = HYBRID_CASES["spin stick"]
+    sc = engine.Scene(M=1.0, a=0.01, k=0.4, rim=1.0, **kw)
+    from engine.launch import invariants
+
+    inv = invariants(alpha, r, 0.0, v, w, sc)
+    args = (alpha, float(inv["energy"]), float(inv["h"]), float(inv["Lz"]), sc)
+    kw = dict(t_end=0.5, method="dop853", u0=u0, slip_u=su, slip_v=sv, dt_out=0.01)
+    ds = simulate(*args, rtol=1e-8, **kw)
+    tight = simulate(*args, rtol=1e-11, **kw)
+    on_grid = np.isclose(ds.time.values / 0.01, np.round(ds.time.values / 0.01), atol=1e-9)
+    assert on_grid.sum() == 51 and ds.sizes["time"] == 51 + ds.sizes["event"] - 1
+    # the samples of a run at rtol 1e-8 against rtol 1e-11 at the grid's times: the spin's
+    # stop and release move by ~rtol x their time scale, so the states agree to ~1e3 rtol
+    g, gt = ds.time.values[on_grid], tight.time.values
+    mask = np.isin(np.round(gt / 0.01, 6), np.round(g / 0.01, 6))
+    np.testing.assert_allclose(ds.r.values[on_grid], tight.r.values[mask], rtol=1e-5)
+    np.testing.assert_allclose(ds.theta.values[on_grid], tight.theta.values[mask], atol=1e-5)
+
+
+def test_hybrid_launch_keys_need_mu_k_and_t_end():
+    with pytest.raises(ValueError, match=r"u0=0\.5: .*needs kinetic friction, Scene\.mu_k"):
+        _call(u0=0.5)
+    with pytest.raises(ValueError, match=r"slip_v must be finite; got nan"):
+        _call(slip_v=math.nan)
+    with pytest.raises(ValueError, match=r"periods=1: a scene with mu_k .*give t_end"):
+        _call(scene=engine.Scene(mu=0.5, mu_k=0.4))

@@ -48,10 +48,13 @@ from .model import (
 )
 from .orbit import initial_state, orbit_start, run, tolerance_scales
 from .protocol import (
+    APOCENTRE,
     AT_VERTEX,
+    MAX_STEPS,
     OK,
     RECORD_NONE,
     RESTED,
+    SLIP,
     SLIPPED,
     SPILLED,
     copy_into,
@@ -157,6 +160,76 @@ def after_run(effects, status, y, p, t):
     if at_rest == SLIPPED:
         return True, FATE_SLIPPED, t
     return False, ROLLING, t
+
+
+@kernel
+def run_restarting(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_steps,
+                   record, dt_out, ev_t, ev_kind, ev_y, tr_t, tr_y, tr_rate):  # fmt: skip
+    """The run protocol (:func:`.orbit.run`: the same arguments and results) across stops by
+    rolling resistance, the one rest/restart loop of the fate maps and ``engine.simulate``.
+
+    Each stop is carried to zero speed (:func:`come_to_rest`): the stop's event and the last
+    recorded state move there. It ends the run if the sphere stays at rest (status RESTED) or
+    friction cannot hold it there (SLIPPED: the event becomes a slip); otherwise the sphere
+    starts again from rest with time running on, recording on from the state at rest. Without
+    recording only the last run's events are kept. A sphere that starts at rest where the
+    resistance holds it stays (or slips) at t = 0. Too many restarts: status MAX_STEPS.
+    """
+    y = y0.copy()
+    n_acc = 0
+    n_rej = 0
+    n_ev = 0
+    n_tr = 0
+    t0 = 0.0
+    if effects & ROLLING_RESISTANCE:
+        if y[2] == 0.0 and y[3] == 0.0:
+            _, at_rest = come_to_rest(y, p, effects)
+            if at_rest != OK:
+                return at_rest, 0, 0, 0.0, y, 0, 0
+    keep = record != RECORD_NONE
+    for _ in range(MAX_RESTARTS):
+        first = n_tr - 1 if n_tr > 0 else 0  # a restart's first state: the one at rest
+        rate = tr_rate[first:] if tr_rate.shape[0] > 0 else tr_rate
+        res = run(method, effects, y, p, orbit, rtol, atol, t_end - t0, n_apsides,
+                  max_steps - n_acc - n_rej, record, dt_out, ev_t[n_ev:], ev_kind[n_ev:],
+                  ev_y[n_ev:], tr_t[first:], tr_y[first:], rate)  # fmt: skip
+        status = res[0]
+        n_acc += res[1]
+        n_rej += res[2]
+        t = t0 + res[3]
+        copy_into(res[4], y)
+        for i in range(n_ev, n_ev + res[5]):
+            ev_t[i] += t0
+            if n_apsides > 0 and ev_kind[i] <= APOCENTRE:
+                n_apsides -= 1
+        for i in range(first, first + res[6]):
+            tr_t[i] += t0
+        n_ev += res[5]
+        n_tr = first + res[6] if keep else 0
+        if status != RESTED:
+            return status, n_acc, n_rej, t, y, n_ev, n_tr
+        dt, at_rest = come_to_rest(y, p, effects)
+        t += dt
+        if n_ev > 0:  # the stop, at zero speed
+            ev_t[n_ev - 1] = t
+            copy_into(y, ev_y[n_ev - 1])
+        if n_tr > 0:
+            tr_t[n_tr - 1] = t
+            copy_into(y, tr_y[n_tr - 1])
+            if tr_rate.shape[0] > 0:
+                tr_rate[n_tr - 1, :] = 0.0
+        if at_rest == SLIPPED:
+            if n_ev > 0:
+                ev_kind[n_ev - 1] = SLIP
+            return SLIPPED, n_acc, n_rej, t, y, n_ev, n_tr
+        if at_rest == RESTED:
+            return RESTED, n_acc, n_rej, t, y, n_ev, n_tr
+        t0 = t
+        if not keep:
+            n_ev = 0
+        if n_acc + n_rej >= max_steps:
+            break
+    return MAX_STEPS, n_acc, n_rej, t0, y, n_ev, n_tr
 
 
 @kernel
