@@ -19,8 +19,9 @@ from .methods import DEFAULT_RTOL, check_method, check_rtol
 from .scene import Scene
 from .schema import (
     DIMS,
-    LAUNCH_DIMS,
+    RELEASE,
     axis_attrs,
+    launch_dims,
     map_kind,
     result_attrs,
     result_variables,
@@ -58,8 +59,9 @@ def validate_axes(axes: dict[str, np.ndarray]) -> None:
     """ValueError naming the first offending axis value (either kind of grid)."""
     if "r0" in axes:
         validate_inputs(axes["alpha"], 0.0, 0.0, 0.0)
-        for name in ("r0", "v0", "w0"):
-            _check_array(name, axes[name])
+        for name in ("r0", "v0", "w0", *RELEASE):
+            if name in axes:
+                _check_array(name, axes[name])
         if (axes["r0"] <= 0.0).any():
             raise ValueError(f"r0 must be > 0; got {axes['r0'][axes['r0'] <= 0.0][0]!r}")
         return
@@ -277,20 +279,46 @@ def launch_survey(
     horizon_revolutions: float | None = None,
     progress: Callable[[int, int], None] | None = None,
     block_points: int = BLOCK_POINTS,
+    u0: Any = 0.0,
+    slip_u: Any = 0.0,
+    slip_v: Any = 0.0,
 ) -> xr.Dataset:
     """A map over launch states: the sphere released at distance ``r0`` [m] from its cone's
     vertex (along the generatrix) with radial speed 0, azimuthal speed ``v0`` [m/s] and spin
     ``w0`` = a omega_nu [m/s], on cones of half-aperture ``alpha``. Dims (alpha, r0, v0, w0);
     the invariants ``energy`` (calE), ``h`` and ``Lz`` of each launch are variables
-    (:func:`engine.invariants`); fate maps start each orbit at its launch point."""
-    values = (alpha, r0, v0, w0)
-    return _grid(LAUNCH_DIMS, values, scene, method, False, circular_tol, rtol, horizon_time,
+    (:func:`engine.invariants`); fate maps start each orbit at its launch point.
+
+    On a scene with kinetic friction (``Scene.mu_k``: a slip is a transition) a launch need not
+    roll: ``u0`` is its radial speed [m/s] (outward > 0) and ``slip_u``, ``slip_v`` the slip
+    velocity of the contact point [m/s] along the generatrix and the parallel (0, 0: rolling;
+    thrown outward without spin: slip_u = u0; backspin makes slip_u larger). Each is a number
+    or a 1-D axis; the dims are then (alpha, r0, v0, w0, u0, slip_u, slip_v), a number a
+    length-1 axis, and the invariants are those of the rolling orbit through the launch point
+    with its radial speed. Without ``mu_k`` they must be 0 (a ValueError names the one that is
+    not)."""
+    scene = Scene() if scene is None else scene
+    dims = launch_dims(scene)
+    values = [alpha, r0, v0, w0]
+    release = {"u0": u0, "slip_u": slip_u, "slip_v": slip_v}
+    if len(dims) == 4:  # a scene on which every launch rolls (no mu_k)
+        for name, value in release.items():
+            arr = _axis(name, value)
+            if np.any(arr != 0.0):
+                raise ValueError(
+                    f"{name} = {value!r}: a launch with a radial speed or a slip velocity needs "
+                    "Scene.mu_k (kinetic friction: the sliding model); without it every launch "
+                    "rolls from rest radially"
+                )
+    else:
+        values += list(release.values())
+    return _grid(dims, values, scene, method, False, circular_tol, rtol, horizon_time,
                  horizon_revolutions, progress, block_points)  # fmt: skip
 
 
 def _grid(dims, values, scene, method, energy_relative, circular_tol, rtol, horizon_time,
           horizon_revolutions, progress, points) -> xr.Dataset:  # fmt: skip
-    """A 4-D survey over the axes ``dims`` (invariants or launch states), block by block."""
+    """A survey over the axes ``dims`` (invariants or launch states), block by block."""
     scene = Scene() if scene is None else scene
     rtol = _check_method_and_rtol(method, scene, rtol)
     circular_tol = _check_tol(circular_tol)
@@ -318,5 +346,5 @@ def _grid(dims, values, scene, method, energy_relative, circular_tol, rtol, hori
     data_vars = {name: (dims, col, variable_attrs(name, kind)) for name, col in results.items()}
     coords = {name: (name, arr, axis_attrs(name, energy_relative)) for name, arr in axes.items()}
     attrs = survey_attrs(scene, method, circular_tol, rtol, energy_relative, horizon,
-                         launch=dims == LAUNCH_DIMS)  # fmt: skip
+                         launch=dims != DIMS)  # fmt: skip
     return xr.Dataset(data_vars, coords=coords, attrs=attrs)

@@ -26,8 +26,9 @@ from .methods import DEFAULT_RTOL
 from .scene import Scene
 from .schema import (
     DIMS,
+    FATE_KINDS,
     INTEGRATED,
-    LAUNCH_DIMS,
+    RELEASE,
     REPLACED_BY_INTEGRATION,
     RESULTS,
     map_kind,
@@ -49,6 +50,7 @@ def evaluate_flat(
     rtol: float = DEFAULT_RTOL,
     horizon: Horizon | None = None,
     r_start: np.ndarray | None = None,
+    release: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> dict[str, np.ndarray]:
     """Kernel call on equal-length 1-D float64 arrays (validated by the caller).
 
@@ -57,7 +59,8 @@ def evaluate_flat(
     (:func:`engine.schema.map_kind`): where rolling ends on a cone with a rim or a friction
     limit (closed form), one integrated radial period, or each orbit's fate (integrated up to
     ``horizon`` from ``r_start``, by default r_min; then the closed form describes the launch
-    orbit on the ideal cone).
+    orbit on the ideal cone; ``release``: (u0, slip_u, slip_v) of launches that may slide,
+    :func:`engine.fates.fates`).
     """
     a = np.ascontiguousarray(alpha, np.float64)
     e = np.ascontiguousarray(energy, np.float64)
@@ -67,7 +70,7 @@ def evaluate_flat(
     wanted = result_variables(method, scene)
     cls, f = empty_outputs(a.shape[0])
     rim, mu = scene.rim_or_inf, scene.mu_or_inf
-    if kind == "fate":  # the launch orbit on the ideal cone; the integration follows the scene
+    if kind in FATE_KINDS:  # the launch orbit on the ideal cone; the integration follows the scene
         rim, mu = math.inf, math.inf
     orbit_batch(a, e, hh, lz, scene.M, scene.g, scene.k, scene.a, rim, mu, circular_tol, cls, f)
     out: dict[str, np.ndarray] = {"orbit_class": cls}
@@ -76,10 +79,10 @@ def evaluate_flat(
             out[name] = f[i]
     if kind == "one period":
         out.update(_integrate_bounded(a, e, hh, lz, scene, method, rtol, cls))
-    elif kind == "fate":
+    elif kind in FATE_KINDS:
         start = f[0] if r_start is None else np.ascontiguousarray(r_start, np.float64)
         out.update(fates(a, e, hh, lz, start, scene, method, rtol, require_horizon(horizon),
-                         classes=cls))  # fmt: skip
+                         classes=cls, release=release))  # fmt: skip
     return out
 
 
@@ -159,8 +162,8 @@ def minimum_energy_flat(alpha: np.ndarray, h: np.ndarray, Lz: np.ndarray, scene:
 def evaluate_block(spec: dict[str, Any], slices: tuple[slice, ...]) -> dict[str, np.ndarray]:
     """Results on one hyperslab of the grid, each array shaped like the slab.
 
-    ``spec``: ``dims`` (:data:`engine.schema.DIMS`, the default, or
-    :data:`engine.schema.LAUNCH_DIMS`) and each axis (1-D float64), ``scene`` (Scene),
+    ``spec``: ``dims`` (one of :data:`engine.schema.GRID_DIMS`; :data:`engine.schema.DIMS`
+    by default) and each axis (1-D float64), ``scene`` (Scene),
     ``method``, ``energy_relative``, ``circular_tol``, ``rtol``, ``horizon`` (fate maps).
     With a relative energy axis the absolute energy (``energy_absolute``) is V_min + offset
     |V_min| from the slab's own V_min; where V has no minimum it is NaN and the point is classed
@@ -206,12 +209,15 @@ def _closed_form_grid(sub: list[np.ndarray], scene: Scene, spec: dict[str, Any])
 def _flat_block(sub: list[np.ndarray], dims: tuple[str, ...], scene: Scene,
                 spec: dict[str, Any]):  # fmt: skip
     """Any map on the grid of the axes ``sub``, through :func:`evaluate_flat` on its points."""
-    A, X1, X2, X3 = (x.reshape(-1) for x in np.meshgrid(*sub, indexing="ij"))
+    A, X1, X2, X3, *rel = (x.reshape(-1) for x in np.meshgrid(*sub, indexing="ij"))
     e_abs = None
     r_start = None
-    if dims == LAUNCH_DIMS:
-        inv = invariants(A, X1, 0.0, X2, X3, scene)
+    release = None
+    if dims != DIMS:  # launch states (with the release's u0, slip_u, slip_v on a sliding scene)
+        u0 = rel[0] if rel else 0.0
+        inv = invariants(A, X1, u0, X2, X3, scene)
         E, H, L, r_start = inv["energy"], inv["h"], inv["Lz"], X1
+        release = tuple(rel) if tuple(dims[4:]) == RELEASE else None
     else:
         E, H, L = X1, X2, X3
         if spec["energy_relative"]:
@@ -220,7 +226,7 @@ def _flat_block(sub: list[np.ndarray], dims: tuple[str, ...], scene: Scene,
             E = e_abs
     res = evaluate_flat(A, E, H, L, scene, spec["method"], circular_tol=spec["circular_tol"],
                         rtol=spec["rtol"], horizon=spec.get("horizon"),
-                        r_start=r_start)  # fmt: skip
+                        r_start=r_start, release=release)  # fmt: skip
     if e_abs is not None:
         undefined = np.isnan(e_abs)
         if undefined.any():

@@ -56,7 +56,6 @@ from .io.summary import Summary
 from .io.zarrstore import RunStore
 from .progress import format_bytes
 from .runstats import AlreadyComplete, RunError, RunFailed, RunStats
-from .schema import DIMS
 
 if TYPE_CHECKING:
     from .surveyfile import Survey
@@ -256,7 +255,7 @@ def run_survey(
         tc = time.perf_counter()
         compiling = getattr(progress, "compiling", contextlib.nullcontext)
         with compiling():  # a first run's compile is announced, not a silent wait
-            evaluate_block(spec, tuple(slice(0, 1) for _ in DIMS))
+            evaluate_block(spec, tuple(slice(0, 1) for _ in survey.dims))
         t0 = time.perf_counter()
         try:
             backend = open_backend(scheduler, workers)

@@ -56,32 +56,25 @@ naming the file, the key path (``axes.alpha.values[1]``) and the value (did-you-
 from __future__ import annotations
 
 import dataclasses
-import math
 import os
 import re
 import tomllib
-from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from .api import launch_survey as api_launch_survey
-from .api import survey as api_survey
 from .errortext import toml_repr, toml_type
-from .fates import Horizon, check_horizon, check_mappable
+from .fates import Horizon, check_horizon
 from .grid import grid_too_large
 from .io.atomic import read_regular
 from .kernels.geometry import CIRCULAR_TOL as DEFAULT_CIRCULAR_TOL
 from .methods import DEFAULT_RTOL, METHODS, RTOL_RANGE, check_method, check_rtol
 from .scene import Scene
 from .schema import DIMS as AXES
-from .schema import LAUNCH_DIMS, map_kind, result_variables, survey_attrs
-from .surveyaxes import MAX_AXIS_POINTS, RELATIVE_TO, SCALES, AxisReader
-
-if TYPE_CHECKING:
-    import xarray as xr
+from .schema import FATE_KINDS, LAUNCH_DIMS, RELEASE, launch_dims, map_kind
+from .surveyaxes import MAX_AXIS_POINTS, RELATIVE_TO, SCALES, AxisReader, frozen
+from .surveydef import Survey
 
 __all__ = [
     "AXES",
@@ -123,94 +116,6 @@ class SurveyError(ValueError):
         self.problem = problem
         where = f"{origin}: {key}" if key else origin
         super().__init__(f"{where}: {problem}")
-
-
-@dataclass(frozen=True, eq=False)
-class Survey:
-    """A validated survey definition.
-
-    The axes are read-only 1-D float64 arrays: ``alpha`` [radian], ``energy`` [J] (or, when
-    ``energy_relative``, the dimensionless offsets (energy - V_min)/|V_min|), ``h`` [m s-1] and
-    ``Lz`` [kg m2 s-1]. ``source_text`` is the TOML text verbatim, stored with the results.
-    """
-
-    title: str
-    method: str
-    rtol: float
-    circular_tol: float
-    scene: Scene
-    alpha: np.ndarray
-    energy: np.ndarray | None
-    h: np.ndarray | None
-    Lz: np.ndarray | None
-    energy_relative: bool
-    source_text: str
-    r0: np.ndarray | None = None
-    v0: np.ndarray | None = None
-    w0: np.ndarray | None = None
-    horizon: Horizon | None = None
-    precision: str = "double"
-
-    @property
-    def dims(self) -> tuple[str, ...]:
-        """The survey's axes: (alpha, energy, h, Lz), or (alpha, r0, v0, w0) over launch
-        states."""
-        return LAUNCH_DIMS if self.launch else AXES
-
-    @property
-    def shape(self) -> tuple[int, ...]:
-        """Grid shape, in the order of :attr:`dims`."""
-        return tuple(getattr(self, d).size for d in self.dims)
-
-    @property
-    def size(self) -> int:
-        """Number of grid points."""
-        return math.prod(self.shape)
-
-    @property
-    def launch(self) -> bool:
-        """A survey over launch states (its dims are alpha, r0, v0, w0)."""
-        return self.r0 is not None
-
-    def variables(self) -> dict[str, np.dtype]:
-        """Names and dtypes of the result variables, in file order (:mod:`engine.schema`); the
-        float ones float32 with ``precision = "single"``."""
-        names = result_variables(self.method, self.scene, self.energy_relative, self.launch)
-        if self.precision == "single":
-            return {n: np.dtype(np.float32) if dt.kind == "f" else dt for n, dt in names.items()}
-        return names
-
-    def attrs(self) -> dict[str, Any]:
-        """The global attributes of its results (:func:`engine.schema.survey_attrs`), and
-        ``precision`` where it is single."""
-        attrs = survey_attrs(self.scene, self.method, self.circular_tol, self.rtol,
-                             self.energy_relative, self.horizon, self.launch)  # fmt: skip
-        if self.precision == "single":
-            attrs["precision"] = "single: float results stored as float32 (~7 digits)"
-        return attrs
-
-    def run(self, progress: Callable[[int, int], None] | None = None) -> xr.Dataset:
-        """Evaluate the survey in memory (:func:`engine.survey` or :func:`engine.launch_survey`);
-        ``progress(done, total)`` per block."""
-        horizon = self.horizon or Horizon()
-        kw: dict[str, Any] = dict(
-            scene=self.scene,
-            method=self.method,
-            circular_tol=self.circular_tol,
-            rtol=self.rtol,
-            horizon_time=horizon.time,
-            horizon_revolutions=horizon.revolutions,
-            progress=progress,
-        )
-        if self.launch:
-            ds = api_launch_survey(self.alpha, self.r0, self.v0, self.w0, **kw)
-        else:
-            ds = api_survey(self.alpha, self.energy, self.h, self.Lz,
-                            energy_relative=self.energy_relative, **kw)  # fmt: skip
-        for name, dt in self.variables().items():
-            if name in ds and ds[name].dtype != dt:
-                ds[name] = ds[name].astype(dt)
-        return ds
 
 
 def load_survey(path: str | os.PathLike[str]) -> Survey:
@@ -302,8 +207,9 @@ class _Reader(AxisReader):
         self.method_for(method, scene, rtol, doc.get("rtol", DEFAULT_RTOL))
         horizon = self.horizon(doc, method, scene)
         axes = self.table(doc, "axes", "", required=True)
-        dims = LAUNCH_DIMS if any(n in axes for n in LAUNCH_DIMS[1:]) else AXES
-        other = AXES if dims == LAUNCH_DIMS else LAUNCH_DIMS
+        launch = any(n in axes for n in (*LAUNCH_DIMS[1:], *RELEASE))
+        dims = launch_dims(scene) if launch else AXES
+        other = AXES if launch else (*LAUNCH_DIMS, *RELEASE)
         for name in axes:
             if name in other and name not in dims:
                 raise self.fail(
@@ -311,15 +217,20 @@ class _Reader(AxisReader):
                     "a survey spans invariants (alpha, energy, h, Lz) or launch states "
                     "(alpha, r0, v0, w0), not both",
                 )
-        self.check_keys(axes, dims, "axes")
+        release = [n for n in RELEASE if n in axes and n not in dims]  # a scene without mu_k
+        self.check_keys(axes, (*dims, *release), "axes")
         for name in dims:
-            if name not in axes:
+            if name not in axes and name not in RELEASE:
                 sets = "alpha, energy, h, Lz (invariants) or alpha, r0, v0, w0 (launch states)"
                 raise self.fail(f"axes.{name}", f"missing; give every axis of {sets}")
         if why := grid_too_large(_counts(axes, dims)):  # before any axis is built
             raise self.fail("axes", why)
-        arrays: dict[str, Any] = {name: self.axis(axes, name) for name in dims}
-        if dims == LAUNCH_DIMS:
+        arrays: dict[str, Any] = {
+            name: self.axis(axes, name) if name in axes else frozen(np.zeros(1)) for name in dims
+        }
+        for name in release:
+            self.rolling_release(self.axis(axes, name), name)
+        if launch:
             arrays.update(energy=None, h=None, Lz=None)
         energy_relative = "relative_to" in axes.get("energy", {})
         precision = self.choice(doc.get("precision", "double"), "precision", PRECISIONS)
@@ -336,6 +247,18 @@ class _Reader(AxisReader):
             **arrays,
         )
 
+    def rolling_release(self, values: np.ndarray, name: str) -> None:
+        """An axis of the release (u0, slip_u, slip_v) on a scene without kinetic friction:
+        refused unless every value is 0 (every launch rolls from rest radially there)."""
+        bad = values[values != 0.0]
+        if bad.size:
+            raise self.bad_value(
+                f"axes.{name}",
+                float(bad[0]),
+                "a launch with a radial speed or a slip velocity needs scene.mu_k (kinetic "
+                "friction: the sliding model); without it every launch rolls from rest radially",
+            )
+
     def horizon(self, doc: dict, method: str, scene: Scene) -> Horizon | None:
         """``[horizon]``: how long a fate map follows each orbit (the API's check)."""
         table = self.table(doc, "horizon", "", required=False) or {}
@@ -344,7 +267,7 @@ class _Reader(AxisReader):
         for key, v in values.items():
             if not v > 0.0:
                 raise self.bad_value(f"horizon.{key}", table[key], "must be > 0")
-        if not values and map_kind(method, scene) == "fate":
+        if not values and map_kind(method, scene) in FATE_KINDS:
             raise self.fail(
                 "horizon",
                 "a fate map follows each orbit to its first terminal event (spill, slip, rest, "
@@ -389,7 +312,7 @@ class _Reader(AxisReader):
             else:
                 kwargs[field.name] = self.number(value, key)
         try:
-            return check_mappable(Scene(**kwargs))
+            return Scene(**kwargs)
         except ValueError as exc:
             m = re.search(r"Scene\.(\w+)", str(exc))
             name = m.group(1) if m else ""
