@@ -26,8 +26,8 @@ from .plan import RunPlan, survey_plan
 from .scene import Scene
 from .schema import (
     DIMS,
-    LAUNCH_DIMS,
     axis_attrs,
+    launch_dims,
     map_kind,
     result_attrs,
     result_variables,
@@ -190,14 +190,41 @@ def launch_survey(
     horizon_revolutions: float | None = None,
     progress: Callable[[int, int], None] | None = None,
     block_points: int = BLOCK_POINTS,
+    u0: Any = 0.0,
+    slip_u: Any = 0.0,
+    slip_v: Any = 0.0,
 ) -> xr.Dataset:
     """A map over launch states: the sphere released at distance ``r0`` [m] from its cone's
     vertex (along the generatrix) with radial speed 0, azimuthal speed ``v0`` [m/s] and spin
     ``w0`` = a omega_nu [m/s], on cones of half-aperture ``alpha``. Dims (alpha, r0, v0, w0);
     the invariants ``energy`` (calE), ``h`` and ``Lz`` of each launch are variables
-    (:func:`engine.invariants`); fate maps start each orbit at its launch point."""
+    (:func:`engine.invariants`); fate maps start each orbit at its launch point.
+
+    On a scene with kinetic friction (``Scene.mu_k``: a slip is a transition) a launch need not
+    roll: ``u0`` is its radial speed [m/s] (outward > 0) and ``slip_u``, ``slip_v`` the slip
+    velocity of the contact point [m/s] along the generatrix and the parallel (0, 0: rolling;
+    thrown outward without spin: slip_u = u0; backspin makes slip_u larger). Each is a number
+    or a 1-D axis; the dims are then (alpha, r0, v0, w0, u0, slip_u, slip_v), a number a
+    length-1 axis, and the invariants are those of the rolling orbit through the launch point
+    with its radial speed. Without ``mu_k`` they must be 0 (a ValueError names the one that is
+    not)."""
+    scene = Scene() if scene is None else scene
+    dims = launch_dims(scene)
+    values = dict(alpha=alpha, r0=r0, v0=v0, w0=w0)
+    release = {"u0": u0, "slip_u": slip_u, "slip_v": slip_v}
+    if len(dims) == 4:  # a scene on which every launch rolls (no mu_k)
+        for name, value in release.items():
+            arr = np.atleast_1d(check_numbers(name, value)).astype(np.float64)
+            if np.any(arr != 0.0):
+                raise ValueError(
+                    f"{name} = {value!r}: a launch with a radial speed or a slip velocity needs "
+                    "Scene.mu_k (kinetic friction: the sliding model); without it every launch "
+                    "rolls from rest radially"
+                )
+    else:
+        values.update(release)
     plan = survey_plan(
-        LAUNCH_DIMS, dict(alpha=alpha, r0=r0, v0=v0, w0=w0), scene, method,
+        dims, values, scene, method,
         circular_tol=circular_tol, rtol=rtol, horizon_time=horizon_time,
         horizon_revolutions=horizon_revolutions, block_points=block_points,
     )  # fmt: skip

@@ -27,7 +27,7 @@ from .io.formats import OutputFormat, format_for
 from .methods import METHODS, RTOL_RANGE, Method, get_method
 from .methods import check_method as _registry_check_method
 from .scene import Scene
-from .schema import DIMS, LAUNCH_DIMS, map_kind
+from .schema import FATE_KINDS, GRID_DIMS, map_kind
 
 __all__ = [
     "PlanError",
@@ -144,14 +144,14 @@ def check_horizon(method: Method, scene: Scene, time: Any, revolutions: Any) -> 
             if not math.isfinite(values[name]):
                 raise PlanError(name, "must be finite (leave it out for no limit)", v)
     kind = map_kind(method.name, scene)
-    if kind == "fate" and not values:
+    if kind in FATE_KINDS and not values:
         raise PlanError(
             "horizon",
             "is required: a fate map follows each orbit to its first terminal event (spill, "
             "slip, rest, vertex) or a horizon; give horizon_time [s] and/or horizon_revolutions "
             "(a survey file: a [horizon] table with time and/or revolutions)",
         )
-    if kind != "fate" and values:
+    if kind not in FATE_KINDS and values:
         raise PlanError(
             "horizon",
             "applies to fate maps only (an integrator on a scene with rolling resistance, a "
@@ -253,8 +253,8 @@ def check_values(name: str, values: np.ndarray) -> None:
 def check_axes(dims: tuple[str, ...], values: dict[str, Any]) -> tuple[np.ndarray, ...]:
     """The axes ``dims`` as read-only 1-D float64 arrays: each non-empty, every value passing
     :func:`axis_problem`, the grid not too large for a run."""
-    if dims not in (DIMS, LAUNCH_DIMS):
-        raise PlanError("dims", f"must be {DIMS} or {LAUNCH_DIMS}", dims)
+    if dims not in GRID_DIMS:
+        raise PlanError("dims", f"must be one of {GRID_DIMS}", dims)
     out = []
     for name in dims:
         arr = np.array(np.atleast_1d(check_numbers(name, values[name])), np.float64)

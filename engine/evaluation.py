@@ -26,8 +26,9 @@ from .methods import DEFAULT_RTOL
 from .scene import Scene
 from .schema import (
     DIMS,
+    FATE_KINDS,
     INTEGRATED,
-    LAUNCH_DIMS,
+    RELEASE,
     REPLACED_BY_INTEGRATION,
     RESULTS,
     map_kind,
@@ -52,6 +53,7 @@ def evaluate_flat(
     rtol: float = DEFAULT_RTOL,
     horizon: Horizon | None = None,
     r_start: np.ndarray | None = None,
+    release: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> dict[str, np.ndarray]:
     """Kernel call on equal-length 1-D float64 arrays (validated by the caller).
 
@@ -60,7 +62,8 @@ def evaluate_flat(
     (:func:`engine.schema.map_kind`): where rolling ends on a cone with a rim or a friction
     limit (closed form), one integrated radial period, or each orbit's fate (integrated up to
     ``horizon`` from ``r_start``, by default r_min; then the closed form describes the launch
-    orbit on the ideal cone).
+    orbit on the ideal cone; ``release``: (u0, slip_u, slip_v) of launches that may slide,
+    :func:`engine.fates.fates`).
     """
     a = np.ascontiguousarray(alpha, np.float64)
     e = np.ascontiguousarray(energy, np.float64)
@@ -70,7 +73,7 @@ def evaluate_flat(
     wanted = result_variables(method, scene)
     cls, f = empty_outputs(a.shape[0])
     p = scene.params()
-    if kind == "fate":  # the launch orbit on the ideal cone; the integration follows the scene
+    if kind in FATE_KINDS:  # the launch orbit on the ideal cone; the integration follows the scene
         p = ideal_cone(p)
     orbit_batch(a, e, hh, lz, p, circular_tol, cls, f)
     out: dict[str, np.ndarray] = {"orbit_class": cls}
@@ -79,10 +82,10 @@ def evaluate_flat(
             out[name] = f[i]
     if kind == "one period":
         out.update(_integrate_bounded(a, e, hh, lz, scene, method, rtol, cls))
-    elif kind == "fate":
+    elif kind in FATE_KINDS:
         start = f[0] if r_start is None else np.ascontiguousarray(r_start, np.float64)
         out.update(fates(a, e, hh, lz, start, scene, method, rtol, require_horizon(horizon),
-                         classes=cls))  # fmt: skip
+                         classes=cls, release=release))  # fmt: skip
     return out
 
 
@@ -161,9 +164,9 @@ def minimum_energy_flat(alpha: np.ndarray, h: np.ndarray, Lz: np.ndarray, scene:
 def evaluate_block(plan: RunPlan, slices: tuple[slice, ...]) -> dict[str, np.ndarray]:
     """Results on one hyperslab of the grid, each array shaped like the slab.
 
-    ``plan``: the validated run plan (:class:`engine.plan.RunPlan`): its dims
-    (:data:`engine.schema.DIMS` or :data:`engine.schema.LAUNCH_DIMS`) and axes, scene, method,
-    map kind, ``energy_relative``, ``circular_tol``, ``rtol`` and ``horizon`` (fate maps).
+    ``plan``: the validated run plan (:class:`engine.plan.RunPlan`): its dims (one of
+    :data:`engine.schema.GRID_DIMS`) and axes, scene, method, map kind, ``energy_relative``,
+    ``circular_tol``, ``rtol`` and ``horizon`` (fate maps).
     With a relative energy axis the absolute energy (``energy_absolute``) is V_min + offset
     |V_min| from the slab's own V_min; where V has no minimum it is NaN and the point is classed
     forbidden (out_of_range where its numbers are, as :func:`evaluate_flat` says). On a grid
@@ -202,13 +205,16 @@ def _closed_form_grid(sub: list[np.ndarray], plan: RunPlan):
 
 def _flat_block(sub: list[np.ndarray], plan: RunPlan):
     """Any map on the grid of the axes ``sub``, through :func:`evaluate_flat` on its points."""
-    scene = plan.scene
-    A, X1, X2, X3 = (x.reshape(-1) for x in np.meshgrid(*sub, indexing="ij"))
+    scene, dims = plan.scene, plan.dims
+    A, X1, X2, X3, *rel = (x.reshape(-1) for x in np.meshgrid(*sub, indexing="ij"))
     e_abs = None
     r_start = None
-    if plan.dims == LAUNCH_DIMS:
-        inv = invariants(A, X1, 0.0, X2, X3, scene)
+    release = None
+    if dims != DIMS:  # launch states (with the release's u0, slip_u, slip_v on a sliding scene)
+        u0 = rel[0] if rel else 0.0
+        inv = invariants(A, X1, u0, X2, X3, scene)
         E, H, L, r_start = inv["energy"], inv["h"], inv["Lz"], X1
+        release = tuple(rel) if tuple(dims[4:]) == RELEASE else None
     else:
         E, H, L = X1, X2, X3
         if plan.energy_relative:
@@ -216,7 +222,8 @@ def _flat_block(sub: list[np.ndarray], plan: RunPlan):
             e_abs = vmin + E * np.abs(vmin)
             E = e_abs
     res = evaluate_flat(A, E, H, L, scene, plan.method.name, circular_tol=plan.circular_tol,
-                        rtol=plan.rtol, horizon=plan.horizon, r_start=r_start)  # fmt: skip
+                        rtol=plan.rtol, horizon=plan.horizon, r_start=r_start,
+                        release=release)  # fmt: skip
     if e_abs is not None:
         undefined = np.isnan(e_abs)
         if undefined.any():

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .hybrid import HYBRID_VARIABLES, hybrid_fates
 from .integrated import fate_points
 from .kernels.effects import REVOLUTIONS
 from .kernels.fate import FATE_ROWS
@@ -16,7 +17,7 @@ from .kernels.geometry import BOUNDED, CIRCULAR, HYPERBOLIC, RADIAL
 from .kernels.model import P_THETA_MAX
 from .methods import check_method
 from .scene import Scene
-from .schema import map_kind
+from .schema import FATE_KINDS, map_kind
 
 __all__ = ["Horizon", "fates", "check_horizon", "require_horizon", "DEFAULT_MAX_STEPS"]
 
@@ -74,7 +75,7 @@ def check_horizon(
     since nothing would use it): the one check of the API and the survey file."""
     horizon = Horizon(time, revolutions)
     kind = map_kind(method, scene)
-    if kind == "fate":
+    if kind in FATE_KINDS:
         return require_horizon(horizon)
     if horizon.given:
         raise ValueError(
@@ -82,18 +83,6 @@ def check_horizon(
             f"resistance, a rim or a friction limit); this is a {kind} map"
         )
     return None
-
-
-def check_mappable(scene: Scene) -> Scene:
-    """``scene`` if a survey map can follow all its effects; ValueError naming the field
-    otherwise (the sliding model has no survey map yet: not silently today's map, where a
-    slip is an end)."""
-    if "sliding" in scene.effects:
-        raise ValueError(
-            "Scene.mu_k makes a slip a transition, and survey maps of the sliding model are not "
-            "wired yet: use engine.story.launch_fates (one launch: engine.story.story)"
-        )
-    return scene
 
 
 def require_horizon(horizon: Horizon | None) -> Horizon:
@@ -119,16 +108,22 @@ def fates(
     *,
     classes: np.ndarray | None = None,
     max_steps: int = DEFAULT_MAX_STEPS,
+    release: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> dict[str, np.ndarray]:
     """The fate of each orbit, started at rest radially at ``r_start`` (its r_min on an
     invariant grid, the launch radius on a launch grid; NaN: no orbit).
 
     Returns ``fate`` (int8, :data:`engine.kernels.fate.FATE_NAMES`), the float rows of
-    :data:`engine.kernels.fate.FATE_ROWS` and ``n_steps``.
+    :data:`engine.kernels.fate.FATE_ROWS` and ``n_steps``. On a scene with kinetic friction
+    (``Scene.mu_k``) a slip is a transition: the whole story of each orbit
+    (:func:`engine.hybrid.hybrid_fates`, its fates and variables), ``release`` = (u0, slip_u,
+    slip_v) [m/s] the radial speed and slip velocity at the start (None: rolling at rest
+    radially), ``energy`` the rolling orbit's calE through the start with that radial speed.
     """
     m = check_method(method, scene, integrator=True)
     require_horizon(horizon)
-    check_mappable(scene)
+    if release is not None and "sliding" not in scene.effects:
+        raise ValueError("a launch that is not rolling (u0, slip_u, slip_v) needs Scene.mu_k")
     n = alpha.shape[0]
     params = scene.params()
     params[P_THETA_MAX] = horizon.theta_max
@@ -137,6 +132,13 @@ def fates(
     if classes is not None:  # points without an orbit have no start
         has_orbit = np.isin(classes, (BOUNDED, CIRCULAR, HYPERBOLIC, RADIAL))
         start = np.where(has_orbit, start, np.nan)
+    if "sliding" in scene.effects:
+        u0, slip_u, slip_v = (None, None, None) if release is None else release
+        e_rest = energy if u0 is None else energy - 0.5 * scene.M * u0 * u0  # the kernel's
+        res = hybrid_fates(alpha, e_rest, h, Lz, start, scene, method, rtol, horizon.t_max,
+                           horizon.theta_max, u0=u0, slip_u=slip_u, slip_v=slip_v,
+                           max_steps=max_steps)  # fmt: skip
+        return {name: res[name] for name in ("fate", *FATE_ROWS, *HYBRID_VARIABLES, "n_steps")}
     out_fate = np.zeros(n, np.int8)
     out_f = np.empty((len(FATE_ROWS), n))
     out_n = np.zeros(n, np.int64)

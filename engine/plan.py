@@ -37,7 +37,7 @@ from .io.formats import OutputFormat, format_for
 from .kernels.geometry import CIRCULAR_TOL
 from .methods import DEFAULT_RTOL, Method
 from .scene import Scene
-from .schema import LAUNCH_DIMS, map_kind, result_variables, survey_attrs
+from .schema import DIMS, map_kind, result_variables, survey_attrs
 
 if TYPE_CHECKING:
     from .surveyfile import Survey
@@ -94,7 +94,7 @@ class RunPlan:
 
     @property
     def launch(self) -> bool:
-        return self.dims == LAUNCH_DIMS
+        return self.dims != DIMS
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -140,8 +140,8 @@ def survey_plan(
     complevel: Any = None,
     output_format: Any = None,
 ) -> RunPlan:
-    """The plan of a survey over the axes ``dims`` (:data:`engine.schema.DIMS` or
-    :data:`engine.schema.LAUNCH_DIMS`) holding ``values``: every input checked by its one
+    """The plan of a survey over the axes ``dims`` (one of
+    :data:`engine.schema.GRID_DIMS`) holding ``values``: every input checked by its one
     function, in this order (the first problem is raised, a :class:`PlanError`)."""
     scene = check_scene(scene)
     m = check_method(method, scene)
@@ -149,14 +149,14 @@ def survey_plan(
     circular_tol = check_circular_tol(circular_tol)
     horizon = check_horizon(m, scene, horizon_time, horizon_revolutions)
     energy_relative = check_energy_relative(energy_relative)
-    if energy_relative and dims == LAUNCH_DIMS:
+    if energy_relative and tuple(dims) != DIMS:
         raise PlanError("energy_relative", "applies to an energy axis, not to launch states")
     precision = check_precision(precision)
     path, fmt, compression, complevel = check_output(out, compression, complevel, output_format)
     check_block_points(block_points)
     axes = check_axes(tuple(dims), values)
     block_points = check_block_points(block_points, tuple(a.size for a in axes))
-    names = result_variables(m.name, scene, energy_relative, dims == LAUNCH_DIMS)
+    names = result_variables(m.name, scene, energy_relative, tuple(dims) != DIMS)
     if precision == "single":
         names = {n: np.dtype(np.float32) if dt.kind == "f" else dt for n, dt in names.items()}
     output = OutputPlan(path, fmt, compression, complevel, precision, block_points)

@@ -19,6 +19,7 @@ from ._version import __version__
 from .kernels.effects import BY_NAME, EFFECTS
 from .kernels.fate import FATE_NAMES
 from .kernels.geometry import CLASS_NAMES
+from .kernels.hybrid import HYBRID_FATE_NAMES
 from .kernels.protocol import EVENT_NAMES, STATUS_FLAGS
 from .methods import METHODS, get_method
 
@@ -29,6 +30,8 @@ if TYPE_CHECKING:
 __all__ = [
     "DIMS",
     "LAUNCH_DIMS",
+    "GRID_DIMS",
+    "RELEASE",
     "FINGERPRINT_ATTR",
     "Variable",
     "AXES",
@@ -41,12 +44,21 @@ __all__ = [
     "survey_attrs",
     "map_kind",
     "map_summary",
+    "grid_dims",
+    "launch_dims",
 ]
 
 #: The four survey axes, in the order of a survey's dims.
 DIMS = ("alpha", "energy", "h", "Lz")
 #: The axes of a survey over launch states (the sphere released with u = 0).
 LAUNCH_DIMS = ("alpha", "r0", "v0", "w0")
+#: How a launch on a scene with kinetic friction (``Scene.mu_k``) may differ from rolling: the
+#: radial speed and the contact point's slip velocity at release (axes of its launch grid).
+RELEASE = ("u0", "slip_u", "slip_v")
+#: The axes of a survey over launch states on a scene with kinetic friction.
+SLIDING_LAUNCH_DIMS = (*LAUNCH_DIMS, *RELEASE)
+#: Every kind of survey grid, by its dims: the one place that lists them.
+GRID_DIMS = (DIMS, LAUNCH_DIMS, SLIDING_LAUNCH_DIMS)
 #: The invariants a survey over launch states stores as variables.
 INVARIANTS = ("energy", "h", "Lz")
 #: Global attribute of a finished survey file holding the survey's fingerprint.
@@ -61,6 +73,8 @@ class Variable:
     units: str | None
     long_name: str
     flags: tuple[str, ...] | None = None
+    #: The flags' codes (None: 0, 1, ... in order).
+    codes: tuple[int, ...] | None = None
 
     def attrs(self) -> dict[str, Any]:
         """CF attributes: units and long_name, or long_name and int8 flag_values/meanings."""
@@ -69,7 +83,8 @@ class Variable:
             out["units"] = self.units
         out["long_name"] = self.long_name
         if self.flags is not None:
-            out["flag_values"] = np.arange(len(self.flags), dtype=self.dtype)
+            codes = range(len(self.flags)) if self.codes is None else self.codes
+            out["flag_values"] = np.array(codes, dtype=self.dtype)
             out["flag_meanings"] = " ".join(self.flags)
         return out
 
@@ -87,6 +102,9 @@ AXES: dict[str, Variable] = {
     "r0": _f("m", "launch radius: distance of the centre from the vertex of its cone"),
     "v0": _f("m s-1", "launch azimuthal speed r sin(alpha) dtheta/dt (radial speed 0)"),
     "w0": _f("m s-1", "launch spin about the normal times the radius, a omega_nu"),
+    "u0": _f("m s-1", "launch radial speed dr/dt along the generatrix (outward > 0)"),
+    "slip_u": _f("m s-1", "launch slip velocity of the contact point along the generatrix"),
+    "slip_v": _f("m s-1", "launch slip velocity of the contact point along the parallel"),
 }
 _ENERGY_RELATIVE = _f("1", "energy offset from the potential minimum, (calE - V_min)/|V_min|")
 
@@ -128,6 +146,16 @@ RESULTS: dict[str, Variable] = {
         "integration error of the energy balance, |E(t) + W(t) - E(0)| / max(|E(0)|, kinetic "
         "energy at start), W the work done against rolling resistance",
     ),
+    # fate maps of a scene with kinetic friction (the sliding model): the effects table adds them
+    "slide_time": _f("s", "total time spent sliding from the start to the fate"),
+    "slip_episodes": Variable("int32", "1", "times it started sliding (-1: no orbit)"),
+    "fate_speed": _f("m s-1", "speed of the centre at the fate (or the horizon)"),
+    "final_energy": _f("J", "radial energy calE of the last rolling orbit (NaN: none)"),
+    "final_h": _f("m s-1", "spin invariant h of the last rolling orbit (NaN: none)"),
+    "final_Lz": _f("kg m2 s-1", "L_z of the last rolling orbit (NaN: none)"),
+    "lost_rolling_resistance": _f("J", "energy lost to rolling resistance (both modes)"),
+    "lost_sliding_friction": _f("J", "energy lost to kinetic friction (and sticking)"),
+    "lost_spin_friction": _f("J", "energy lost to spin friction (both modes)"),
     # surveys with an energy axis relative to V_min
     "energy_absolute": _f("J", "radial energy calE (absolute)"),
     # surveys over launch states: the invariants of each launch
@@ -138,6 +166,10 @@ RESULTS: dict[str, Variable] = {
 #: The closed form's variables (every map holds them).
 CLOSED_FORM = ("orbit_class", "r_min", "r_max", "r_circ", "period", "apsidal_angle",
                "precession_rate", "mu_required")  # fmt: skip
+#: The ``fate`` of a fate map of the sliding model (a slip is a transition, not an end).
+_CODES = tuple(i for i, n in enumerate(HYBRID_FATE_NAMES) if n != "slipped")
+SLIDING_FATE = Variable("int8", None, "what happened to the sphere (rolling, sliding, ...)",
+                        tuple(HYBRID_FATE_NAMES[i] for i in _CODES), _CODES)  # fmt: skip
 #: What a one-period integrator map adds; it also replaces period, apsidal angle and precession.
 INTEGRATED = ("n_steps", "energy_drift", "status")
 #: Closed-form variables a one-period map replaces by the integrator's own values.
@@ -154,11 +186,18 @@ MAP_KINDS = {
     "fate": "orbit_class and the orbit's geometry describe the launch orbit on the ideal "
     "lossless cone (closed form); fate and the variables after it describe the scene "
     "(integrated from the start to the first terminal event or the horizon)",
+    "sliding fate": "orbit_class and the orbit's geometry describe the rolling launch orbit on "
+    "the ideal lossless cone (closed form); fate and the variables after it describe the "
+    "scene's whole story (a slip is a transition: the sphere slides under kinetic friction and "
+    "may roll again), integrated from the start to spill, rest, the vertex or the horizon",
 }
+#: The kinds of map that follow each orbit to its fate.
+FATE_KINDS = ("fate", "sliding fate")
 #: Variable ``comment`` in fate maps: which variables come from where.
 _FATE_COMMENTS = {
     **{n: "the launch orbit on the ideal lossless cone (closed form)" for n in CLOSED_FORM},
     **{n: "the scene, integrated" for n in FATE},
+    **{n: "the scene, integrated" for n in dict(BY_NAME["sliding"].variables)["fate"]},
 }
 
 
@@ -197,7 +236,7 @@ TRAJECTORY: dict[str, Variable] = {
 def _check_effect_variables() -> None:
     for e in EFFECTS:
         for out, names in e.variables:
-            table = TRAJECTORY if out == "trajectory" else RESULTS
+            table = TRAJECTORY if out == "trajectory" else RESULTS  # fate: RESULTS too
             unknown = [n for n in names if n not in table]
             assert not unknown, f"effect {e.name}: no {out} variable {unknown} in engine.schema"
 
@@ -216,15 +255,45 @@ def variable_attrs(name: str, kind: str | None = None) -> dict[str, Any]:
     """CF attributes of a result or trajectory variable (in a map of ``kind``, with a comment
     saying where its values come from)."""
     var = RESULTS.get(name) or TRAJECTORY[name]
+    if name == "fate" and kind == "sliding fate":
+        var = SLIDING_FATE
     attrs = var.attrs()
-    if kind == "fate" and name in _FATE_COMMENTS:
+    if kind in FATE_KINDS and name in _FATE_COMMENTS:
         attrs["comment"] = _FATE_COMMENTS[name]
     return attrs
 
 
+def flag_table(name: str, kind: str | None = None) -> tuple[tuple[int, str], ...]:
+    """(code, meaning) of each flag of the flag variable ``name`` in a map of ``kind``."""
+    attrs = variable_attrs(name, kind)
+    return tuple(zip(attrs["flag_values"].tolist(), attrs["flag_meanings"].split(), strict=True))
+
+
+def flag_count(name: str) -> int:
+    """How many codes (0 .. n-1) the flag variable ``name`` may take in any kind of map."""
+    top = max(max(c for c, _ in flag_table(name, kind)) for kind in MAP_KINDS)
+    return top + 1
+
+
+def grid_dims(names: Any) -> tuple[str, ...]:
+    """The dims of the survey grid whose axes include ``names`` (a Dataset's dims, a survey
+    file's axes): the longest of :data:`GRID_DIMS` all of whose launch axes are named."""
+    present = set(names)
+    if present & set(RELEASE):
+        return SLIDING_LAUNCH_DIMS
+    return LAUNCH_DIMS if "r0" in present else DIMS
+
+
+def launch_dims(scene: Scene) -> tuple[str, ...]:
+    """The dims of a survey over launch states of ``scene``: the release's radial speed and
+    slip velocity are axes too where it has kinetic friction (the sliding model)."""
+    return SLIDING_LAUNCH_DIMS if "sliding" in scene.effects else LAUNCH_DIMS
+
+
 def effect_variables(scene: Scene, output: str) -> tuple[str, ...]:
-    """The variables the effects of ``scene`` add to ``output`` ("closed form", "period" or
-    "trajectory": :data:`engine.kernels.effects.OUTPUTS`), from the effects table, each once."""
+    """The variables the effects of ``scene`` add to ``output`` ("closed form", "period",
+    "fate" or "trajectory": :data:`engine.kernels.effects.OUTPUTS`), from the effects table,
+    each once."""
     names: list[str] = []
     for name in scene.effects:
         for out, added in BY_NAME[name].variables:
@@ -243,6 +312,8 @@ def map_kind(method: str, scene: Scene) -> str:
     orbit's fate; otherwise over one period."""
     if not get_method(method).integrates:
         return "closed form"
+    if any("sliding contact" in BY_NAME[e].needs for e in scene.effects):
+        return "sliding fate"
     if any(BY_NAME[e].dissipative or BY_NAME[e].events for e in scene.effects):
         return "fate"
     return "one period"
@@ -259,8 +330,9 @@ def result_variables(
         names += effect_variables(scene, "closed form")
     elif kind == "one period":
         names += INTEGRATED
-    elif kind == "fate":
+    elif kind in FATE_KINDS:
         names += FATE
+        names += effect_variables(scene, "fate")
     if energy_relative:
         names.append("energy_absolute")
     if launch:
@@ -317,6 +389,10 @@ def survey_attrs(
 ) -> dict[str, Any]:
     """Global attributes of a survey (:func:`result_attrs` plus what its axes are)."""
     attrs = result_attrs(scene, method, circular_tol, rtol, horizon)
+    if launch and "sliding" in scene.effects:
+        attrs["grid"] = ("launch states: released at r0 with radial speed u0, speed v0, spin w0 "
+                         "and the contact point's slip velocity (slip_u, slip_v)")  # fmt: skip
+        return attrs
     if launch:
         attrs["grid"] = "launch states: released at r0 with radial speed 0, speed v0, spin w0"
         return attrs

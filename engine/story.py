@@ -56,8 +56,9 @@ def launch_fates(
             raise ValueError(f"{name} must be finite; got {a[~np.isfinite(a)].flat[0]!r}")
     shape = arrs[0].shape
     flat = [a.ravel() for a in arrs]
-    inv = invariants(flat[0], flat[1], np.zeros_like(flat[1]), flat[2], flat[3], scene)
-    res = hybrid_fates(flat[0], inv["energy"], inv["h"], inv["Lz"], flat[1], scene, method,
+    inv = invariants(flat[0], flat[1], flat[4], flat[2], flat[3], scene)
+    e_rest = inv["energy"] - 0.5 * scene.M * flat[4] * flat[4]  # as a launch map computes it
+    res = hybrid_fates(flat[0], e_rest, inv["h"], inv["Lz"], flat[1], scene, method,
                        rtol, t_max, theta_max, u0=flat[4], slip_u=flat[5],
                        slip_v=flat[6])  # fmt: skip
     out = {k: v.reshape(shape) for k, v in res.items()}

@@ -57,18 +57,15 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import math
 import os
 import re
 import tomllib
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from .api import run_plan
 from .checks import (
     PlanError,
     check_circular_tol,
@@ -84,14 +81,11 @@ from .grid import grid_too_large
 from .io.atomic import read_regular
 from .kernels.geometry import CIRCULAR_TOL as DEFAULT_CIRCULAR_TOL
 from .methods import DEFAULT_RTOL, METHODS, Method
-from .plan import plan_from_survey
 from .scene import Scene
 from .schema import DIMS as AXES
-from .schema import LAUNCH_DIMS, result_variables, survey_attrs
-from .surveyaxes import MAX_AXIS_POINTS, RELATIVE_TO, SCALES, AxisReader
-
-if TYPE_CHECKING:
-    import xarray as xr
+from .schema import LAUNCH_DIMS, RELEASE, launch_dims
+from .surveyaxes import MAX_AXIS_POINTS, RELATIVE_TO, SCALES, AxisReader, frozen
+from .surveydef import Survey
 
 __all__ = [
     "AXES",
@@ -132,80 +126,6 @@ class SurveyError(ValueError):
         self.problem = problem
         where = f"{origin}: {key}" if key else origin
         super().__init__(f"{where}: {problem}")
-
-
-@dataclass(frozen=True, eq=False)
-class Survey:
-    """A validated survey definition.
-
-    The axes are read-only 1-D float64 arrays: ``alpha`` [radian], ``energy`` [J] (or, when
-    ``energy_relative``, the dimensionless offsets (energy - V_min)/|V_min|), ``h`` [m s-1] and
-    ``Lz`` [kg m2 s-1]. ``source_text`` is the TOML text verbatim, stored with the results.
-    """
-
-    title: str
-    method: str
-    rtol: float
-    circular_tol: float
-    scene: Scene
-    alpha: np.ndarray
-    energy: np.ndarray | None
-    h: np.ndarray | None
-    Lz: np.ndarray | None
-    energy_relative: bool
-    source_text: str
-    r0: np.ndarray | None = None
-    v0: np.ndarray | None = None
-    w0: np.ndarray | None = None
-    horizon: Horizon | None = None
-    precision: str = "double"
-
-    @property
-    def dims(self) -> tuple[str, ...]:
-        """The survey's axes: (alpha, energy, h, Lz), or (alpha, r0, v0, w0) over launch
-        states."""
-        return LAUNCH_DIMS if self.launch else AXES
-
-    @property
-    def shape(self) -> tuple[int, ...]:
-        """Grid shape, in the order of :attr:`dims`."""
-        return tuple(getattr(self, d).size for d in self.dims)
-
-    @property
-    def size(self) -> int:
-        """Number of grid points."""
-        return math.prod(self.shape)
-
-    @property
-    def launch(self) -> bool:
-        """A survey over launch states (its dims are alpha, r0, v0, w0)."""
-        return self.r0 is not None
-
-    def variables(self) -> dict[str, np.dtype]:
-        """Names and dtypes of the result variables, in file order (:mod:`engine.schema`); the
-        float ones float32 with ``precision = "single"``."""
-        names = result_variables(self.method, self.scene, self.energy_relative, self.launch)
-        if self.precision == "single":
-            return {n: np.dtype(np.float32) if dt.kind == "f" else dt for n, dt in names.items()}
-        return names
-
-    def attrs(self) -> dict[str, Any]:
-        """The global attributes of its results (:func:`engine.schema.survey_attrs`), and
-        ``precision`` where it is single."""
-        attrs = survey_attrs(self.scene, self.method, self.circular_tol, self.rtol,
-                             self.energy_relative, self.horizon, self.launch)  # fmt: skip
-        if self.precision == "single":
-            attrs["precision"] = "single: float results stored as float32 (~7 digits)"
-        return attrs
-
-    def run(self, progress: Callable[[int, int], None] | None = None) -> xr.Dataset:
-        """Evaluate the survey in memory (its plan, :func:`engine.plan.plan_from_survey`, run
-        by :func:`engine.api.run_plan`); ``progress(done, total)`` per block."""
-        ds = run_plan(plan_from_survey(self), progress)
-        for name, dt in self.variables().items():
-            if name in ds and ds[name].dtype != dt:
-                ds[name] = ds[name].astype(dt)
-        return ds
 
 
 def load_survey(path: str | os.PathLike[str]) -> Survey:
@@ -294,8 +214,9 @@ class _Reader(AxisReader):
             circular_tol = check_circular_tol(doc.get("circular_tol", DEFAULT_CIRCULAR_TOL))
         horizon = self.horizon(doc, method, scene)
         axes = self.table(doc, "axes", "", required=True)
-        dims = LAUNCH_DIMS if any(n in axes for n in LAUNCH_DIMS[1:]) else AXES
-        other = AXES if dims == LAUNCH_DIMS else LAUNCH_DIMS
+        launch = any(n in axes for n in (*LAUNCH_DIMS[1:], *RELEASE))
+        dims = launch_dims(scene) if launch else AXES
+        other = AXES if launch else (*LAUNCH_DIMS, *RELEASE)
         for name in axes:
             if name in other and name not in dims:
                 raise self.fail(
@@ -303,15 +224,20 @@ class _Reader(AxisReader):
                     "a survey spans invariants (alpha, energy, h, Lz) or launch states "
                     "(alpha, r0, v0, w0), not both",
                 )
-        self.check_keys(axes, dims, "axes")
+        release = [n for n in RELEASE if n in axes and n not in dims]  # a scene without mu_k
+        self.check_keys(axes, (*dims, *release), "axes")
         for name in dims:
-            if name not in axes:
+            if name not in axes and name not in RELEASE:
                 sets = "alpha, energy, h, Lz (invariants) or alpha, r0, v0, w0 (launch states)"
                 raise self.fail(f"axes.{name}", f"missing; give every axis of {sets}")
         if why := grid_too_large(_counts(axes, dims)):  # before any axis is built
             raise self.fail("axes", why)
-        arrays: dict[str, Any] = {name: self.axis(axes, name) for name in dims}
-        if dims == LAUNCH_DIMS:
+        arrays: dict[str, Any] = {
+            name: self.axis(axes, name) if name in axes else frozen(np.zeros(1)) for name in dims
+        }
+        for name in release:
+            self.rolling_release(self.axis(axes, name), name)
+        if launch:
             arrays.update(energy=None, h=None, Lz=None)
         energy_relative = "relative_to" in axes.get("energy", {})
         with self.checked():
@@ -328,6 +254,18 @@ class _Reader(AxisReader):
             horizon=horizon,
             **arrays,
         )
+
+    def rolling_release(self, values: np.ndarray, name: str) -> None:
+        """An axis of the release (u0, slip_u, slip_v) on a scene without kinetic friction:
+        refused unless every value is 0 (every launch rolls from rest radially there)."""
+        bad = values[values != 0.0]
+        if bad.size:
+            raise self.bad_value(
+                f"axes.{name}",
+                float(bad[0]),
+                "a launch with a radial speed or a slip velocity needs scene.mu_k (kinetic "
+                "friction: the sliding model); without it every launch rolls from rest radially",
+            )
 
     def horizon(self, doc: dict, method: Method, scene: Scene) -> Horizon | None:
         """``[horizon]``: how long a fate map follows each orbit (the API's check)."""

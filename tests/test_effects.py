@@ -92,8 +92,12 @@ def test_terminal_events_follow_the_rows(effect):
 def test_map_kind_and_variables_follow_the_rows(effect):
     scene = ONLY[effect.name]
     fate = effect.dissipative or bool(effect.events)
-    assert map_kind("rk45", scene) == ("fate" if fate else "one period")
+    kind = "fate" if fate else "one period"
+    if "sliding contact" in effect.needs:  # a slip is a transition: the hybrid kernels
+        kind = "sliding fate"
+    assert map_kind("rk45", scene) == kind
     added = dict(effect.variables)
+    assert set(added.get("fate", ())) <= set(result_variables("rk45", scene))
     if METHODS["exact"].honours(effect.name):
         closed = list(result_variables("exact", scene))
         assert closed[8:] == list(added.get("closed form", ()))

@@ -7,7 +7,6 @@ import math
 import numpy as np
 import pytest
 
-import engine
 from engine import launch
 from engine.fates import Horizon, fates
 from engine.hybrid import hybrid_fates
@@ -141,12 +140,3 @@ def test_scene_validates_mu_k_and_c_spin():
     assert "slipped" not in Scene(mu=0.3).effects
     assert Scene(mu=0.3, mu_k=0.2, c_spin=0.1).effects == ("slip_check", "sliding",
                                                            "spin_friction")  # fmt: skip
-
-
-def test_survey_maps_refuse_a_sliding_scene_naming_engine_story():
-    """The API's maps cannot follow the sliding model yet: refused, not today's map (where a
-    slip is an end) under a scene that names mu_k."""
-    scene = Scene(mu=0.4, mu_k=0.3, rim=1.0)
-    with pytest.raises(ValueError, match=r"Scene\.mu_k.*engine\.story\.launch_fates"):
-        engine.launch_survey([0.6], [0.5], [1.0], [0.0], scene=scene, method="rk45",
-                             horizon_time=5.0)  # fmt: skip

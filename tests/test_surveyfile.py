@@ -347,14 +347,13 @@ def test_bad_horizons_and_launch_axes_are_named(text, key, words):
     assert info.value.key.startswith(key) and words in str(info.value), str(info.value)
 
 
-def test_a_sliding_scene_is_refused_in_survey_files_naming_mu_k():
-    """Survey maps do not follow the sliding model yet: a file naming mu_k is refused by the one
-    validation ``run`` and ``validate`` share (not silently mapped with slips as ends)."""
+def test_release_axes_need_a_sliding_scene_naming_key_and_value():
+    """u0, slip_u and slip_v (a launch that is not rolling) need scene.mu_k: refused with the
+    key and the value by the one validation ``run`` and ``validate`` share."""
     text = """
 method = "rk45"
 [scene]
 mu = 0.4
-mu_k = 0.3
 [horizon]
 time = 5.0
 [axes.alpha]
@@ -365,6 +364,13 @@ values = [0.5]
 values = [1.0]
 [axes.w0]
 values = [0.0]
+[axes.slip_u]
+values = [0.0, 1.5]
 """
-    with pytest.raises(SurveyError, match=r"scene\.mu_k.*engine\.story\.launch_fates"):
+    with pytest.raises(SurveyError, match=r"needs scene\.mu_k.*got 1\.5") as info:
         parse_survey(text)
+    assert info.value.key == "axes.slip_u"
+    sliding = parse_survey(text.replace("mu = 0.4", "mu = 0.4\nmu_k = 0.3"))
+    assert sliding.dims == ("alpha", "r0", "v0", "w0", "u0", "slip_u", "slip_v")
+    assert sliding.shape == (1, 1, 1, 1, 1, 2, 1)
+    assert sliding.u0.tolist() == [0.0] and sliding.slip_u.tolist() == [0.0, 1.5]

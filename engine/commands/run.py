@@ -24,11 +24,11 @@ from ..grid import BLOCK_POINTS
 from ..io.codecs import COMPRESSIONS, DEFAULT_COMPRESSION, DEFAULT_LEVELS
 from ..io.formats import format_for
 from ..io.manifest import fingerprint
-from ..kernels.fate import FATE_NAMES
 from ..kernels.geometry import CLASS_NAMES
 from ..progress import Progress
 from ..runner import AlreadyComplete, RunError, RunFailed, RunStats, run_survey
 from ..scene import Scene
+from ..schema import flag_table, map_kind
 from . import PROG, Command, InputError, error, load
 from .validate import compile_seconds, energy_warning
 
@@ -290,7 +290,8 @@ def _run_and_report(
     finally:
         _close(progress)
     if not args.quiet:
-        print_summary(stats, title=survey.title, method=survey.method)
+        print_summary(stats, title=survey.title, method=survey.method,
+                      kind=map_kind(survey.method, survey.scene))  # fmt: skip
     return 0
 
 
@@ -314,16 +315,25 @@ def _close(progress: Progress | None) -> None:
         progress.close()
 
 
-def print_summary(stats: RunStats, *, title: str, method: str, file: TextIO | None = None) -> None:
-    """Print the grid, class counts and fractions, the range of each result variable over its
-    finite values, the time taken and the output path."""
+def print_summary(
+    stats: RunStats,
+    *,
+    title: str,
+    method: str,
+    file: TextIO | None = None,
+    kind: str | None = None,
+) -> None:
+    """Print the grid, class counts and fractions (and the fates of a fate map of ``kind``),
+    the range of each result variable over its finite values, the time taken and the output
+    path."""
     out = sys.stdout if file is None else file
     total = stats.points
     shape = " x ".join(f"{d} {n}" for d, n in zip(stats.dims, stats.shape, strict=True))
     lines = [title, f"  grid    {shape} = {total:,} points", f"  method  {method}", ""]
     tables = [("class", CLASS_NAMES, stats.counts)]
     if "fate" in stats.flags:  # a fate map: what happened to each ball first
-        tables.insert(0, ("fate", FATE_NAMES, stats.flags["fate"]))
+        codes, names = zip(*flag_table("fate", kind), strict=True)
+        tables.insert(0, ("fate", names, stats.flags["fate"][list(codes)]))
         tables[1] = ("class", CLASS_NAMES, stats.counts, "  (the launch orbits on the ideal cone)")
     for i, (label, names, counts, *note) in enumerate(tables):
         lines += [""] if i else []

@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..grid import Tiling
-from ..schema import DIMS, LAUNCH_DIMS
+from ..schema import grid_dims
 from . import OutputError
 from .atomic import (
     NEW_FILE,
@@ -352,7 +352,7 @@ def remove_store(root: Path) -> list[str]:
 
 def survey_dims(definition: str) -> tuple[str, ...]:
     """The axes named in a survey definition (launch states or invariants)."""
-    return LAUNCH_DIMS if "r0" in _axes_table(definition) else DIMS
+    return grid_dims(_axes_table(definition))
 
 
 def _axes_table(definition: str) -> dict[str, Any]:

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from ..grid import Tiling
-from ..schema import DIMS, LAUNCH_DIMS
+from ..schema import GRID_DIMS
 
 __all__ = [
     "BLOCK_SCHEME",
@@ -146,7 +146,7 @@ def verify_file(nc: Any) -> tuple[bool, str]:
         return False, "no content checksum recorded (not written by a conesurvey run)"
     try:
         block = tuple(int(b) for b in np.asarray(attrs[CHECKSUM_BLOCK_ATTR]).ravel())
-        if len(block) != len(DIMS) or min(block) < 1:
+        if len(block) not in {len(d) for d in GRID_DIMS} or min(block) < 1:
             raise ValueError(block)
     except (KeyError, ValueError, TypeError, OverflowError):
         return False, f"the {CHECKSUM_BLOCK_ATTR} attribute is missing or damaged"
@@ -155,7 +155,7 @@ def verify_file(nc: Any) -> tuple[bool, str]:
     for name, var in nc.variables.items():
         slabs = (
             iter(Tiling(tuple(var.shape), block, block))
-            if tuple(var.dimensions) in (DIMS, LAUNCH_DIMS)
+            if tuple(var.dimensions) in GRID_DIMS
             else iter([tuple(slice(None) for _ in var.shape)])
         )
         for slab in slabs:

@@ -26,7 +26,7 @@ import netCDF4
 import numpy as np
 
 from ..grid import BLOCK_POINTS, Tiling, block_shape
-from ..schema import DIMS, LAUNCH_DIMS
+from ..schema import GRID_DIMS
 from . import OutputError, WriteError
 from . import zarr as zarr_io
 from .atomic import fsync_path, replacing
@@ -83,9 +83,7 @@ class _Source:
         except Exception as exc:  # a damaged or foreign file
             raise OutputError(f"{path} is not a readable result ({exc})") from None
         self.attrs = {k: self.ds.getncattr(k) for k in self.ds.ncattrs()}
-        grids = [
-            v for v in self.ds.variables.values() if tuple(v.dimensions) in (DIMS, LAUNCH_DIMS)
-        ]
+        grids = [v for v in self.ds.variables.values() if tuple(v.dimensions) in GRID_DIMS]
         if not grids:
             self.close()
             raise OutputError(f"{path} is not a conesurvey survey (no variable over its axes)")

@@ -25,7 +25,7 @@ import numpy as np
 
 from .._version import __version__
 from ..grid import Tiling
-from ..schema import DIMS, RESULTS
+from ..schema import GRID_DIMS, RESULTS
 from . import OutputError
 from .atomic import NotRegularFile, read_regular, write_atomic
 
@@ -90,24 +90,31 @@ def _self_check(doc: dict[str, Any]) -> str:
     return hashlib.sha256(json.dumps(body, sort_keys=True).encode()).hexdigest()
 
 
+#: How many axes a survey grid may have (engine.schema.GRID_DIMS).
+_RANKS = sorted({len(d) for d in GRID_DIMS})
+
+
 def _ints(doc: dict[str, Any], key: str) -> tuple[int, ...]:
     value = doc.get(key)
     if not (
         isinstance(value, list)
-        and len(value) == len(DIMS)
+        and len(value) in _RANKS
         and all(isinstance(x, int) and not isinstance(x, bool) and x >= 1 for x in value)
     ):
-        raise ValueError(f"{key} must be {len(DIMS)} positive integers, got {value!r}")
+        raise ValueError(
+            f"{key} must be {_RANKS[0]} positive integers ({_RANKS[-1]} on a grid of launches "
+            f"that may slide), got {value!r}"
+        )
     return tuple(value)
 
 
 def _tiling(doc: dict[str, Any]) -> Tiling:
     shape, chunk, block = _ints(doc, "shape"), _ints(doc, "chunk"), _ints(doc, "block")
-    for d, n, c, b in zip(DIMS, shape, chunk, block, strict=True):
+    for d, n, c, b in zip(range(len(shape)), shape, chunk, block, strict=True):
         if c > n or b > n:
-            raise ValueError(f"chunk {c} or block {b} of {d} exceeds the grid's {n}")
+            raise ValueError(f"chunk {c} or block {b} of axis {d} exceeds the grid's {n}")
         if b % c and b != n:
-            raise ValueError(f"block {b} of {d} is not a whole number of chunks of {c}")
+            raise ValueError(f"block {b} of axis {d} is not a whole number of chunks of {c}")
     if math.prod(shape) > 2**62:
         raise ValueError(f"shape {list(shape)} is beyond any grid")
     return Tiling(shape, chunk, block)

@@ -15,9 +15,8 @@ from typing import Any
 import netCDF4
 import numpy as np
 
-from ..kernels.fate import FATE_NAMES
 from ..kernels.geometry import CLASS_NAMES
-from ..schema import FINGERPRINT_ATTR
+from ..schema import FINGERPRINT_ATTR, MAP_KINDS, flag_table
 from . import OutputError
 from .atomic import not_regular
 from .blocks import check_parts_dir, parts_info
@@ -113,8 +112,18 @@ def class_counts(nc: Any, notes: list[str]) -> dict[str, int] | None:
 
 
 def fate_counts(nc: Any, notes: list[str]) -> dict[str, int] | None:
-    """Count of each fate of a fate map's ``fate`` (None for other maps)."""
-    return flag_counts(nc, "fate", FATE_NAMES, notes)
+    """Count of each fate of a fate map's ``fate`` (None for other maps), named as the kind of
+    map (the ``map_kind`` attribute) names them."""
+    try:
+        kind = str(nc.getncattr("map_kind"))
+    except Exception:  # no such attribute, or one netCDF4 cannot decode
+        kind = None
+    table = dict(flag_table("fate", kind if kind in MAP_KINDS else None))
+    names = tuple(table.get(c, f"(code {c})") for c in range(max(table) + 1))
+    out = flag_counts(nc, "fate", names, notes)
+    if out is None:
+        return None
+    return {k: n for k, n in out.items() if n or not k.startswith("(code")}
 
 
 def flag_counts(

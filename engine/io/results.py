@@ -33,7 +33,7 @@ from xarray.backends import BackendArray
 from xarray.core import indexing
 
 from ..grid import Tiling, block_shape, storage_chunks
-from ..schema import DIMS, FINGERPRINT_ATTR, LAUNCH_DIMS, axis_attrs, map_kind, variable_attrs
+from ..schema import FINGERPRINT_ATTR, axis_attrs, grid_dims, map_kind, variable_attrs
 from ..surveyfile import SurveyError, parse_survey
 from . import OutputError
 from .blocks import BlockStore
@@ -70,7 +70,7 @@ class Result:
     @property
     def dims(self) -> tuple[str, ...]:
         """The survey's axes, in order: (alpha, energy, h, Lz) or (alpha, r0, v0, w0)."""
-        return LAUNCH_DIMS if "r0" in self.ds.dims else DIMS
+        return grid_dims(self.ds.dims)
 
     @property
     def blocks_total(self) -> int:
@@ -173,7 +173,7 @@ def open_zarr(path: Path) -> Result:
 
 def _finished(path: Path, ds: xr.Dataset, kind: str, chunk_key: str) -> Result:
     """A finished result: checked to be a survey, read in storage-chunk-aligned tiles."""
-    dims = LAUNCH_DIMS if "r0" in ds.dims else DIMS
+    dims = grid_dims(ds.dims)
     missing = [d for d in dims if d not in ds.dims]
     if missing or "orbit_class" not in ds:
         ds.close()

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels.geometry import CLASS_NAMES
-from ..schema import RESULTS, variable_attrs
+from ..schema import RESULTS, flag_count, variable_attrs
 
 __all__ = ["Summary"]
 
@@ -30,7 +30,7 @@ class Summary:
         for name, arr in block.items():
             meanings = RESULTS[name].flags if name in RESULTS else None
             if meanings is not None:
-                n = len(meanings)
+                n = flag_count(name)  # a code's count at its index
                 seen = np.bincount(arr.ravel(), minlength=n)[:n]
                 self.flags[name] = self.flags.get(name, np.zeros(n, np.int64)) + seen
             elif arr.dtype.kind == "f":

@@ -38,8 +38,9 @@ CAPABILITIES: dict[str, str] = {
 SWITCHES = ("coefficient", "limit", "flag")
 
 #: Where an effect's output variables go: "closed form" (maps by the closed form), "period"
-#: (one integrated radial period, ``engine.integrated``), "trajectory" (``engine.simulate``).
-OUTPUTS = ("closed form", "period", "trajectory")
+#: (one integrated radial period, ``engine.integrated``), "fate" (fate maps), "trajectory"
+#: (``engine.simulate``).
+OUTPUTS = ("closed form", "period", "fate", "trajectory")
 
 
 class Effect(NamedTuple):
@@ -130,7 +131,22 @@ EFFECTS: tuple[Effect, ...] = (
         dissipative=True,
         events=(),
         needs=("dissipative forces", "sliding contact"),
-        variables=(),
+        variables=(
+            (
+                "fate",
+                (
+                    "slide_time",
+                    "slip_episodes",
+                    "fate_speed",
+                    "final_energy",
+                    "final_h",
+                    "final_Lz",
+                    "lost_rolling_resistance",
+                    "lost_sliding_friction",
+                    "lost_spin_friction",
+                ),
+            ),
+        ),  # fmt: skip
         doc="a slip is a transition: the sphere slides under kinetic friction mu_k N and may "
         "roll again (engine.story; the hybrid kernels, not the rolling ones)",
     ),

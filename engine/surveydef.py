@@ -1,0 +1,105 @@
+"""The validated survey definition (:class:`Survey`, what :func:`engine.surveyfile.load_survey`
+returns): its grid (dims, shape), the variables and global attributes of its results, and its
+evaluation in memory through the API."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .api import run_plan
+from .fates import Horizon
+from .plan import plan_from_survey
+from .scene import Scene
+from .schema import DIMS, LAUNCH_DIMS, SLIDING_LAUNCH_DIMS, result_variables, survey_attrs
+
+if TYPE_CHECKING:
+    import xarray as xr
+
+__all__ = ["Survey"]
+
+
+@dataclass(frozen=True, eq=False)
+class Survey:
+    """A validated survey definition.
+
+    The axes are read-only 1-D float64 arrays: ``alpha`` [radian], ``energy`` [J] (or, when
+    ``energy_relative``, the dimensionless offsets (energy - V_min)/|V_min|), ``h`` [m s-1] and
+    ``Lz`` [kg m2 s-1]; or, over launch states, ``r0`` [m], ``v0`` and ``w0`` [m s-1] (and on
+    a scene with kinetic friction ``u0``, ``slip_u`` and ``slip_v`` [m s-1]). ``source_text``
+    is the TOML text verbatim, stored with the results.
+    """
+
+    title: str
+    method: str
+    rtol: float
+    circular_tol: float
+    scene: Scene
+    alpha: np.ndarray
+    energy: np.ndarray | None
+    h: np.ndarray | None
+    Lz: np.ndarray | None
+    energy_relative: bool
+    source_text: str
+    r0: np.ndarray | None = None
+    v0: np.ndarray | None = None
+    w0: np.ndarray | None = None
+    horizon: Horizon | None = None
+    precision: str = "double"
+    u0: np.ndarray | None = None
+    slip_u: np.ndarray | None = None
+    slip_v: np.ndarray | None = None
+
+    @property
+    def dims(self) -> tuple[str, ...]:
+        """The survey's axes: (alpha, energy, h, Lz), or (alpha, r0, v0, w0) over launch
+        states, with (u0, slip_u, slip_v) on a scene with kinetic friction (the release's
+        radial speed and slip velocity)."""
+        if not self.launch:
+            return DIMS
+        return SLIDING_LAUNCH_DIMS if self.u0 is not None else LAUNCH_DIMS
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """Grid shape, in the order of :attr:`dims`."""
+        return tuple(getattr(self, d).size for d in self.dims)
+
+    @property
+    def size(self) -> int:
+        """Number of grid points."""
+        return math.prod(self.shape)
+
+    @property
+    def launch(self) -> bool:
+        """A survey over launch states (its dims are alpha, r0, v0, w0)."""
+        return self.r0 is not None
+
+    def variables(self) -> dict[str, np.dtype]:
+        """Names and dtypes of the result variables, in file order (:mod:`engine.schema`); the
+        float ones float32 with ``precision = "single"``."""
+        names = result_variables(self.method, self.scene, self.energy_relative, self.launch)
+        if self.precision == "single":
+            return {n: np.dtype(np.float32) if dt.kind == "f" else dt for n, dt in names.items()}
+        return names
+
+    def attrs(self) -> dict[str, Any]:
+        """The global attributes of its results (:func:`engine.schema.survey_attrs`), and
+        ``precision`` where it is single."""
+        attrs = survey_attrs(self.scene, self.method, self.circular_tol, self.rtol,
+                             self.energy_relative, self.horizon, self.launch)  # fmt: skip
+        if self.precision == "single":
+            attrs["precision"] = "single: float results stored as float32 (~7 digits)"
+        return attrs
+
+    def run(self, progress: Callable[[int, int], None] | None = None) -> xr.Dataset:
+        """Evaluate the survey in memory (its plan, :func:`engine.plan.plan_from_survey`, run
+        by :func:`engine.api.run_plan`); ``progress(done, total)`` per block."""
+        ds = run_plan(plan_from_survey(self), progress)
+        for name, dt in self.variables().items():
+            if name in ds and ds[name].dtype != dt:
+                ds[name] = ds[name].astype(dt)
+        return ds
