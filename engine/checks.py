@@ -13,14 +13,13 @@ from __future__ import annotations
 
 import math
 import os
-import re
 from numbers import Integral, Real
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .fates import Horizon, check_mappable
+from .fates import Horizon
 from .grid import MAX_BLOCKS, Tiling, grid_too_large
 from .io.codecs import check_compression
 from .io.formats import OutputFormat, format_for
@@ -88,17 +87,12 @@ def _real(name: str, value: Any) -> float:
 
 
 def check_scene(scene: Any) -> Scene:
-    """The scene (None: the default :class:`Scene`) if a survey map can follow its effects."""
+    """The scene (None: the default :class:`Scene`); every effect of a Scene has a survey map."""
     if scene is None:
         return Scene()
     if not isinstance(scene, Scene):
         raise PlanError("scene", "must be an engine.Scene", scene)
-    try:
-        return check_mappable(scene)
-    except ValueError as exc:  # "Scene.mu_k makes ...": the field is the Scene's
-        m = re.match(r"(Scene\.\w+) ", str(exc))
-        name = m.group(1) if m else "scene"
-        raise PlanError(name, str(exc)[m.end() :] if m else str(exc)) from None
+    return scene
 
 
 def check_method(name: Any, scene: Scene) -> Method:
