@@ -15,7 +15,7 @@ import runs
 import engine
 import engine.api
 import engine.runner
-import engine.surveyfile
+import engine.surveydef
 from engine.checks import PlanError
 from engine.plan import RunPlan, plan_from_survey, survey_plan
 from engine.schema import DIMS, LAUNCH_DIMS
@@ -126,7 +126,7 @@ def _plan_of(monkeypatch, module, call) -> RunPlan:
 )
 def test_the_survey_file_and_the_api_make_the_same_plan(monkeypatch, text, api, kwargs):
     survey = parse_survey(text)
-    from_file = _plan_of(monkeypatch, engine.surveyfile, survey.run)
+    from_file = _plan_of(monkeypatch, engine.surveydef, survey.run)
     from_api = _plan_of(monkeypatch, engine.api, lambda: api(**kwargs))
     assert from_file == plan_from_survey(survey)
     single = text is INVARIANTS  # the file asks for float32 results; the API has no such key
