@@ -142,8 +142,8 @@ def check_horizon(method: Method, scene: Scene, time: Any, revolutions: Any) -> 
         raise PlanError(
             "horizon",
             "is required: a fate map follows each orbit to its first terminal event (spill, "
-            "slip, rest, vertex) or a horizon; give horizon_time [s] and/or horizon_revolutions "
-            "(a survey file: a [horizon] table with time and/or revolutions)",
+            "slip, rest, vertex) or a horizon: give horizon_time= [s] and/or "
+            "horizon_revolutions=",
         )
     if kind not in FATE_KINDS and values:
         raise PlanError(

@@ -53,7 +53,6 @@ from engine.evaluation import evaluate_block, evaluate_flat
 from engine.grid import Tiling
 from engine.kernels.batch import STAGES, empty_outputs, profile_batch
 from engine.kernels.geometry import BOUNDED, scene_params
-from engine.schema import DIMS
 from engine.surveyfile import load_survey
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -327,7 +326,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
         ),
     }
     block = evaluate_block(spec, slices)
-    sub = [np.asarray(spec[d])[s] for d, s in zip(DIMS, slices, strict=True)]
+    sub = [np.asarray(ax)[s] for ax, s in zip(spec.axes, slices, strict=True)]
     A, E, H, L = (x.reshape(-1) for x in np.meshgrid(*sub, indexing="ij"))
     flat = evaluate_flat(A, block["energy_absolute"].reshape(-1), H, L, SCENE)
     same = all(

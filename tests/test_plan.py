@@ -217,14 +217,6 @@ BAD = [
         "must be > 0",
     ),
     (
-        "horizon_missing",
-        dict(scene=engine.Scene(g=0.0, rim=3.0), method="rk45"),
-        RIM.replace('title = "bad"', 'title = "bad"\nmethod = "rk45"'),
-        "horizon",
-        "check_horizon",
-        "is required: a fate map follows each orbit to its first terminal event",
-    ),
-    (
         "horizon_not_a_fate_map",
         dict(horizon_time=3.0),
         FREE.replace('title = "bad"', 'title = "bad"\n[horizon]\ntime = 3.0\n'),
@@ -276,6 +268,29 @@ def test_a_bad_input_gets_one_message_from_api_file_and_cli(
         proc = runs.here(tmp_path, capsys, command, "bad.toml")
         assert proc.returncode == 2, proc
         assert f"bad.toml: {key}: {api.value.problem}" in proc.stderr
+    assert runs.listing(tmp_path) == ["bad.toml"]  # nothing written
+
+
+def test_a_missing_horizon_is_asked_for_in_each_entry_points_words(tmp_path, capsys):
+    """The one check decides that a fate map needs a horizon; the API names its keywords, a
+    survey file its [horizon] table (a file's user has no horizon_time= to give)."""
+    kwargs = dict(scene=engine.Scene(g=0.0, rim=3.0), method="rk45")
+    text = RIM.replace('title = "bad"', 'title = "bad"\nmethod = "rk45"')
+    with pytest.raises(PlanError) as api:
+        engine.survey(**{**GOOD_API, **kwargs})
+    assert "check_horizon" in _frames(api.value)
+    assert "is required: a fate map follows each orbit" in api.value.problem
+    assert "horizon_time=" in api.value.problem and "[horizon]" not in api.value.problem
+    with pytest.raises(SurveyError) as file:
+        parse_survey(text, origin="bad.toml")
+    assert file.value.key == "horizon"
+    assert "[horizon] table with time = SECONDS" in file.value.problem
+    assert "horizon_time" not in file.value.problem
+    (tmp_path / "bad.toml").write_text(text)
+    for command in ("validate", "run"):
+        proc = runs.here(tmp_path, capsys, command, "bad.toml")
+        assert proc.returncode == 2, proc
+        assert f"bad.toml: horizon: {file.value.problem}" in proc.stderr
     assert runs.listing(tmp_path) == ["bad.toml"]  # nothing written
 
 

@@ -68,7 +68,7 @@ def test_validate_reports_it_and_a_bad_value_is_refused(tmp_path, capsys):
     assert cli.main(["validate", str(tmp_path / "s.toml")]) == 0
     out = capsys.readouterr().out
     assert "precision single" in out and "float32" in out, out
-    with pytest.raises(SurveyError, match=r'precision: unknown value "half"'):
+    with pytest.raises(SurveyError, match=r'precision: must be one of double, single, got "half"'):
         parse_survey('precision = "half"\n' + DOUBLE)
 
 
