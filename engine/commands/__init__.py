@@ -12,6 +12,7 @@ Shared here: :class:`InputError` (reported as ``conesurvey: error: ...``, exit s
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -43,7 +44,8 @@ class Command:
 
 def error(message: str) -> None:
     """Print ``conesurvey: error: message`` on stderr."""
-    print(f"{PROG}: error: {message}", file=sys.stderr)
+    one_line = re.sub(r"\s*\n\s*", " ", str(message)).strip()  # HDF5's text holds newlines
+    print(f"{PROG}: error: {one_line}", file=sys.stderr)
 
 
 def load(path: str) -> Survey:
