@@ -26,7 +26,7 @@ from .io.formats import OutputFormat, format_for
 from .methods import METHODS, RTOL_RANGE, Method, get_method
 from .methods import check_method as _registry_check_method
 from .scene import Scene
-from .schema import FATE_KINDS, GRID_DIMS, map_kind
+from .schema import FATE_KINDS, GRID_DIMS
 
 __all__ = [
     "PlanError",
@@ -127,8 +127,9 @@ def check_circular_tol(circular_tol: Any) -> float:
     return t
 
 
-def check_horizon(method: Method, scene: Scene, time: Any, revolutions: Any) -> Horizon | None:
-    """The horizon of a fate map (required there); None for other maps (refused if given)."""
+def check_horizon(kind: str, time: Any, revolutions: Any) -> Horizon | None:
+    """The horizon of a map of ``kind`` (:func:`engine.schema.map_kind`): required for a fate
+    map; None for other maps (refused if given)."""
     values = {}
     for name, v in (("horizon_time", time), ("horizon_revolutions", revolutions)):
         if v is not None:
@@ -137,7 +138,6 @@ def check_horizon(method: Method, scene: Scene, time: Any, revolutions: Any) -> 
                 raise PlanError(name, "must be > 0", v)
             if not math.isfinite(values[name]):
                 raise PlanError(name, "must be finite (leave it out for no limit)", v)
-    kind = map_kind(method.name, scene)
     if kind in FATE_KINDS and not values:
         raise PlanError(
             "horizon",

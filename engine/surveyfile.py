@@ -271,7 +271,8 @@ class _Reader(AxisReader):
         """``[horizon]``: how long a fate map follows each orbit (the API's check)."""
         table = self.table(doc, "horizon", "", required=False) or {}
         self.check_keys(table, _HORIZON_KEYS, "horizon")
-        if not table and map_kind(method.name, scene) in FATE_KINDS:  # in the file's words
+        kind = map_kind(method.name, scene)
+        if not table and kind in FATE_KINDS:  # in the file's words
             raise self.fail(
                 "horizon",
                 "a fate map follows each orbit to its first terminal event (spill, slip, rest, "
@@ -279,7 +280,7 @@ class _Reader(AxisReader):
                 "revolutions = N",
             )
         with self.checked():
-            return check_horizon(method, scene, table.get("time"), table.get("revolutions"))
+            return check_horizon(kind, table.get("time"), table.get("revolutions"))
 
     @contextlib.contextmanager
     def checked(self) -> Iterator[None]:

@@ -48,11 +48,11 @@ import numpy as np
 from numba import njit, prange
 
 import engine
-from engine.backends import block_spec
 from engine.evaluation import evaluate_block, evaluate_flat
 from engine.grid import Tiling
 from engine.kernels.batch import STAGES, empty_outputs, profile_batch
 from engine.kernels.geometry import BOUNDED, scene_params
+from engine.plan import map_plan, plan_from_survey
 from engine.surveyfile import load_survey
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -81,10 +81,10 @@ def random_bounded_points(n: int, seed: int = 20240601) -> dict[str, np.ndarray]
     h = rng.uniform(-2.0, 2.0, m)
     Lz = rng.uniform(0.05, 2.0, m)
     vmin = engine.minimum_energy(alpha, h, Lz, SCENE)
-    r_c = evaluate_flat(alpha, vmin, h, Lz, SCENE)["r_circ"]
+    r_c = evaluate_flat(alpha, vmin, h, Lz, map_plan(SCENE))["r_circ"]
     C = M * G * np.cos(alpha) / (1.0 + K)
     energy = vmin + rng.uniform(0.0, 3.0, m) * C * r_c
-    res = evaluate_flat(alpha, energy, h, Lz, SCENE)
+    res = evaluate_flat(alpha, energy, h, Lz, map_plan(SCENE))
     keep = np.flatnonzero(res["orbit_class"] == BOUNDED)[:n]
     if keep.size < n:
         raise RuntimeError(f"only {keep.size} of {n} random points are bounded")
@@ -190,7 +190,7 @@ def survey_block() -> tuple[dict, tuple[slice, ...], int]:
     n = math.prod(
         len(range(*s.indices(size))) for s, size in zip(slices, survey.shape, strict=True)
     )
-    return block_spec(survey), slices, n
+    return plan_from_survey(survey), slices, n
 
 
 def profile(pts: dict[str, np.ndarray], rounds: int) -> list[tuple[str, float]]:
@@ -218,11 +218,12 @@ t0 = time.perf_counter()
 import numpy as np
 import engine
 from engine.evaluation import evaluate_flat
+from engine.plan import map_plan
 t1 = time.perf_counter()
 a = np.full(64, 0.5); e = np.full(64, 10.0); h = np.full(64, 1.0); lz = np.full(64, 1.0)
-evaluate_flat(a, e, h, lz, engine.Scene())
+evaluate_flat(a, e, h, lz, map_plan(engine.Scene()))
 t2 = time.perf_counter()
-evaluate_flat(a, e, h, lz, engine.Scene())
+evaluate_flat(a, e, h, lz, map_plan(engine.Scene()))
 t3 = time.perf_counter()
 print(json.dumps({"import": t1 - t0, "first": t2 - t1, "second": t3 - t2}))
 """
@@ -334,7 +335,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
     )
 
     def flat_path():
-        evaluate_flat(a, e, h, lz, SCENE)
+        evaluate_flat(a, e, h, lz, map_plan(SCENE))
 
     def grid_path():
         evaluate_block(spec, slices)

@@ -135,7 +135,10 @@ def test_the_survey_file_and_the_api_make_the_same_plan(monkeypatch, text, api, 
         n: np.dtype(np.float32) if single and dt.kind == "f" else dt
         for n, dt in from_api.variables.items()
     }
-    assert from_file == dataclasses.replace(from_api, output=output, variables=variables)
+    provenance = dict(title=survey.title, source_text=text)  # a file's own; the API has none
+    assert (from_api.title, from_api.source_text) == ("conesurvey survey", "")
+    assert from_file == dataclasses.replace(from_api, output=output, variables=variables,
+                                            **provenance)  # fmt: skip
     # what the plan holds, read from the inputs above (not from the code under test)
     launch = text is LAUNCH
     assert from_file.dims == (LAUNCH_DIMS if launch else DIMS)

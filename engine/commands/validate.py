@@ -18,10 +18,10 @@ from ..api import minimum_energy
 from ..io.blocks import estimate_bytes
 from ..io.codecs import DEFAULT_COMPRESSION
 from ..kernels import batch
+from ..plan import RunPlan
 from ..progress import format_bytes
-from ..schema import map_kind, map_summary
-from ..surveyfile import Survey
-from . import PROG, Command, load
+from ..schema import map_summary
+from . import PROG, Command, load_plan
 
 __all__ = ["COMMAND", "EXACT_RATE", "INTEGRATOR_RATE", "compile_seconds", "energy_warning"]
 
@@ -37,10 +37,10 @@ COMPILE_SECONDS = {"closed form": (30.0, "batch"), "one period": (90.0, "lanes")
                    "fate": (50.0, "fate"), "sliding fate": (120.0, "hybrid")}  # fmt: skip
 
 
-def compile_seconds(survey: Survey) -> float:
+def compile_seconds(plan: RunPlan) -> float:
     """Seconds the first run will spend compiling the survey's kernels: 0 when numba's cache
     holds them already (compiled by an earlier run with these kernel sources)."""
-    seconds, module = COMPILE_SECONDS[map_kind(survey.method, survey.scene)]
+    seconds, module = COMPILE_SECONDS[plan.map_kind]
     if CACHE_DIR is None:
         return seconds  # no cache: every run compiles
     where = _kernel_cache_dir()
@@ -59,21 +59,22 @@ def _kernel_cache_dir() -> Path | None:
     return None
 
 
-def _estimates(survey: Survey) -> tuple[int, float]:
+def _estimates(plan: RunPlan) -> tuple[int, float]:
     """(uncompressed output bytes, estimated run time [s])."""
-    rate = EXACT_RATE if survey.method == "exact" else INTEGRATOR_RATE
-    return estimate_bytes(survey), survey.size / rate
+    rate = EXACT_RATE if plan.method.name == "exact" else INTEGRATOR_RATE
+    return estimate_bytes(plan), plan.size / rate
 
 
-def energy_warning(survey: Survey) -> str | None:
+def energy_warning(plan: RunPlan) -> str | None:
     """A warning when every energy of the survey lies below the potential minimum V_min of
     every (alpha, h, Lz): every point would be forbidden (None otherwise, and for relative
     energies, launch states and grids where V has no minimum somewhere)."""
-    if survey.launch or survey.energy_relative or survey.energy is None:
+    if plan.launch or plan.energy_relative:
         return None
-    a, h, lz = np.meshgrid(survey.alpha, survey.h, survey.Lz, indexing="ij", sparse=True)
-    vmin = minimum_energy(a, h, lz, survey.scene)
-    top = float(np.max(survey.energy))
+    a, h, lz = np.meshgrid(*(plan.axis(d) for d in ("alpha", "h", "Lz")), indexing="ij",
+                           sparse=True)  # fmt: skip
+    vmin = minimum_energy(a, h, lz, plan.scene)
+    top = float(np.max(plan.axis("energy")))
     if not (np.all(np.isfinite(vmin)) and top < float(np.min(vmin))):
         return None
     return (
@@ -88,31 +89,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _validate(args: argparse.Namespace, command: str) -> int:
-    survey = load(args.survey)
-    need, seconds = _estimates(survey)
-    shape = " x ".join(f"{d} {n}" for d, n in zip(survey.dims, survey.shape, strict=True))
+    plan = load_plan(args.survey)
+    need, seconds = _estimates(plan)
+    shape = " x ".join(f"{d} {n}" for d, n in zip(plan.dims, plan.shape, strict=True))
     print(f"{args.survey}: valid")
-    if (warning := energy_warning(survey)) is not None:
+    if (warning := energy_warning(plan)) is not None:
         print(f"{PROG}: warning: {warning}", file=sys.stderr)
-    print(f"  title   {survey.title}")
-    print(
-        f"  method  {survey.method}"
-        + (f" (rtol {survey.rtol:g})" if survey.method != "exact" else "")
-    )
-    print(f"  grid    {shape} = {survey.size:,} points")
+    print(f"  title   {plan.title}")
+    method = plan.method.name
+    print(f"  method  {method}" + (f" (rtol {plan.rtol:g})" if method != "exact" else ""))
+    print(f"  grid    {shape} = {plan.size:,} points")
     print(
         f"  output  about {format_bytes(need)} uncompressed (less on disk: --compression "
         f"{DEFAULT_COMPRESSION} by default, docs/output.md)"
     )
-    compiling = compile_seconds(survey)
+    compiling = compile_seconds(plan)
     extra = (
         f" + about {compiling:.0f} s compiling the kernels (first run only)" if compiling else ""
     )
     print(f"  time    about {seconds:.3g} s on 2 cores{extra}")
-    if survey.precision == "single":
+    if plan.output.precision == "single":
         print("  precision single: float results stored as float32 (~7 significant digits); "
               "classes, status and fate exact")  # fmt: skip
-    for line in map_summary(survey.method, survey.scene, survey.energy_relative, survey.launch):
+    for line in map_summary(method, plan.scene, plan.energy_relative, plan.launch):
         print(f"  {line}")
     return 0
 
