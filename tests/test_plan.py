@@ -289,6 +289,10 @@ def test_a_missing_horizon_is_asked_for_in_each_entry_points_words(tmp_path, cap
     assert file.value.key == "horizon"
     assert "[horizon] table with time = SECONDS" in file.value.problem
     assert "horizon_time" not in file.value.problem
+    cause = file.value.__context__  # decided by the same check, not by a pre-check of its own
+    assert isinstance(cause, PlanError) and "check_horizon" in _frames(cause), cause
+    same = "is required: a fate map follows each orbit to its first terminal event"
+    assert api.value.problem.startswith(same) and file.value.problem.startswith(same)
     (tmp_path / "bad.toml").write_text(text)
     for command in ("validate", "run"):
         proc = runs.here(tmp_path, capsys, command, "bad.toml")
