@@ -7,7 +7,10 @@ launch states :func:`invariants` and :func:`launch_state`; the method registry :
 
 from __future__ import annotations
 
-from . import accessor  # noqa: F401  (registers the ds.cone accessor)
+from . import (
+    _startup,  # noqa: F401  (first: a Ctrl-C while `python -m engine.cli` starts)
+    accessor,  # noqa: F401  (registers the ds.cone accessor)
+)
 from ._version import __version__
 from .api import evaluate, launch_survey, minimum_energy, radial_energy, survey
 from .fates import Horizon

@@ -20,6 +20,7 @@ import shlex
 import sys
 from collections.abc import Sequence
 
+from ._startup import INTERRUPTED, started
 from ._version import __version__
 from .commands import PROG, Command, InputError, error
 from .commands import convert as _convert
@@ -93,7 +94,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         error("interrupted; finished blocks are kept: run the same command again to resume")
-        return 130
+        return INTERRUPTED
     except BrokenPipeError:
         _silence_stdout()
         return BROKEN_PIPE
@@ -141,4 +142,9 @@ for _command in (
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    started()  # Python's SIGINT handler again (engine/_startup.py guarded the imports)
+    try:
+        raise SystemExit(main())
+    except KeyboardInterrupt:  # before main's own handling starts (parsing the arguments)
+        error("interrupted; nothing written")
+        raise SystemExit(INTERRUPTED) from None

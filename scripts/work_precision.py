@@ -66,6 +66,7 @@ ROOT = Path(__file__).resolve().parents[1]
 METHODS = ("rk45", "dop853", "symplectic")
 RTOLS_FULL = tuple(10.0**-j for j in range(3, 14))  # 1e-3 ... 1e-13
 RTOLS_QUICK = (1e-3, 1e-6, 1e-9, 1e-12)
+RTOLS_TINY = (1e-3, 1e-9)  # --tiny: every part of the study runs, on two tolerances, timed once
 #: Right-hand-side (force) evaluations per step of each method.
 STAGES = {"rk45": 6, "dop853": 12, "symplectic": 7}
 EVAL_NOTE = (
@@ -1051,8 +1052,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"machine: {meta['machine']}")
     print(meta["versions"])
     print(f"load average at start (1, 5, 15 min): {meta['load_average_at_start']}")
-    rtols = RTOLS_QUICK if args.quick else RTOLS_FULL
-    repeats, target = 3, (0.005 if args.quick else 0.02)
+    rtols = RTOLS_TINY if args.tiny else RTOLS_QUICK if args.quick else RTOLS_FULL
+    repeats, target = (1 if args.tiny else 3), (0.005 if args.quick else 0.02)
     threads = [1, 2] if numba.config.NUMBA_NUM_THREADS >= 2 else [1]
     meta.update(repeats=repeats, timing=TIME_NOTE.format(target=target, repeats=repeats))
     meta["quick"] = int(args.quick)

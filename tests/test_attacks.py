@@ -1,4 +1,6 @@
-"""The attacks of issue 11 on streamed runs, each with the real command in subprocesses.
+"""The attacks of issue 11 on streamed runs: the runs that are killed, raced or attacked while
+they run are the real command in subprocesses; the runs that finish afterwards, and the
+reference, run the command (or the API) in this process (no interpreter start).
 
 Every test ends with one of two outcomes: the final file equals an uninterrupted run (values,
 NaN bit patterns, attributes except history), or the run was refused with exit status 2 and
@@ -20,6 +22,8 @@ import pytest
 import runs
 
 from engine.io import manifest as io_manifest
+from engine.runner import run_survey
+from engine.surveyfile import parse_survey
 
 # 4 x 50 x 33 x 100 = 660,000 points in 16 blocks of one storage chunk (42,500 points) each
 SURVEY = runs.gravity_survey("attack test", energy=50)
@@ -35,11 +39,9 @@ READY = (
 
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory):
-    d = tmp_path_factory.mktemp("ref")
-    (d / "s.toml").write_text(SURVEY)
-    proc = runs.run(d, *ARGS)
-    assert proc.returncode == 0, proc.stderr
-    return d / "out.nc"
+    out = tmp_path_factory.mktemp("ref") / "out.nc"
+    run_survey(parse_survey(SURVEY), out, block_points=int(BLOCK))
+    return out
 
 
 @pytest.fixture
@@ -114,7 +116,7 @@ def assert_refused_and_untouched(work: Path, capsys, *args: str) -> str:
 
 
 def finish_and_compare(work: Path, reference: Path, capsys, *extra: str, kept=()) -> str:
-    proc = runs.run(work, *ARGS, *extra)
+    proc = runs.here(work, capsys, *ARGS, *extra)
     assert proc.returncode == 0, proc.stderr
     assert "Traceback" not in proc.stderr
     if kept:  # files that are not the run's are left alone, with the directory
@@ -271,7 +273,7 @@ def test_a_lock_file_that_is_a_link_is_refused(work, capsys):
     assert victim.read_text() == "precious"
 
 
-def test_links_planted_in_the_parts_directory_are_never_followed(work, reference):
+def test_links_planted_in_the_parts_directory_are_never_followed(work, reference, capsys):
     """Links at the old fixed temporary names and at a block's own name: their targets keep
     their contents; the link in a block's place is reported, removed and recomputed."""
     killed_after(work, 6)
@@ -285,7 +287,7 @@ def test_links_planted_in_the_parts_directory_are_never_followed(work, reference
     _block(work, 2).unlink()
     _block(work, 2).symlink_to(good)  # same bytes, but a link
     (work / "out.nc.tmp").symlink_to(victim)  # the output's old temporary name
-    proc = runs.run(work, *ARGS)
+    proc = runs.here(work, capsys, *ARGS)
     assert proc.returncode == 0, proc.stderr
     assert "block file b00000002.npz is corrupt (not a regular file" in proc.stderr
     assert victim.read_text() == "precious"
@@ -303,7 +305,7 @@ def test_leftover_blocks_of_a_finished_run_are_removed(work, reference, capsys):
     killed_after(work, 4)
     saved = work.parent / (work.name + "-saved")
     parts(work).rename(saved)
-    assert runs.run(work, *ARGS).returncode == 0
+    assert runs.here(work, capsys, *ARGS).returncode == 0
     for manifest in (False, True):
         for who in ("run", "info"):
             shutil.copytree(saved, parts(work), symlinks=True)

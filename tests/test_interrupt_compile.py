@@ -19,15 +19,20 @@ from pathlib import Path
 
 import pytest
 from runs import ROOT, env, free_fall_survey
+from runs import cli as runs_cli
 
-#: A sitecustomize that sends SIGINT to its own process when numba is first imported.
+from engine._startup import as_module_command
+
+#: A sitecustomize that sends SIGINT to its own process when the module named by
+#: INTERRUPT_AT (numba: inside ``import engine``; engine.commands.run: inside engine/cli.py's
+#: own imports, where ``python -m engine.cli`` runs) is first imported.
 ON_IMPORT = textwrap.dedent(
     """
     import os, signal, sys
 
     class Interrupt:
         def find_spec(self, name, path=None, target=None):
-            if name == "numba":
+            if name == os.environ.get("INTERRUPT_AT"):
                 sys.meta_path.remove(self)
                 os.kill(os.getpid(), signal.SIGINT)
             return None
@@ -87,15 +92,26 @@ def test_console_script_is_the_launcher():
     assert 'py-modules = ["conesurvey_cli"]' in text
 
 
-def test_ctrl_c_while_the_package_imports(tmp_path: Path):
+@pytest.mark.parametrize(
+    "launcher, at",
+    [
+        ("console script", "numba"),
+        ("-m engine.cli", "numba"),
+        ("-m engine.cli", "engine.commands.run"),
+    ],
+)
+def test_ctrl_c_while_the_package_imports(tmp_path: Path, launcher: str, at: str):
+    """The console script and ``python -m engine.cli`` alike (the second printed a
+    KeyboardInterrupt traceback and died of the SIGINT)."""
     site = tmp_path / "site"
     site.mkdir()
     (site / "sitecustomize.py").write_text(ON_IMPORT)
     (tmp_path / "s.toml").write_text(free_fall_survey("interrupted import"))
+    command = _console_script() if launcher == "console script" else runs_cli()
     proc = subprocess.run(
-        [*_console_script(), "run", "s.toml", "-o", "out.nc"],
+        [*command, "run", "s.toml", "-o", "out.nc"],
         cwd=tmp_path,
-        env=env(PYTHONPATH=os.pathsep.join((str(site), str(ROOT)))),
+        env=env(PYTHONPATH=os.pathsep.join((str(site), str(ROOT))), INTERRUPT_AT=at),
         capture_output=True,
         text=True,
         timeout=300,
@@ -103,6 +119,20 @@ def test_ctrl_c_while_the_package_imports(tmp_path: Path):
     assert proc.returncode == 130, proc.stderr[-3000:]
     assert proc.stderr == "conesurvey: error: interrupted; nothing written\n", proc.stderr[-3000:]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml", "site"]
+
+
+def test_only_python_m_engine_cli_installs_the_start_up_handler():
+    assert as_module_command(["python", "-m", "engine.cli", "run", "s.toml"])
+    assert as_module_command(["python", "-X", "importtime", "-W", "ignore", "-mengine.cli"])
+    for argv in (
+        ["conesurvey", "run", "s.toml"],  # the console script handles its own start
+        ["python", "-m", "engine.clix"],
+        ["python", "-m", "pytest", "-m", "engine.cli"],
+        ["python", "script.py", "-m", "engine.cli"],
+        ["python", "-c", "import engine", "-m", "engine.cli"],
+        ["python"],
+    ):
+        assert not as_module_command(argv), argv
 
 
 @pytest.mark.parametrize("hook", ["notify", "getbuffer"])

@@ -17,7 +17,7 @@ OLD = runs.gravity_survey("the old output", energy=20)
 
 
 @pytest.mark.parametrize("out", ["out.nc", "out.zarr"])
-def test_a_killed_run_overwrite_resumes_with_the_same_command(tmp_path, out):
+def test_a_killed_run_overwrite_resumes_with_the_same_command(tmp_path, out, capsys):
     if out.endswith(".zarr"):
         pytest.importorskip("zarr")
     (tmp_path / "s.toml").write_text(SURVEY)
@@ -33,10 +33,10 @@ def test_a_killed_run_overwrite_resumes_with_the_same_command(tmp_path, out):
 
     proc = subprocess.Popen(runs.cli(*args), cwd=tmp_path, env=runs.env(), stderr=subprocess.PIPE)
     assert runs.kill_when(proc, stored, timeout=300), "finished first"
-    again = runs.run(tmp_path, *args, timeout=300)
+    again = runs.here(tmp_path, capsys, *args)  # the same command, in this process
     assert again.returncode == 0, again.stderr
     assert "blocks from an earlier run" in again.stdout, again.stdout + again.stderr
     assert "discarded" not in again.stderr, again.stderr
-    verified = runs.run(tmp_path, "info", out, "--verify", timeout=120)
+    verified = runs.here(tmp_path, capsys, "info", out, "--verify")
     assert verified.returncode == 0 and "the old output" not in verified.stdout, verified.stdout
     assert "overwrite resume" in verified.stdout

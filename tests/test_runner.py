@@ -26,6 +26,8 @@ ROOT = Path(__file__).resolve().parent.parent
 # 4 x 100 x 33 x 100 = 1.32e6 points in 32 blocks of one storage chunk each
 SURVEY = runs.gravity_survey("runner test")
 SMALL = runs.gravity_survey("runner test", energy=10, lz=10)
+#: The survey killed mid-run: 4 x 40 x 33 x 100 = 528,000 points in 16 blocks
+KILLED = runs.gravity_survey("runner test", energy=40)
 CHUNK = 1 << 16
 
 
@@ -42,28 +44,19 @@ _same_content = runs.same_content
 
 @pytest.fixture(scope="module")
 def reference_run(tmp_path_factory):
-    """An uninterrupted run of SURVEY (the CLI in a subprocess)."""
-    d = tmp_path_factory.mktemp("ref")
-    (d / "s.toml").write_text(SURVEY)
-    proc = subprocess.run(
-        _cli("run", "s.toml", "-o", "ref.nc", "-q", "--block-points", str(CHUNK)),
-        cwd=d,
-        env=_env(),
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert proc.returncode == 0, proc.stderr
-    return d / "ref.nc"
+    """An uninterrupted run of KILLED (in this process)."""
+    out = tmp_path_factory.mktemp("ref") / "ref.nc"
+    run_survey(parse_survey(KILLED), out, block_points=CHUNK)
+    return out
 
 
-def test_sigkill_mid_run_then_resume_gives_identical_file(tmp_path, reference_run):
-    (tmp_path / "s.toml").write_text(SURVEY)
+def test_sigkill_mid_run_then_resume_gives_identical_file(tmp_path, reference_run, capsys):
+    (tmp_path / "s.toml").write_text(KILLED)
     parts = tmp_path / "out.nc.parts"
     # the option's old spelling, still accepted: the file must equal the --block-points one
     cmd = _cli("run", "s.toml", "-o", "out.nc", "-q", "--chunk-points", str(CHUNK))
     kills = 0
-    for target in (3, 12, 22):  # kill three times at increasing progress
+    for target in (2, 6, 11):  # kill three times at increasing progress (of 16 blocks)
         proc = subprocess.Popen(cmd, cwd=tmp_path, env=_env(), stderr=subprocess.PIPE)
         deadline = time.monotonic() + 300
         while time.monotonic() < deadline and proc.poll() is None:
@@ -76,9 +69,7 @@ def test_sigkill_mid_run_then_resume_gives_identical_file(tmp_path, reference_ru
         assert not (tmp_path / "out.nc").exists() or proc.returncode == 0
     assert kills >= 2, "the run finished before it could be killed"
     stored = len(list(parts.glob("b*.npz")))
-    info = subprocess.run(
-        _cli("info", "out.nc"), cwd=tmp_path, env=_env(), capture_output=True, text=True
-    )
+    info = runs.here(tmp_path, capsys, "info", "out.nc")
     assert info.returncode == 0 and "unfinished" in info.stdout, info.stdout + info.stderr
     done = subprocess.run(
         cmd,
@@ -243,31 +234,37 @@ def test_block_points_flag_must_be_positive(tmp_path, capsys):
     assert "--block-points" in capsys.readouterr().err
 
 
-def _peak_rss_mb(tmp_path: Path, text: str, name: str) -> float:
+def _peak_rss_mb(tmp_path: Path, *surveys: str) -> list[float]:
+    """The peak resident memory [MB] of one fresh interpreter after running each survey in
+    turn (ru_maxrss only grows: each figure is the peak so far)."""
     code = f"""
 import resource, sys
 from engine.surveyfile import parse_survey
 from engine.runner import run_survey
-run_survey(parse_survey(open(sys.argv[1]).read()), sys.argv[2], block_points={CHUNK})
-print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+for i, path in enumerate(sys.argv[1:]):
+    run_survey(parse_survey(open(path).read()), path + ".nc", block_points={CHUNK})
+    print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
 """
-    (tmp_path / f"{name}.toml").write_text(text)
+    paths = []
+    for i, text in enumerate(surveys):
+        paths.append(tmp_path / f"s{i}.toml")
+        paths[-1].write_text(text)
     proc = subprocess.run(
-        [sys.executable, "-c", code, str(tmp_path / f"{name}.toml"), str(tmp_path / f"{name}.nc")],
+        [sys.executable, "-c", code, *map(str, paths)],
         env=_env(),
         capture_output=True,
         text=True,
         timeout=600,
     )
     assert proc.returncode == 0, proc.stderr
-    return int(proc.stdout.split()[-1]) / 1024
+    return [int(line) / 1024 for line in proc.stdout.split()[-len(surveys) :]]
 
 
 def test_peak_memory_is_bounded_by_the_block_not_the_grid(tmp_path):
     """A 1.32e6-point survey (9 bytes x 9 variables per point: 98 MB of results) peaks within
-    a few blocks' worth (64k points, ~5 MB each) of a 13,200-point one."""
-    small = _peak_rss_mb(tmp_path, SMALL, "small")
-    large = _peak_rss_mb(tmp_path, SURVEY, "large")
+    a few blocks' worth (64k points, ~5 MB each) of a 13,200-point one run just before it in
+    the same interpreter."""
+    small, large = _peak_rss_mb(tmp_path, SMALL, SURVEY)
     assert large - small < 40, (small, large)
 
 

@@ -11,9 +11,10 @@ name the holder. What this relies on (README, "Guarantees"):
   ``nolock`` or ``local_lock=flock|all`` makes the lock host-local. Lustre needs the ``flock``
   mount option (``localflock`` is host-local; without either, locking fails and the run is
   refused). On a file system that cannot lock at all the run is refused with a message;
-- the lock file is removed by its holder before it lets go; a run that locked a file that was
-  meanwhile removed (its inode is no longer the path's) drops it and tries again, so two runs
-  never both hold "the" lock.
+- the lock file is removed by its holder before it lets go (a Ctrl-C while the lock is being
+  taken is held back until the holder exists, so it cannot leave the file behind); a run that
+  locked a file that was meanwhile removed (its inode is no longer the path's) drops it and
+  tries again, so two runs never both hold "the" lock.
 
 The process that runs the survey holds the lock and alone creates, journals, merges, renames and
 removes files. Dask workers write only into a Zarr run: each writes the chunk files of the
@@ -29,13 +30,16 @@ import contextlib
 import errno
 import json
 import os
+import signal
 import socket
 import stat
+import threading
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
-from types import TracebackType
+from types import FrameType, TracebackType
 from typing import Any
 
 from .atomic import O_CLOEXEC, O_NOFOLLOW
@@ -106,8 +110,23 @@ class OutputLock:
     @classmethod
     def acquire(cls, out: Path, command: str = "conesurvey") -> OutputLock:
         """Take the lock of ``out`` without waiting: :class:`Locked` if another run has it,
-        :class:`LockError` if it cannot be taken here (a link, a file system without locks)."""
-        path = lock_path(out)
+        :class:`LockError` if it cannot be taken here (a link, a file system without locks).
+
+        A Ctrl-C (SIGINT) is held back from creating ``OUT.lock`` until the lock object that
+        removes it exists, then delivered: if it ends the call, the lock is released first, so
+        an interrupt leaves no lock file behind."""
+        lock = None
+        try:
+            with _interrupts_held():
+                lock = cls._take(lock_path(out), command)
+        except BaseException:
+            if lock is not None:
+                lock.release()
+            raise
+        return lock
+
+    @classmethod
+    def _take(cls, path: Path, command: str) -> OutputLock:
         for _ in range(100):
             try:
                 fd = os.open(path, os.O_RDWR | os.O_CREAT | O_NOFOLLOW | O_CLOEXEC, 0o644)
@@ -182,6 +201,25 @@ class OutputLock:
         tb: TracebackType | None,
     ) -> None:
         self.release()
+
+
+@contextlib.contextmanager
+def _interrupts_held() -> Iterator[None]:
+    """A SIGINT in the block is held back and handed to the handler it was meant for when the
+    block ends (in the main thread, where Python runs signal handlers; elsewhere nothing)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[FrameType | None] = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(frame))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        if caught and callable(previous):
+            previous(signal.SIGINT, caught[0])
+        elif caught and previous == signal.SIG_DFL:
+            os.kill(os.getpid(), signal.SIGINT)
 
 
 def _not_own_file(fd: int) -> str:
