@@ -345,3 +345,57 @@ def test_the_plan_refuses_axes_by_name():
         survey_plan(DIMS, dict(alpha=[0.5], energy=[1.0], h=[0.0], Lz=[]))
     with pytest.raises(PlanError, match=r"^energy must be finite; got nan$"):
         survey_plan(DIMS, dict(alpha=[0.5], energy=[np.nan], h=[0.0], Lz=[1.0]))
+
+
+def _check_calls(call) -> dict[str, int]:
+    """How many times ``call`` runs each function of engine.checks (and the grid-size rule)."""
+    import collections
+    import sys
+
+    import engine.checks
+    import engine.grid
+
+    mine = [(n, f) for n, f in vars(engine.checks).items() if hasattr(f, "__code__")]
+    codes = {f.__code__: n for n, f in mine if f.__module__ == "engine.checks"}
+    codes[engine.grid.grid_too_large.__code__] = "grid_too_large"
+    counts: collections.Counter = collections.Counter()
+
+    def profile(frame, event, arg):
+        if event == "call" and frame.f_code in codes:
+            counts[codes[frame.f_code]] += 1
+
+    sys.setprofile(profile)
+    try:
+        call()
+    finally:
+        sys.setprofile(None)
+    return dict(counts)
+
+
+def test_a_survey_file_checks_each_value_once(tmp_path):
+    """The way of ``conesurvey run`` (read the file, the command's plan, the runner's plan to
+    a file, the variables and attributes): every value of the file is checked once, by its
+    one function, while the file is read; the plans built later check only the output."""
+
+    def run_way():
+        survey = parse_survey(LAUNCH)
+        plan_from_survey(survey)
+        plan_from_survey(survey, tmp_path / "o.nc")
+        survey.variables(), survey.attrs()
+
+    calls = _check_calls(run_way)
+    once = ("check_scene", "check_method", "check_rtol", "check_circular_tol", "check_horizon",
+            "check_precision", "grid_too_large")  # fmt: skip
+    assert {n: calls.get(n) for n in once} == dict.fromkeys(once, 1), calls
+    assert calls["axis_problem"] == 7  # alpha 1 + r0 2 + v0 3 + w0 1 values, each once
+    # the API's whole-array checks are not run again on axes the file's reader checked
+    assert not {"check_axes", "check_values", "check_numbers", "check_energy_relative"} & set(
+        calls
+    ), calls
+    # the output's inputs, no key of a file: once per plan with an output (memory, o.nc)
+    assert (calls["check_output"], calls["check_block_points"]) == (2, 2), calls
+    # a Survey made in Python has the API's checks, once, and keeps the plan
+    made = dataclasses.replace(parse_survey(LAUNCH), rtol=1e-8)
+    calls = _check_calls(lambda: (plan_from_survey(made), made.variables(), made.plan))
+    assert (calls["check_rtol"], calls["check_axes"]) == (1, 1), calls
+    assert made.plan.rtol == 1e-8
