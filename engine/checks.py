@@ -20,8 +20,8 @@ from typing import Any
 import numpy as np
 
 from .errortext import suggest
-from .fates import Horizon
 from .grid import MAX_BLOCKS, Tiling, grid_too_large
+from .horizon import Horizon
 from .io.codecs import check_compression
 from .io.formats import OutputFormat, format_for
 from .methods import METHODS, RTOL_RANGE, Method

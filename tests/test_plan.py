@@ -14,9 +14,12 @@ import runs
 
 import engine
 import engine.api
+import engine.fates
 import engine.runner
+import engine.story
 import engine.surveydef
 from engine.checks import PlanError
+from engine.fates import Horizon
 from engine.plan import RunPlan, plan_from_survey, survey_plan
 from engine.schema import DIMS, LAUNCH_DIMS
 from engine.surveyfile import SurveyError, parse_survey
@@ -284,6 +287,17 @@ def test_a_missing_horizon_is_asked_for_in_each_entry_points_words(tmp_path, cap
     assert "check_horizon" in _frames(api.value)
     assert "is required: a fate map follows each orbit" in api.value.problem
     assert "horizon_time=" in api.value.problem and "[horizon]" not in api.value.problem
+    # the API's other ways to a fate map (engine.fates.fates, engine.story.launch_fates) ask
+    # the same check, in the same words (they had a wording of their own)
+    point = [np.array([x]) for x in (0.5, 1.0, 0.0, 1.0, 1.0)]
+    sliding = engine.Scene(mu=0.5, mu_k=0.3)
+    for call in (lambda: engine.fates.fates(*point, kwargs["scene"], "rk45", 1e-9, None),
+                 lambda: engine.fates.fates(*point, kwargs["scene"], "rk45", 1e-9, Horizon()),
+                 lambda: engine.story.launch_fates(0.5, 1.0, 0.5, 0.0, scene=sliding)):  # fmt: skip
+        with pytest.raises(PlanError) as other:
+            call()
+        assert "check_horizon" in _frames(other.value), _frames(other.value)
+        assert str(other.value) == str(api.value)
     with pytest.raises(SurveyError) as file:
         parse_survey(text, origin="bad.toml")
     assert file.value.key == "horizon"
