@@ -19,11 +19,12 @@ from typing import Any
 
 import numpy as np
 
-from .fates import Horizon
+from .errortext import suggest
 from .grid import MAX_BLOCKS, Tiling, grid_too_large
+from .horizon import Horizon
 from .io.codecs import check_compression
 from .io.formats import OutputFormat, format_for
-from .methods import METHODS, RTOL_RANGE, Method, get_method
+from .methods import METHODS, RTOL_RANGE, Method
 from .methods import check_method as _registry_check_method
 from .scene import Scene
 from .schema import FATE_KINDS, GRID_DIMS
@@ -97,11 +98,14 @@ def check_scene(scene: Any) -> Scene:
 
 
 def check_method(name: Any, scene: Scene) -> Method:
-    """The registered method ``name`` if it honours every effect of ``scene``."""
-    try:
-        get_method(name)
-    except ValueError:
-        raise PlanError("method", "must be one of " + ", ".join(METHODS), name) from None
+    """The registered method ``name`` if it honours every effect of ``scene`` (a misspelt
+    name gets a did-you-mean)."""
+    if not isinstance(name, str):
+        raise PlanError("method", "must be a string, one of " + ", ".join(METHODS), name)
+    if name not in METHODS:
+        hint = suggest(name, tuple(METHODS))  # "; did you mean 'rk45'?" or the list again
+        close = f" ({hint[2:]})" if hint.startswith("; did you mean") else ""
+        raise PlanError("method", "must be one of " + ", ".join(METHODS) + close, name)
     try:
         return _registry_check_method(name, scene)
     except ValueError as exc:  # "method 'exact' cannot honour ..."

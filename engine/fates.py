@@ -1,14 +1,15 @@
 """Fate maps: what the scene does to each orbit, integrated from its start to its first terminal
-event (spill, slip, rest, the vertex region) or a horizon (the Python side of
-:mod:`engine.kernels.fate`)."""
+event (spill, slip, rest, the vertex region) or a horizon (:class:`Horizon`, from
+:mod:`engine.horizon`) (the Python side of :mod:`engine.kernels.fate`)."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
+from .checks import check_horizon
+from .horizon import Horizon
 from .hybrid import HYBRID_VARIABLES, hybrid_fates
 from .integrated import fate_points
 from .kernels.effects import REVOLUTIONS
@@ -17,6 +18,7 @@ from .kernels.geometry import BOUNDED, CIRCULAR, HYPERBOLIC, RADIAL
 from .kernels.model import P_THETA_MAX
 from .methods import Method, check_method
 from .scene import Scene
+from .schema import FATE_KINDS
 
 __all__ = ["Horizon", "fates", "fate_map", "require_horizon", "DEFAULT_MAX_STEPS"]
 
@@ -24,57 +26,13 @@ __all__ = ["Horizon", "fates", "fate_map", "require_horizon", "DEFAULT_MAX_STEPS
 DEFAULT_MAX_STEPS = 10_000_000
 
 
-def _horizon_value(name: str, value: float | None) -> float:
-    if value is None:
-        return math.inf
-    if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
-        raise ValueError(f"{name} must be a number; got {value!r}")
-    v = float(value)
-    if not v > 0.0:
-        raise ValueError(f"{name} must be > 0; got {value!r}")
-    return v
-
-
-@dataclass(frozen=True)
-class Horizon:
-    """How long a fate map follows each orbit: ``time`` [s] and/or ``revolutions`` about the axis
-    (whichever comes first; None = no limit of that kind)."""
-
-    time: float | None = None
-    revolutions: float | None = None
-
-    def __post_init__(self) -> None:
-        _horizon_value("horizon_time", self.time)
-        _horizon_value("horizon_revolutions", self.revolutions)
-
-    @property
-    def t_max(self) -> float:
-        return _horizon_value("horizon_time", self.time)
-
-    @property
-    def theta_max(self) -> float:
-        return 2.0 * math.pi * _horizon_value("horizon_revolutions", self.revolutions)
-
-    @property
-    def given(self) -> bool:
-        return self.time is not None or self.revolutions is not None
-
-    def as_attrs(self) -> dict[str, float | str]:
-        """netCDF-safe attributes (no None)."""
-        out: dict[str, float | str] = {}
-        for name, v in (("horizon_time", self.time), ("horizon_revolutions", self.revolutions)):
-            out[name] = "none" if v is None else float(v)
-        return out
-
-
 def require_horizon(horizon: Horizon | None) -> Horizon:
-    """The horizon of a fate map; ValueError when none is given."""
-    if horizon is None or not horizon.given:
-        raise ValueError(
-            "a fate map follows each orbit to its first terminal event (spill, slip, rest, "
-            "vertex) or a horizon: give horizon_time= [s] and/or horizon_revolutions="
-        )
-    return horizon
+    """The horizon of a fate map, by the one rule (:func:`engine.checks.check_horizon`, in
+    the API's words); a :class:`engine.checks.PlanError` (a ValueError) when none is given."""
+    given = horizon or Horizon()
+    checked = check_horizon(FATE_KINDS[0], given.time, given.revolutions)
+    assert checked is not None  # a fate map's horizon, or check_horizon raised
+    return checked
 
 
 def fates(

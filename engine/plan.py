@@ -2,9 +2,11 @@
 
 A survey reaches the engine from the API (:func:`engine.survey`, :func:`engine.launch_survey`),
 from a survey file (:mod:`engine.surveyfile`) or from ``conesurvey run``; each way builds one
-:class:`RunPlan` (:func:`survey_plan`, :func:`plan_from_survey`), which the evaluation
-(:func:`engine.evaluation.evaluate_block`), the backends (:mod:`engine.backends`) and the runner
-(:mod:`engine.runner`) take. Every input is checked by its one function in :mod:`engine.checks`.
+:class:`RunPlan` (:func:`survey_plan`; a survey file's parser: :func:`map_plan` then
+:func:`grid_plan`), which the evaluation (:func:`engine.evaluation.evaluate_block`), the
+backends (:mod:`engine.backends`) and the runner (:mod:`engine.runner`) take, with its output
+added by :func:`plan_with_output`. Every input is checked once, by its one function in
+:mod:`engine.checks`.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .checks import (
+    HORIZON_HINT,
     PlanError,
     check_axes,
     check_block_points,
@@ -51,8 +54,10 @@ __all__ = [
     "OutputPlan",
     "PlanError",
     "RunPlan",
+    "grid_plan",
     "map_plan",
     "plan_from_survey",
+    "plan_with_output",
     "survey_plan",
 ]
 
@@ -159,15 +164,18 @@ def map_plan(
     rtol: Any = DEFAULT_RTOL,
     horizon_time: Any = None,
     horizon_revolutions: Any = None,
+    horizon_hint: str = HORIZON_HINT,
 ) -> MapPlan:
-    """The plan of a map at points (:func:`engine.evaluate`): each input checked by its one
-    function, in this order (the first problem is raised, a :class:`PlanError`)."""
+    """The plan of a map at points (:func:`engine.evaluate`; a survey file's too): each input
+    checked by its one function, in this order (the first problem is raised, a
+    :class:`PlanError`). ``horizon_hint``: how the caller asks for a horizon
+    (:func:`engine.checks.check_horizon`)."""
     scene = check_scene(scene)
     m = check_method(method, scene)
     rtol = check_rtol(rtol, m)
     circular_tol = check_circular_tol(circular_tol)
     kind = map_kind(m.name, scene)
-    horizon = check_horizon(kind, horizon_time, horizon_revolutions)
+    horizon = check_horizon(kind, horizon_time, horizon_revolutions, hint=horizon_hint)
     return MapPlan(scene, m, kind, rtol, circular_tol, horizon, result_variables(m.name, scene))
 
 
@@ -205,14 +213,52 @@ def survey_plan(
     check_block_points(block_points)
     axes = check_axes(tuple(dims), values)
     block_points = check_block_points(block_points, tuple(a.size for a in axes))
-    names = result_variables(mp.method.name, mp.scene, energy_relative, tuple(dims) != DIMS)
-    if precision == "single":
-        names = {n: np.dtype(np.float32) if dt.kind == "f" else dt for n, dt in names.items()}
     output = OutputPlan(path, fmt, compression, complevel, precision, block_points)
+    return grid_plan(mp, tuple(dims), axes, energy_relative=energy_relative, output=output,
+                     title=title, source_text=source_text)  # fmt: skip
+
+
+def grid_plan(
+    mp: MapPlan,
+    dims: tuple[str, ...],
+    axes: tuple[np.ndarray, ...],
+    *,
+    energy_relative: bool = False,
+    output: OutputPlan | None = None,
+    title: str = DEFAULT_TITLE,
+    source_text: str = "",
+) -> RunPlan:
+    """The plan of the map ``mp`` over the axes ``dims`` holding ``axes`` (read-only float64
+    arrays), written as ``output`` (None: in memory, float64). It checks nothing: every input
+    was checked where it was read (:func:`survey_plan` for the API; a survey file's parser,
+    :mod:`engine.surveyfile`, with its key paths), each by its one function."""
+    output = OutputPlan() if output is None else output
+    names = result_variables(mp.method.name, mp.scene, energy_relative, dims != DIMS)
+    if output.precision == "single":
+        names = {n: np.dtype(np.float32) if dt.kind == "f" else dt for n, dt in names.items()}
     fields = {f.name: getattr(mp, f.name) for f in dataclasses.fields(MapPlan)}
-    return RunPlan(**{**fields, "variables": names}, dims=tuple(dims), axes=axes,
+    return RunPlan(**{**fields, "variables": names}, dims=dims, axes=axes,
                    energy_relative=energy_relative, output=output, title=title,
                    source_text=source_text)  # fmt: skip
+
+
+def plan_with_output(
+    plan: RunPlan,
+    out: str | os.PathLike[str] | None = None,
+    *,
+    block_points: Any = None,
+    compression: Any = None,
+    complevel: Any = None,
+    output_format: Any = None,
+) -> RunPlan:
+    """``plan`` written to ``out`` (None: in memory) in blocks of ``block_points`` (None:
+    :data:`engine.grid.BLOCK_POINTS`): only these output inputs are checked, by their one
+    functions; the rest of the plan was checked when it was built."""
+    path, fmt, compression, complevel = check_output(out, compression, complevel, output_format)
+    points = BLOCK_POINTS if block_points is None else block_points
+    points = check_block_points(points, plan.shape)
+    output = OutputPlan(path, fmt, compression, complevel, plan.output.precision, points)
+    return dataclasses.replace(plan, output=output)
 
 
 def plan_from_survey(
@@ -224,25 +270,9 @@ def plan_from_survey(
     complevel: Any = None,
     output_format: Any = None,
 ) -> RunPlan:
-    """The plan of a survey file's :class:`engine.surveyfile.Survey` (written to ``out``, or
-    in memory), through the same checks as the API's (:func:`survey_plan`)."""
-    horizon = survey.horizon or Horizon()
-    return survey_plan(
-        survey.dims,
-        {d: getattr(survey, d) for d in survey.dims},
-        survey.scene,
-        survey.method,
-        energy_relative=survey.energy_relative,
-        circular_tol=survey.circular_tol,
-        rtol=survey.rtol,
-        horizon_time=horizon.time,
-        horizon_revolutions=horizon.revolutions,
-        block_points=BLOCK_POINTS if block_points is None else block_points,
-        precision=survey.precision,
-        out=out,
-        compression=compression,
-        complevel=complevel,
-        output_format=output_format,
-        title=survey.title,
-        source_text=survey.source_text,
-    )
+    """The plan of a survey file's :class:`engine.surveyfile.Survey` written to ``out`` (or
+    in memory): the survey's own plan (:attr:`engine.surveydef.Survey.plan`, checked once,
+    when the file was read) with its output (:func:`plan_with_output`)."""
+    return plan_with_output(survey.plan, out, block_points=block_points,
+                            compression=compression, complevel=complevel,
+                            output_format=output_format)  # fmt: skip

@@ -1,19 +1,19 @@
 """The validated survey definition (:class:`Survey`, what :func:`engine.surveyfile.load_survey`
-returns): its grid (dims, shape), the variables and global attributes of its results, and its
-evaluation in memory through the API."""
+returns): its grid (dims, shape), its run plan (built once, when the file was read), the
+variables and global attributes of its results, and its evaluation in memory through the API."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .api import run_plan
 from .fates import Horizon
-from .plan import plan_from_survey
+from .plan import RunPlan, survey_plan
 from .scene import Scene
 from .schema import DIMS, LAUNCH_DIMS, SLIDING_LAUNCH_DIMS
 
@@ -53,6 +53,40 @@ class Survey:
     u0: np.ndarray | None = None
     slip_u: np.ndarray | None = None
     slip_v: np.ndarray | None = None
+    # the plan the parser built, each value checked once (not copied by dataclasses.replace)
+    _plan: RunPlan | None = field(default=None, init=False, repr=False, compare=False)
+
+    @classmethod
+    def from_plan(cls, plan: RunPlan) -> Survey:
+        """The survey of a checked plan (a survey file's, :mod:`engine.surveyfile`), keeping
+        it: reading its plan, variables or attributes, or running it, checks nothing again."""
+        axes: dict[str, Any] = dict(zip(plan.dims, plan.axes, strict=True))
+        if plan.launch:
+            axes.update(energy=None, h=None, Lz=None)
+        survey = cls(title=plan.title, method=plan.method.name, rtol=plan.rtol,
+                     circular_tol=plan.circular_tol, scene=plan.scene,
+                     energy_relative=plan.energy_relative, source_text=plan.source_text,
+                     horizon=plan.horizon, precision=plan.output.precision, **axes)  # fmt: skip
+        object.__setattr__(survey, "_plan", plan)  # frozen: set once, here
+        return survey
+
+    @property
+    def plan(self) -> RunPlan:
+        """Its run plan, output in memory: the one its survey file's parser built (every value
+        checked there, once, naming the file's keys) or, for a Survey made in Python
+        (``dataclasses.replace``), the one the API's checks build
+        (:func:`engine.plan.survey_plan`), kept for the next call."""
+        if self._plan is None:
+            horizon = self.horizon or Horizon()
+            plan = survey_plan(self.dims, {d: getattr(self, d) for d in self.dims}, self.scene,
+                               self.method, energy_relative=self.energy_relative,
+                               circular_tol=self.circular_tol, rtol=self.rtol,
+                               horizon_time=horizon.time,
+                               horizon_revolutions=horizon.revolutions,
+                               precision=self.precision, title=self.title,
+                               source_text=self.source_text)  # fmt: skip
+            object.__setattr__(self, "_plan", plan)
+        return self._plan
 
     @property
     def dims(self) -> tuple[str, ...]:
@@ -81,17 +115,17 @@ class Survey:
     def variables(self) -> dict[str, np.dtype]:
         """Names and dtypes of the result variables, in file order (its plan's: the float ones
         float32 with ``precision = "single"``)."""
-        return plan_from_survey(self).variables
+        return self.plan.variables
 
     def attrs(self) -> dict[str, Any]:
         """The global attributes of its results (its plan's, :meth:`engine.plan.RunPlan.attrs`:
         :func:`engine.schema.survey_attrs`, and ``precision`` where it is single)."""
-        return plan_from_survey(self).attrs()
+        return self.plan.attrs()
 
     def run(self, progress: Callable[[int, int], None] | None = None) -> xr.Dataset:
-        """Evaluate the survey in memory (its plan, :func:`engine.plan.plan_from_survey`, run
-        by :func:`engine.api.run_plan`); ``progress(done, total)`` per block."""
-        plan = plan_from_survey(self)
+        """Evaluate the survey in memory (its plan, :attr:`plan`, run by
+        :func:`engine.api.run_plan`); ``progress(done, total)`` per block."""
+        plan = self.plan
         ds = run_plan(plan, progress)
         for name, dt in plan.variables.items():
             if name in ds and ds[name].dtype != dt:

@@ -66,24 +66,16 @@ from typing import Any
 
 import numpy as np
 
-from .checks import (
-    PlanError,
-    check_circular_tol,
-    check_horizon,
-    check_method,
-    check_precision,
-    check_rtol,
-    check_scene,
-)
+from .checks import PlanError, check_precision
 from .errortext import toml_repr, toml_type
-from .fates import Horizon
 from .grid import grid_too_large
 from .io.atomic import read_regular
 from .kernels.geometry import CIRCULAR_TOL as DEFAULT_CIRCULAR_TOL
-from .methods import DEFAULT_RTOL, METHODS, Method
+from .methods import DEFAULT_RTOL
+from .plan import MapPlan, OutputPlan, grid_plan, map_plan
 from .scene import Scene
 from .schema import DIMS as AXES
-from .schema import LAUNCH_DIMS, RELEASE, launch_dims, map_kind
+from .schema import LAUNCH_DIMS, RELEASE, launch_dims
 from .surveyaxes import MAX_AXIS_POINTS, RELATIVE_TO, SCALES, AxisReader, frozen
 from .surveydef import Survey
 
@@ -208,16 +200,11 @@ class _Reader(AxisReader):
         title = self.string(doc.get("title", "conesurvey survey"), "title")
         if "\0" in title:
             raise self.bad_value("title", title, "must not contain NUL (netCDF text ends there)")
-        name = self.choice(doc.get("method", DEFAULT_METHOD), "method", tuple(METHODS))
         scene = self.scene(self.table(doc, "scene", "", required=False) or {})
-        with self.checked():  # each input by its one check (engine.checks)
-            method = check_method(name, scene)
-            rtol = check_rtol(doc.get("rtol", DEFAULT_RTOL), method)
-            circular_tol = check_circular_tol(doc.get("circular_tol", DEFAULT_CIRCULAR_TOL))
-        horizon = self.horizon(doc, method, scene)
+        mp = self.map(doc, scene)
         axes = self.table(doc, "axes", "", required=True)
         launch = any(n in axes for n in (*LAUNCH_DIMS[1:], *RELEASE))
-        dims = launch_dims(scene) if launch else AXES
+        dims = launch_dims(mp.scene) if launch else AXES
         other = AXES if launch else (*LAUNCH_DIMS, *RELEASE)
         for name in axes:
             if name in other and name not in dims:
@@ -239,23 +226,14 @@ class _Reader(AxisReader):
         }
         for name in release:
             self.rolling_release(self.axis(axes, name), name)
-        if launch:
-            arrays.update(energy=None, h=None, Lz=None)
         energy_relative = "relative_to" in axes.get("energy", {})
         with self.checked():
             precision = check_precision(doc.get("precision", "double"))
-        return Survey(
-            precision=precision,
-            title=title,
-            method=method.name,
-            rtol=rtol,
-            circular_tol=circular_tol,
-            scene=scene,
-            energy_relative=energy_relative,
-            source_text=text,
-            horizon=horizon,
-            **arrays,
-        )
+        axes_read = tuple(arrays[name] for name in dims)
+        plan = grid_plan(mp, dims, axes_read, energy_relative=energy_relative,
+                         output=OutputPlan(precision=precision), title=title,
+                         source_text=text)  # fmt: skip
+        return Survey.from_plan(plan)
 
     def rolling_release(self, values: np.ndarray, name: str) -> None:
         """An axis of the release (u0, slip_u, slip_v) on a scene without kinetic friction:
@@ -269,13 +247,19 @@ class _Reader(AxisReader):
                 "friction: the sliding model); without it every launch rolls from rest radially",
             )
 
-    def horizon(self, doc: dict, method: Method, scene: Scene) -> Horizon | None:
-        """``[horizon]``: how long a fate map follows each orbit (the API's check)."""
-        table = self.table(doc, "horizon", "", required=False) or {}
-        self.check_keys(table, _HORIZON_KEYS, "horizon")
-        with self.checked():  # the API's check, asking for the file's keys
-            return check_horizon(map_kind(method.name, scene), table.get("time"),
-                                 table.get("revolutions"), hint=_HORIZON_HINT)  # fmt: skip
+    def map(self, doc: dict, scene: Scene) -> MapPlan:
+        """The map's inputs (method, rtol, circular_tol, ``[horizon]``) through the API's one
+        set of checks (:func:`engine.plan.map_plan`), each value checked once, there; a
+        missing horizon is asked for in the file's words (its ``[horizon]`` table)."""
+        horizon = self.table(doc, "horizon", "", required=False) or {}
+        self.check_keys(horizon, _HORIZON_KEYS, "horizon")
+        with self.checked():
+            return map_plan(scene, doc.get("method", DEFAULT_METHOD),
+                            circular_tol=doc.get("circular_tol", DEFAULT_CIRCULAR_TOL),
+                            rtol=doc.get("rtol", DEFAULT_RTOL),
+                            horizon_time=horizon.get("time"),
+                            horizon_revolutions=horizon.get("revolutions"),
+                            horizon_hint=_HORIZON_HINT)  # fmt: skip
 
     @contextlib.contextmanager
     def checked(self) -> Iterator[None]:
@@ -315,5 +299,4 @@ class _Reader(AxisReader):
             if m:  # "Scene.M must be > 0, got -1.0" -> "must be > 0, got -1.0"
                 message = message[m.end() :].strip()
             raise self.fail(key, message) from None
-        with self.checked():
-            return check_scene(scene)
+        return scene  # checked by its constructor; map_plan checks it is a Scene

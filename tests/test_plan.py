@@ -14,9 +14,12 @@ import runs
 
 import engine
 import engine.api
+import engine.fates
 import engine.runner
+import engine.story
 import engine.surveydef
 from engine.checks import PlanError
+from engine.fates import Horizon
 from engine.plan import RunPlan, plan_from_survey, survey_plan
 from engine.schema import DIMS, LAUNCH_DIMS
 from engine.surveyfile import SurveyError, parse_survey
@@ -284,6 +287,17 @@ def test_a_missing_horizon_is_asked_for_in_each_entry_points_words(tmp_path, cap
     assert "check_horizon" in _frames(api.value)
     assert "is required: a fate map follows each orbit" in api.value.problem
     assert "horizon_time=" in api.value.problem and "[horizon]" not in api.value.problem
+    # the API's other ways to a fate map (engine.fates.fates, engine.story.launch_fates) ask
+    # the same check, in the same words (they had a wording of their own)
+    point = [np.array([x]) for x in (0.5, 1.0, 0.0, 1.0, 1.0)]
+    sliding = engine.Scene(mu=0.5, mu_k=0.3)
+    for call in (lambda: engine.fates.fates(*point, kwargs["scene"], "rk45", 1e-9, None),
+                 lambda: engine.fates.fates(*point, kwargs["scene"], "rk45", 1e-9, Horizon()),
+                 lambda: engine.story.launch_fates(0.5, 1.0, 0.5, 0.0, scene=sliding)):  # fmt: skip
+        with pytest.raises(PlanError) as other:
+            call()
+        assert "check_horizon" in _frames(other.value), _frames(other.value)
+        assert str(other.value) == str(api.value)
     with pytest.raises(SurveyError) as file:
         parse_survey(text, origin="bad.toml")
     assert file.value.key == "horizon"
@@ -345,3 +359,57 @@ def test_the_plan_refuses_axes_by_name():
         survey_plan(DIMS, dict(alpha=[0.5], energy=[1.0], h=[0.0], Lz=[]))
     with pytest.raises(PlanError, match=r"^energy must be finite; got nan$"):
         survey_plan(DIMS, dict(alpha=[0.5], energy=[np.nan], h=[0.0], Lz=[1.0]))
+
+
+def _check_calls(call) -> dict[str, int]:
+    """How many times ``call`` runs each function of engine.checks (and the grid-size rule)."""
+    import collections
+    import sys
+
+    import engine.checks
+    import engine.grid
+
+    mine = [(n, f) for n, f in vars(engine.checks).items() if hasattr(f, "__code__")]
+    codes = {f.__code__: n for n, f in mine if f.__module__ == "engine.checks"}
+    codes[engine.grid.grid_too_large.__code__] = "grid_too_large"
+    counts: collections.Counter = collections.Counter()
+
+    def profile(frame, event, arg):
+        if event == "call" and frame.f_code in codes:
+            counts[codes[frame.f_code]] += 1
+
+    sys.setprofile(profile)
+    try:
+        call()
+    finally:
+        sys.setprofile(None)
+    return dict(counts)
+
+
+def test_a_survey_file_checks_each_value_once(tmp_path):
+    """The way of ``conesurvey run`` (read the file, the command's plan, the runner's plan to
+    a file, the variables and attributes): every value of the file is checked once, by its
+    one function, while the file is read; the plans built later check only the output."""
+
+    def run_way():
+        survey = parse_survey(LAUNCH)
+        plan_from_survey(survey)
+        plan_from_survey(survey, tmp_path / "o.nc")
+        survey.variables(), survey.attrs()
+
+    calls = _check_calls(run_way)
+    once = ("check_scene", "check_method", "check_rtol", "check_circular_tol", "check_horizon",
+            "check_precision", "grid_too_large")  # fmt: skip
+    assert {n: calls.get(n) for n in once} == dict.fromkeys(once, 1), calls
+    assert calls["axis_problem"] == 7  # alpha 1 + r0 2 + v0 3 + w0 1 values, each once
+    # the API's whole-array checks are not run again on axes the file's reader checked
+    assert not {"check_axes", "check_values", "check_numbers", "check_energy_relative"} & set(
+        calls
+    ), calls
+    # the output's inputs, no key of a file: once per plan with an output (memory, o.nc)
+    assert (calls["check_output"], calls["check_block_points"]) == (2, 2), calls
+    # a Survey made in Python has the API's checks, once, and keeps the plan
+    made = dataclasses.replace(parse_survey(LAUNCH), rtol=1e-8)
+    calls = _check_calls(lambda: (plan_from_survey(made), made.variables(), made.plan))
+    assert (calls["check_rtol"], calls["check_axes"]) == (1, 1), calls
+    assert made.plan.rtol == 1e-8
