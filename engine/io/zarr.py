@@ -27,13 +27,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..grid import Tiling
-from ..schema import FINGERPRINT_ATTR, axis_attrs, map_kind, variable_attrs
+from ..schema import FINGERPRINT_ATTR, axis_attrs, map_kind, variable_attrs, variable_dims
 from . import OutputError
 from .atomic import exists_error, fsync_dir, not_regular, refuse_special
 from .blocks import check_parts_dir, survey_dims
 from .cf import cf_attrs
 from .contents import BLOCK_SCHEME, CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher, verify_file
-from .manifest import Manifest, parts_dir
+from .manifest import Manifest, parts_dir, survey_families
 from .netcdf_info import class_counts, fate_counts
 from .space import output_bytes
 from .summary import Summary
@@ -82,14 +82,20 @@ def unavailable() -> str:
 # --- making a store -----------------------------------------------------------------------------
 
 
-def _layout(survey: Survey, names: Mapping[str, np.dtype]) -> dict[str, Any]:
+def _layout(
+    survey: Survey, names: Mapping[str, np.dtype], families: Mapping[str, np.ndarray]
+) -> dict[str, Any]:
+    """The arguments of :func:`make_store` for ``survey``: its axes, the variables its blocks
+    hold (``names``) and the ones on fewer dims (``families``, their values)."""
     kind = map_kind(survey.method, survey.scene)
     axes = {
         d: (np.asarray(getattr(survey, d), np.float64), axis_attrs(d, survey.energy_relative))
         for d in survey.dims
     }
     variables = {n: (np.dtype(dt), variable_attrs(n, kind)) for n, dt in names.items()}
-    return {"axes": axes, "variables": variables}
+    fixed = {n: (v, variable_dims(n, survey.dims), variable_attrs(n, kind), None)
+             for n, v in families.items()}  # fmt: skip
+    return {"axes": axes, "variables": variables, "families": fixed}
 
 
 def create(
@@ -98,7 +104,10 @@ def create(
     """The directory of a new run of ``survey`` into a Zarr store (:mod:`engine.io.zarrstore`)."""
     manifest = Manifest.new(survey, tiling)
     make = functools.partial(
-        make_store, **_layout(survey, manifest.names), tiling=tiling, complevel=complevel
+        make_store,
+        **_layout(survey, manifest.names, survey_families(survey)),
+        tiling=tiling,
+        complevel=complevel,
     )
     return RunStore.create(root, manifest, make, complevel, warn)
 
@@ -180,6 +189,10 @@ def merge(
     for d in survey.dims:
         hasher.add(d, np.asarray(getattr(survey, d), np.float64))
     summary = Summary()
+    families = survey_families(survey)  # written when the store was made: the same values
+    for name, values in families.items():
+        hasher.add(name, values)
+    summary.add(families)
     for i in range(tiling.nblocks):
         receipt = store.journal[i]
         for name in store.names:
@@ -204,7 +217,9 @@ def write_survey(
     path = Path(path)
     if os.path.lexists(path) and not overwrite:
         raise exists_error(path)
-    names = {n: ds[n].dtype for n in survey.variables() if n in ds}
+    dims = tuple(survey.dims)
+    names = {n: ds[n].dtype for n in survey.variables() if n in ds and ds[n].dims == dims}
+    families = {n: ds[n].values for n in survey.variables() if n in ds and n not in names}
     tiling = Tiling.for_grid(survey.shape)
     blocks = (
         (i, {n: ds[n].values[tiling.slices(i)] for n in names}) for i in range(tiling.nblocks)
@@ -214,7 +229,8 @@ def write_survey(
         command=command, scene=survey.scene,
     )  # fmt: skip
     attrs[CHECKSUM_BLOCK_ATTR] = list(tiling.block)
-    write_store(path, _layout(survey, names), tiling, blocks, attrs, overwrite=overwrite)
+    layout = _layout(survey, names, families)
+    write_store(path, layout, tiling, blocks, attrs, overwrite=overwrite)
     return path
 
 
@@ -230,7 +246,7 @@ def write_store(
     hasher: ContentHasher | None = None,
     before_commit: Callable[[], None] | None = None,
 ) -> str:
-    """Write a whole store in this process: ``layout`` (axes, variables: see
+    """Write a whole store in this process: ``layout`` (axes, variables, families: see
     :func:`make_store`), the ``(index, arrays)`` of every block of ``tiling``, the global
     ``attrs``; built as ``OUT.<random>.tmp`` beside ``out``, committed and renamed into place.
     The content checksum is ``hasher``'s if given (the caller adds every value to it; a
@@ -247,6 +263,8 @@ def write_store(
         own = ContentHasher(tiling.block, BLOCK_SCHEME)
         for d, (values, _) in layout["axes"].items():
             own.add(d, values)
+        for name, (values, *_) in layout.get("families", {}).items():
+            own.add(name, values)
         for i, block in blocks:
             receipt = writer.write(i, tiling.slices(i), block)
             for name in variables:
