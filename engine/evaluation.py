@@ -8,8 +8,10 @@ the in-memory survey, local streamed runs and dask workers compute the very same
 
 from __future__ import annotations
 
+import contextlib
 import math
-from collections.abc import Mapping
+import os
+from collections.abc import Iterator, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING
 
@@ -219,9 +221,28 @@ def family_values(
     p = scene.params()
     if kind in FATE_KINDS:  # the launch orbit on the ideal cone
         p = ideal_cone(p)
-    well = well_flat(A, H, L, p).reshape(2, a.size, hh.size, lz.size)
+    with _pool_environment():
+        well = well_flat(A, H, L, p).reshape(2, a.size, hh.size, lz.size)
     found = {"V_min": well[0], "r_circ": well[1]}
     return {n: found[n].astype(variables[n]) for n in names}
+
+
+@contextlib.contextmanager
+def _pool_environment() -> Iterator[None]:
+    """While a local dask cluster runs, distributed's Nanny writes its workers'
+    NUMBA_NUM_THREADS into this process's environment (:mod:`engine.backends`); numba re-reads
+    it when it compiles a kernel here and refuses a count other than its running pool's. The
+    writers compute :func:`family_values` in this process: the pool's count meanwhile."""
+    key, running = "NUMBA_NUM_THREADS", str(numba.config.NUMBA_NUM_THREADS)
+    saved = os.environ.get(key)
+    if saved is None or saved == running:
+        yield
+        return
+    os.environ[key] = running
+    try:
+        yield
+    finally:
+        os.environ[key] = saved
 
 
 def _closed_form_grid(sub: list[np.ndarray], plan: RunPlan):
