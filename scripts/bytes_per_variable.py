@@ -1,6 +1,7 @@
 """Stored bytes of every variable of a conesurvey output, per point of the survey grid.
 
 Usage: python scripts/bytes_per_variable.py OUT.nc|OUT.zarr
+       python scripts/bytes_per_variable.py --tiny   (runs a 2,560-point survey here first)
 
 Prints, for each variable, its dims, its stored (compressed) bytes and those bytes divided by
 the number of points of the survey grid (the product of the axes' sizes), then the whole file
@@ -46,11 +47,40 @@ def _zarr(path: Path) -> dict[str, tuple[tuple[str, ...], int, tuple[int, ...]]]
     return out
 
 
+TINY = """title = "tiny"
+method = "exact"
+[axes.alpha]
+values = [0.8]
+[axes.energy]
+start = 1e-6
+stop = 10.0
+num = 40
+scale = "log"
+relative_to = "V_min"
+[axes.h]
+values = [-1.0, 0.0, 1.0, 2.0]
+[axes.Lz]
+start = 0.1
+stop = 2.0
+num = 16
+"""
+
+
+def _tiny() -> Path:
+    """A tiny survey run into ./tiny.nc (the scripts' test)."""
+    from engine.cli import main as cli
+
+    Path("tiny.toml").write_text(TINY)
+    if cli(["run", "tiny.toml", "-o", "tiny.nc", "-q", "--overwrite"]) != 0:
+        raise SystemExit("the tiny survey failed")
+    return Path("tiny.nc")
+
+
 def main(argv: list[str]) -> int:
     if len(argv) != 2:
-        print(__doc__.strip().splitlines()[2], file=sys.stderr)
+        print("\n".join(__doc__.strip().splitlines()[2:4]), file=sys.stderr)
         return 2
-    path = Path(argv[1])
+    path = _tiny() if argv[1] == "--tiny" else Path(argv[1])
     table = _zarr(path) if path.is_dir() else _netcdf(path)
     axes = {n: v for n, v in table.items() if v[0] == (n,)}
     points = math.prod(v[2][0] for v in axes.values())
