@@ -27,7 +27,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..grid import Tiling
-from ..schema import FINGERPRINT_ATTR, axis_attrs, map_kind, variable_attrs, variable_dims
+from ..schema import (
+    FINGERPRINT_ATTR,
+    axis_attrs,
+    grid_dims,
+    map_kind,
+    variable_attrs,
+    variable_dims,
+)
 from . import OutputError
 from .atomic import exists_error, fsync_dir, not_regular, refuse_special
 from .blocks import check_parts_dir, survey_dims
@@ -330,9 +337,11 @@ def _store_info(path: Path, verify: bool) -> dict[str, Any]:
         raise OutputError(f"{path} is not a readable Zarr store ({exc})") from None
     attrs = {k: view.getncattr(k) for k in view.ncattrs()}
     info["attrs"] = attrs
-    info["dims"] = {}
+    dims: dict[str, int] = {}
     for var in view.variables.values():
-        info["dims"].update(zip(var.dimensions, var.shape, strict=False))
+        dims.update(zip(var.dimensions, var.shape, strict=False))
+    grid = [d for d in grid_dims(dims) if d in dims]  # in the grid's order, as a netCDF file's
+    info["dims"] = {**{d: dims[d] for d in grid}, **dims}
     counts = class_counts(view, info["notes"])
     if counts is not None:
         info["counts"] = counts

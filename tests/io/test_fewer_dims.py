@@ -97,6 +97,7 @@ def test_outputs_store_them_on_fewer_dims(outputs, memory, suffix, engine_name):
             assert np.array_equal(back[name].values, memory[name].values, equal_nan=True), name
     info = format_for(outputs[suffix]).read_info(outputs[suffix], verify=True)
     assert info["verified"][0], info["verified"]
+    assert tuple(info["dims"]) == DIMS  # `info` says the grid in its order, in both formats
 
 
 def test_netcdf_variable_dims_as_written(outputs):
