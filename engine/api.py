@@ -8,29 +8,19 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from .checks import (
-    check_circular_tol,
-    check_horizon,
-    check_method,
-    check_numbers,
-    check_rtol,
-    check_scene,
-    check_values,
-)
+from .checks import check_numbers, check_values
 from .evaluation import evaluate_block, evaluate_flat, family_values, minimum_energy_flat
 from .grid import BLOCK_POINTS, Tiling
 from .kernels.geometry import CIRCULAR_TOL
 from .kernels.model import radial_energy as _radial_energy
 from .methods import DEFAULT_RTOL
-from .plan import RunPlan, survey_plan
+from .plan import RunPlan, map_plan, survey_plan
 from .scene import Scene
 from .schema import (
     DIMS,
     axis_attrs,
     launch_dims,
-    map_kind,
     result_attrs,
-    result_variables,
     variable_attrs,
     variable_dims,
 )
@@ -80,11 +70,8 @@ def evaluate(
     a friction limit follows each orbit from r_min to its fate (``fate`` and the variables after
     it), up to ``horizon_time`` [s] and/or ``horizon_revolutions`` (one is required then).
     """
-    scene = check_scene(scene)
-    m = check_method(method, scene)
-    rtol = check_rtol(rtol, m)
-    circular_tol = check_circular_tol(circular_tol)
-    horizon = check_horizon(m, scene, horizon_time, horizon_revolutions)
+    plan = map_plan(scene, method, circular_tol=circular_tol, rtol=rtol,
+                    horizon_time=horizon_time, horizon_revolutions=horizon_revolutions)  # fmt: skip
     inputs = {"alpha": alpha, "energy": energy, "h": h, "Lz": Lz}
     for name, value in inputs.items():
         check_numbers(name, value)
@@ -102,9 +89,9 @@ def evaluate(
     validate_inputs(*arrays)
     shape = arrays[0].shape
     flat = [np.ascontiguousarray(a).reshape(-1) for a in arrays]
-    res = evaluate_flat(*flat, scene, method, circular_tol=circular_tol, rtol=rtol, horizon=horizon)
-    kind = map_kind(method, scene)
-    order = [name for name in result_variables(method, scene) if name in res]  # as in a file
+    res = evaluate_flat(*flat, plan)
+    kind = plan.map_kind
+    order = [name for name in plan.variables if name in res]  # as in a file
     assert len(order) == len(res), (sorted(res), order)
     data_vars = {
         name: (dims, res[name].reshape(shape), variable_attrs(name, kind)) for name in order
@@ -118,7 +105,11 @@ def evaluate(
         else:
             coords[name] = (dims, arr, attrs)
     return xr.Dataset(
-        data_vars, coords=coords, attrs=result_attrs(scene, method, circular_tol, rtol, horizon)
+        data_vars,
+        coords=coords,
+        attrs=result_attrs(
+            plan.scene, plan.method.name, plan.circular_tol, plan.rtol, plan.horizon
+        ),
     )
 
 

@@ -31,16 +31,14 @@ import numpy as np
 from .errortext import install_hint
 from .evaluation import evaluate_block
 from .grid import Tiling
-from .plan import RunPlan, plan_from_survey
 
 if TYPE_CHECKING:
-    from .surveyfile import Survey
+    from .plan import RunPlan
 
 __all__ = [
     "BackendError",
     "DaskBackend",
     "LocalBackend",
-    "block_spec",
     "check_address",
     "compute_block",
     "open_backend",
@@ -61,12 +59,6 @@ _SCHEMES = ("tcp", "tls", "ws", "wss", "ucx", "inproc")
 class BackendError(Exception):
     """A block source that cannot start or that failed (dask missing, scheduler unreachable or
     lost, no workers left); the message is one line."""
-
-
-def block_spec(survey: Survey) -> RunPlan:
-    """The run plan of ``survey`` (:func:`engine.plan.plan_from_survey`): what
-    :func:`compute_block` needs, picklable for dask workers too."""
-    return plan_from_survey(survey)
 
 
 def compute_block(plan: RunPlan, tiling: Tiling, index: int) -> tuple[int, dict[str, np.ndarray]]:

@@ -26,7 +26,7 @@ from .io.formats import OutputFormat, format_for
 from .methods import METHODS, RTOL_RANGE, Method, get_method
 from .methods import check_method as _registry_check_method
 from .scene import Scene
-from .schema import FATE_KINDS, GRID_DIMS, map_kind
+from .schema import FATE_KINDS, GRID_DIMS
 
 __all__ = [
     "PlanError",
@@ -37,6 +37,7 @@ __all__ = [
     "check_circular_tol",
     "check_energy_relative",
     "check_horizon",
+    "HORIZON_HINT",
     "check_method",
     "check_numbers",
     "check_output",
@@ -127,8 +128,16 @@ def check_circular_tol(circular_tol: Any) -> float:
     return t
 
 
-def check_horizon(method: Method, scene: Scene, time: Any, revolutions: Any) -> Horizon | None:
-    """The horizon of a fate map (required there); None for other maps (refused if given)."""
+#: How the API asks for a horizon (the ``hint`` of :func:`check_horizon`): its keywords.
+HORIZON_HINT = "give horizon_time= [s] and/or horizon_revolutions="
+
+
+def check_horizon(
+    kind: str, time: Any, revolutions: Any, *, hint: str = HORIZON_HINT
+) -> Horizon | None:
+    """The horizon of a map of ``kind`` (:func:`engine.schema.map_kind`): required for a fate
+    map; None for other maps (refused if given). ``hint``: how the entry point asks for one,
+    in the names of its own keys (the API's keywords; a survey file's ``[horizon]`` table)."""
     values = {}
     for name, v in (("horizon_time", time), ("horizon_revolutions", revolutions)):
         if v is not None:
@@ -137,13 +146,11 @@ def check_horizon(method: Method, scene: Scene, time: Any, revolutions: Any) -> 
                 raise PlanError(name, "must be > 0", v)
             if not math.isfinite(values[name]):
                 raise PlanError(name, "must be finite (leave it out for no limit)", v)
-    kind = map_kind(method.name, scene)
     if kind in FATE_KINDS and not values:
         raise PlanError(
             "horizon",
             "is required: a fate map follows each orbit to its first terminal event (spill, "
-            "slip, rest, vertex) or a horizon: give horizon_time= [s] and/or "
-            "horizon_revolutions=",
+            f"slip, rest, vertex) or a horizon: {hint}",
         )
     if kind not in FATE_KINDS and values:
         raise PlanError(

@@ -18,14 +18,13 @@ from typing import TYPE_CHECKING
 import numba
 import numpy as np
 
-from .fates import Horizon, fates, require_horizon
-from .integrated import evaluate_integrated
+from .fates import fate_map
+from .integrated import integrate_period
 from .kernels.batch import BATCH_ROWS, empty_outputs, minimum_energy_batch, work_units
-from .kernels.geometry import BOUNDED, CIRCULAR_TOL, OUT_OF_RANGE, ideal_cone
+from .kernels.geometry import BOUNDED, OUT_OF_RANGE, ideal_cone
 from .kernels.protocol import NOT_BOUNDED
 from .kernels.workqueue import orbit_units_queued
 from .launch import invariants
-from .methods import DEFAULT_RTOL
 from .scene import Scene
 from .schema import (
     DIMS,
@@ -34,13 +33,11 @@ from .schema import (
     RELEASE,
     REPLACED_BY_INTEGRATION,
     RESULTS,
-    map_kind,
-    result_variables,
     variable_dims,
 )
 
 if TYPE_CHECKING:
-    from .plan import RunPlan
+    from .plan import MapPlan, RunPlan
 
 __all__ = ["evaluate_flat", "evaluate_block", "family_values", "minimum_energy_flat", "well_flat"]
 
@@ -50,55 +47,51 @@ def evaluate_flat(
     energy: np.ndarray,
     h: np.ndarray,
     Lz: np.ndarray,
-    scene: Scene,
-    method: str = "exact",
+    plan: MapPlan,
     *,
-    circular_tol: float = CIRCULAR_TOL,
-    rtol: float = DEFAULT_RTOL,
-    horizon: Horizon | None = None,
     r_start: np.ndarray | None = None,
     release: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> dict[str, np.ndarray]:
-    """Kernel call on equal-length 1-D float64 arrays (validated by the caller).
+    """Kernel call on equal-length 1-D float64 arrays (validated by the caller), for the map
+    of ``plan`` (:func:`engine.plan.map_plan`; a survey's :class:`engine.plan.RunPlan` is one).
 
-    Returns a dict of 1-D arrays: the variables of :func:`engine.schema.result_variables` but
-    ``V_min``. Every map holds the closed form; what else depends on the kind of map
-    (:func:`engine.schema.map_kind`): where rolling ends on a cone with a rim or a friction
-    limit (closed form), one integrated radial period, or each orbit's fate (integrated up to
-    ``horizon`` from ``r_start``, by default r_min; then the closed form describes the launch
-    orbit on the ideal cone; ``release``: (u0, slip_u, slip_v) of launches that may slide,
+    Returns a dict of 1-D arrays: the plan's variables but ``V_min`` and a launch grid's
+    invariants. Every map holds the closed form; what else depends on the plan's
+    ``map_kind``: where rolling ends on a cone with a rim or a friction limit (closed form),
+    one integrated radial period, or each orbit's fate (integrated up to the plan's horizon
+    from ``r_start``, by default r_min; then the closed form describes the launch orbit on the
+    ideal cone; ``release``: (u0, slip_u, slip_v) of launches that may slide,
     :func:`engine.fates.fates`).
     """
     a = np.ascontiguousarray(alpha, np.float64)
     e = np.ascontiguousarray(energy, np.float64)
     hh = np.ascontiguousarray(h, np.float64)
     lz = np.ascontiguousarray(Lz, np.float64)
-    kind = map_kind(method, scene)
-    wanted = result_variables(method, scene)
+    kind, scene = plan.map_kind, plan.scene
     cls, f = empty_outputs(a.shape[0])
     p = scene.params()
     if kind in FATE_KINDS:  # the launch orbit on the ideal cone; the integration follows the scene
         p = ideal_cone(p)
-    orbit_batch(a, e, hh, lz, p, circular_tol, cls, f)
+    orbit_batch(a, e, hh, lz, p, plan.circular_tol, cls, f)
     out: dict[str, np.ndarray] = {"orbit_class": cls}
     for i, name in enumerate(BATCH_ROWS):
-        if name in wanted:
+        if name in plan.variables:
             out[name] = f[i]
     if kind == "one period":
-        out.update(_integrate_bounded(a, e, hh, lz, scene, method, rtol, cls))
+        out.update(_integrate_bounded(a, e, hh, lz, plan, cls))
     elif kind in FATE_KINDS:
         start = f[0] if r_start is None else np.ascontiguousarray(r_start, np.float64)
-        out.update(fates(a, e, hh, lz, start, scene, method, rtol, require_horizon(horizon),
-                         classes=cls, release=release))  # fmt: skip
+        out.update(fate_map(a, e, hh, lz, start, scene, plan.method, plan.rtol, plan.horizon,
+                            classes=cls, release=release))  # fmt: skip
     return out
 
 
-def _integrate_bounded(a, e, hh, lz, scene, method, rtol, cls) -> dict[str, np.ndarray]:
+def _integrate_bounded(a, e, hh, lz, plan: MapPlan, cls) -> dict[str, np.ndarray]:
     """The one-period variables for every point: bounded points integrated; the others NaN,
     no steps and the status "not_bounded" (nothing to integrate over a period)."""
     n = a.shape[0]
     sel = np.flatnonzero(cls == BOUNDED)
-    res = evaluate_integrated(a[sel], e[sel], hh[sel], lz[sel], scene, method, rtol)
+    res = integrate_period(a[sel], e[sel], hh[sel], lz[sel], plan.scene, plan.method, plan.rtol)
     upd: dict[str, np.ndarray] = {}
     for name in (*REPLACED_BY_INTEGRATION, *INTEGRATED):
         dtype = np.dtype(RESULTS[name].dtype)
@@ -278,9 +271,7 @@ def _flat_block(sub: list[np.ndarray], plan: RunPlan):
             vmin = minimum_energy_flat(A, H, L, scene)
             e_abs = vmin + E * np.abs(vmin)
             E = e_abs
-    res = evaluate_flat(A, E, H, L, scene, plan.method.name, circular_tol=plan.circular_tol,
-                        rtol=plan.rtol, horizon=plan.horizon, r_start=r_start,
-                        release=release)  # fmt: skip
+    res = evaluate_flat(A, E, H, L, plan, r_start=r_start, release=release)
     if e_abs is not None:
         undefined = np.isnan(e_abs)
         if undefined.any():

@@ -15,11 +15,10 @@ from .kernels.effects import REVOLUTIONS
 from .kernels.fate import FATE_ROWS
 from .kernels.geometry import BOUNDED, CIRCULAR, HYPERBOLIC, RADIAL
 from .kernels.model import P_THETA_MAX
-from .methods import check_method
+from .methods import Method, check_method
 from .scene import Scene
-from .schema import FATE_KINDS, map_kind
 
-__all__ = ["Horizon", "fates", "check_horizon", "require_horizon", "DEFAULT_MAX_STEPS"]
+__all__ = ["Horizon", "fates", "fate_map", "require_horizon", "DEFAULT_MAX_STEPS"]
 
 #: Step budget of one orbit's fate run (accepted + rejected steps).
 DEFAULT_MAX_STEPS = 10_000_000
@@ -68,23 +67,6 @@ class Horizon:
         return out
 
 
-def check_horizon(
-    method: str, scene: Scene, time: float | None, revolutions: float | None
-) -> Horizon | None:
-    """The horizon of a fate map (required there), None for other maps (and refused if given,
-    since nothing would use it): the one check of the API and the survey file."""
-    horizon = Horizon(time, revolutions)
-    kind = map_kind(method, scene)
-    if kind in FATE_KINDS:
-        return require_horizon(horizon)
-    if horizon.given:
-        raise ValueError(
-            "a horizon applies to fate maps only (an integrator on a scene with rolling "
-            f"resistance, a rim or a friction limit); this is a {kind} map"
-        )
-    return None
-
-
 def require_horizon(horizon: Horizon | None) -> Horizon:
     """The horizon of a fate map; ValueError when none is given."""
     if horizon is None or not horizon.given:
@@ -121,7 +103,27 @@ def fates(
     radially), ``energy`` the rolling orbit's calE through the start with that radial speed.
     """
     m = check_method(method, scene, integrator=True)
-    require_horizon(horizon)
+    return fate_map(alpha, energy, h, Lz, r_start, scene, m, float(rtol), require_horizon(horizon),
+                    classes=classes, max_steps=max_steps, release=release)  # fmt: skip
+
+
+def fate_map(
+    alpha: np.ndarray,
+    energy: np.ndarray,
+    h: np.ndarray,
+    Lz: np.ndarray,
+    r_start: np.ndarray,
+    scene: Scene,
+    method: Method,
+    rtol: float,
+    horizon: Horizon,
+    *,
+    classes: np.ndarray | None = None,
+    max_steps: int = DEFAULT_MAX_STEPS,
+    release: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+) -> dict[str, np.ndarray]:
+    """:func:`fates` on inputs checked already (a survey's plan holds them: an integrator
+    ``method``, its registry row, that honours the scene; its ``rtol``; a given ``horizon``)."""
     if release is not None and "sliding" not in scene.effects:
         raise ValueError("a launch that is not rolling (u0, slip_u, slip_v) needs Scene.mu_k")
     n = alpha.shape[0]
@@ -135,7 +137,7 @@ def fates(
     if "sliding" in scene.effects:
         u0, slip_u, slip_v = (None, None, None) if release is None else release
         e_rest = energy if u0 is None else energy - 0.5 * scene.M * u0 * u0  # the kernel's
-        res = hybrid_fates(alpha, e_rest, h, Lz, start, scene, method, rtol, horizon.t_max,
+        res = hybrid_fates(alpha, e_rest, h, Lz, start, scene, method.name, rtol, horizon.t_max,
                            horizon.theta_max, u0=u0, slip_u=slip_u, slip_v=slip_v,
                            max_steps=max_steps)  # fmt: skip
         return {name: res[name] for name in ("fate", *FATE_ROWS, *HYBRID_VARIABLES, "n_steps")}
@@ -143,7 +145,7 @@ def fates(
     out_f = np.empty((len(FATE_ROWS), n))
     out_n = np.zeros(n, np.int64)
     if n:
-        fate_points(alpha, energy, h, Lz, start, params, m.kernel_id, effects, float(rtol),
+        fate_points(alpha, energy, h, Lz, start, params, method.kernel_id, effects, rtol,
                     horizon.t_max, int(max_steps), out_fate, out_f, out_n)  # fmt: skip
     res = {"fate": out_fate}
     res.update({name: out_f[i] for i, name in enumerate(FATE_ROWS)})

@@ -24,12 +24,13 @@ from .kernels.lanes_fate import fate_points_lanes as _fate_lanes_kernel
 from .kernels.orbit import PERIOD_ROWS
 from .kernels.orbit import integrate_points as _integrate_points_kernel
 from .kernels.protocol import STATUS_MESSAGES, UNSUPPORTED
-from .methods import DEFAULT_RTOL, METHODS, check_method, check_rtol
+from .methods import DEFAULT_RTOL, METHODS, Method, check_method, check_rtol
 from .scene import Scene
 from .schema import period_variables
 
 __all__ = [
     "evaluate_integrated",
+    "integrate_period",
     "integrate_points",
     "fate_points",
     "STATUS_MESSAGES",
@@ -167,13 +168,31 @@ def evaluate_integrated(
             raise ValueError(f"{name} has length {a.shape[0]}, alpha has {n}")
     if int(max_steps) < 1:
         raise ValueError(f"max_steps must be >= 1; got {max_steps!r}")
+    return integrate_period(*arrays, scene, m, r, int(max_steps))
+
+
+def integrate_period(
+    alpha: np.ndarray,
+    energy: np.ndarray,
+    h: np.ndarray,
+    Lz: np.ndarray,
+    scene: Scene,
+    method: Method,
+    rtol: float,
+    max_steps: int = DEFAULT_MAX_STEPS,
+) -> dict[str, np.ndarray]:
+    """:func:`evaluate_integrated` on inputs checked already: equal-length contiguous 1-D
+    float64 arrays, an integrator ``method`` (its registry row) that honours the scene and an
+    ``rtol`` in its range (a survey's plan, :class:`engine.plan.MapPlan`, holds them)."""
+    n = alpha.shape[0]
     # Written (and first touched) by the parallel kernel, point by point: no serial pass here.
     out_f = np.empty((len(PERIOD_ROWS), n))
     out_n = np.empty(n, np.int64)
     out_status = np.empty(n, np.int8)
     if n:
-        integrate_points(*arrays, scene.params(), m.kernel_id, scene.effects_mask, r,
-                         int(max_steps), out_f, out_n, out_status)  # fmt: skip
+        integrate_points(alpha, energy, h, Lz, scene.params(), method.kernel_id,
+                         scene.effects_mask, rtol, max_steps, out_f, out_n,
+                         out_status)  # fmt: skip
     produced = period_variables(scene)
     res = {name: out_f[i] for i, name in enumerate(PERIOD_ROWS) if name in produced}
     res["n_steps"] = out_n

@@ -9,6 +9,7 @@ from a survey file (:mod:`engine.surveyfile`) or from ``conesurvey run``; each w
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from dataclasses import dataclass, field
@@ -39,10 +40,21 @@ from .methods import DEFAULT_RTOL, Method
 from .scene import Scene
 from .schema import DIMS, map_kind, result_variables, survey_attrs
 
+#: The title of a survey's results when none is given (a survey file's default too).
+DEFAULT_TITLE = "conesurvey survey"
+
 if TYPE_CHECKING:
     from .surveyfile import Survey
 
-__all__ = ["OutputPlan", "PlanError", "RunPlan", "plan_from_survey", "survey_plan"]
+__all__ = [
+    "MapPlan",
+    "OutputPlan",
+    "PlanError",
+    "RunPlan",
+    "map_plan",
+    "plan_from_survey",
+    "survey_plan",
+]
 
 
 # --- the plan ---------------------------------------------------------------------------------
@@ -71,23 +83,37 @@ def _output_plan(path, format_name, *rest) -> OutputPlan:
     return OutputPlan(path, format_for(name=format_name), *rest)
 
 
-@dataclass(frozen=True, eq=False)
-class RunPlan:
-    """A validated survey run, built once (:func:`survey_plan`, :func:`plan_from_survey`) and
-    read by the evaluation, the backends, the runner and the writers; picklable (a dask
-    worker gets it whole)."""
+@dataclass(frozen=True)
+class MapPlan:
+    """What a map computes at each point, validated once (:func:`map_plan`): the ``scene``,
+    the resolved ``method`` (its registry row), the ``map_kind`` (:func:`engine.schema.map_kind`,
+    asked here and nowhere else on a run's way), ``rtol``, ``circular_tol``, the ``horizon``
+    (fate maps) and the result ``variables`` (names and dtypes, in file order). The evaluation
+    (:func:`engine.evaluation.evaluate_flat`) takes it as it is, re-checking nothing."""
 
-    dims: tuple[str, ...]
-    axes: tuple[np.ndarray, ...]
     scene: Scene
     method: Method
     map_kind: str
     rtol: float
     circular_tol: float
     horizon: Horizon | None
-    energy_relative: bool
     variables: dict[str, np.dtype]
+
+
+@dataclass(frozen=True, eq=False)
+class RunPlan(MapPlan):
+    """A validated survey run, built once (:func:`survey_plan`, :func:`plan_from_survey`) and
+    read by the evaluation, the backends, the runner and the writers (:mod:`engine.io`): a
+    :class:`MapPlan` over the axes ``dims``, with its output and, from a survey file, its
+    ``title`` and ``source_text`` (the TOML text, stored with the results); picklable (a dask
+    worker gets it whole)."""
+
+    dims: tuple[str, ...] = DIMS
+    axes: tuple[np.ndarray, ...] = ()
+    energy_relative: bool = False
     output: OutputPlan = field(default_factory=OutputPlan)
+    title: str = DEFAULT_TITLE
+    source_text: str = ""
 
     def axis(self, name: str) -> np.ndarray:
         return self.axes[self.dims.index(name)]
@@ -106,8 +132,11 @@ class RunPlan:
 
     def attrs(self) -> dict[str, Any]:
         """The global attributes of its results (:func:`engine.schema.survey_attrs`)."""
-        return survey_attrs(self.scene, self.method.name, self.circular_tol, self.rtol,
-                            self.energy_relative, self.horizon, self.launch)  # fmt: skip
+        attrs = survey_attrs(self.scene, self.method.name, self.circular_tol, self.rtol,
+                             self.energy_relative, self.horizon, self.launch)  # fmt: skip
+        if self.output.precision == "single":
+            attrs["precision"] = "single: float results stored as float32 (~7 digits)"
+        return attrs
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, RunPlan):
@@ -116,10 +145,30 @@ class RunPlan:
             np.array_equal(a, b) for a, b in zip(self.axes, other.axes, strict=True)
         )
         rest = ("dims", "scene", "method", "map_kind", "rtol", "circular_tol", "horizon",
-                "energy_relative", "variables", "output")  # fmt: skip
+                "energy_relative", "variables", "output", "title", "source_text")  # fmt: skip
         return same_axes and all(getattr(self, n) == getattr(other, n) for n in rest)
 
     __hash__ = None  # type: ignore[assignment]
+
+
+def map_plan(
+    scene: Any = None,
+    method: Any = "exact",
+    *,
+    circular_tol: Any = CIRCULAR_TOL,
+    rtol: Any = DEFAULT_RTOL,
+    horizon_time: Any = None,
+    horizon_revolutions: Any = None,
+) -> MapPlan:
+    """The plan of a map at points (:func:`engine.evaluate`): each input checked by its one
+    function, in this order (the first problem is raised, a :class:`PlanError`)."""
+    scene = check_scene(scene)
+    m = check_method(method, scene)
+    rtol = check_rtol(rtol, m)
+    circular_tol = check_circular_tol(circular_tol)
+    kind = map_kind(m.name, scene)
+    horizon = check_horizon(kind, horizon_time, horizon_revolutions)
+    return MapPlan(scene, m, kind, rtol, circular_tol, horizon, result_variables(m.name, scene))
 
 
 def survey_plan(
@@ -139,15 +188,15 @@ def survey_plan(
     compression: Any = None,
     complevel: Any = None,
     output_format: Any = None,
+    title: str = DEFAULT_TITLE,
+    source_text: str = "",
 ) -> RunPlan:
     """The plan of a survey over the axes ``dims`` (one of
-    :data:`engine.schema.GRID_DIMS`) holding ``values``: every input checked by its one
-    function, in this order (the first problem is raised, a :class:`PlanError`)."""
-    scene = check_scene(scene)
-    m = check_method(method, scene)
-    rtol = check_rtol(rtol, m)
-    circular_tol = check_circular_tol(circular_tol)
-    horizon = check_horizon(m, scene, horizon_time, horizon_revolutions)
+    :data:`engine.schema.GRID_DIMS`) holding ``values``: the map's inputs (:func:`map_plan`),
+    then every other input checked by its one function, in this order (the first problem is
+    raised, a :class:`PlanError`)."""
+    mp = map_plan(scene, method, circular_tol=circular_tol, rtol=rtol, horizon_time=horizon_time,
+                  horizon_revolutions=horizon_revolutions)  # fmt: skip
     energy_relative = check_energy_relative(energy_relative)
     if energy_relative and tuple(dims) != DIMS:
         raise PlanError("energy_relative", "applies to an energy axis, not to launch states")
@@ -156,12 +205,14 @@ def survey_plan(
     check_block_points(block_points)
     axes = check_axes(tuple(dims), values)
     block_points = check_block_points(block_points, tuple(a.size for a in axes))
-    names = result_variables(m.name, scene, energy_relative, tuple(dims) != DIMS)
+    names = result_variables(mp.method.name, mp.scene, energy_relative, tuple(dims) != DIMS)
     if precision == "single":
         names = {n: np.dtype(np.float32) if dt.kind == "f" else dt for n, dt in names.items()}
     output = OutputPlan(path, fmt, compression, complevel, precision, block_points)
-    return RunPlan(tuple(dims), axes, scene, m, map_kind(m.name, scene), rtol, circular_tol,
-                   horizon, energy_relative, names, output)  # fmt: skip
+    fields = {f.name: getattr(mp, f.name) for f in dataclasses.fields(MapPlan)}
+    return RunPlan(**{**fields, "variables": names}, dims=tuple(dims), axes=axes,
+                   energy_relative=energy_relative, output=output, title=title,
+                   source_text=source_text)  # fmt: skip
 
 
 def plan_from_survey(
@@ -192,4 +243,6 @@ def plan_from_survey(
         compression=compression,
         complevel=complevel,
         output_format=output_format,
+        title=survey.title,
+        source_text=survey.source_text,
     )

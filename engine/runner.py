@@ -47,7 +47,6 @@ from .io import OutputError
 from .io.atomic import not_regular, output_name_problem
 from .io.blocks import BlockStore, Scan, check_parts_dir, remove_store
 from .io.codecs import level
-from .io.formats import OutputFormat
 from .io.leftovers import is_debris
 from .io.lock import Locked, LockError, OutputLock, describe_holder
 from .io.manifest import fingerprint, parts_dir, read_manifest
@@ -85,11 +84,11 @@ class _Store:
 
 
 def _inspect(
-    out: Path, survey: Survey, overwrite: bool, block_points: int | None, warn: Callable,
-    fmt: OutputFormat,
-) -> _Store:  # fmt: skip
-    """Step 2 (reads only): RunError or AlreadyComplete, else the plan."""
-    plan = _Store(fingerprint(survey))
+    out: Path, run: RunPlan, overwrite: bool, block_points: int | None, warn: Callable
+) -> _Store:
+    """Step 2 (reads only): RunError or AlreadyComplete, else what to do with the store."""
+    fmt = run.output.format
+    plan = _Store(fingerprint(run))
     root = parts_dir(out)
     try:
         has_store = check_parts_dir(root)
@@ -114,7 +113,7 @@ def _inspect(
         return plan
     try:  # with --overwrite too: a killed run --overwrite resumes when it is run again
         plan.store = fmt.open_run(root, warn)
-        why, problem = read_manifest(root).mismatch(survey), None
+        why, problem = read_manifest(root).mismatch(run), None
     except OutputError as exc:
         why, problem = None, exc
     if overwrite and (problem or why):
@@ -130,18 +129,16 @@ def _inspect(
             f"({why}); use --overwrite to discard it and start again"
         )
     stored = plan.store.tiling
-    if block_points is not None and stored != Tiling.for_grid(survey.shape, block_points):
+    if block_points is not None and stored != Tiling.for_grid(run.shape, block_points):
         warn(f"resuming with the unfinished run's block size {math.prod(stored.block):,}")
     plan.scan = plan.store.scan()
     return plan
 
 
-def _check_space(
-    out: Path, run: RunPlan, tiling: Tiling, pending: list[int], fmt: OutputFormat
-) -> None:
+def _check_space(out: Path, run: RunPlan, tiling: Tiling, pending: list[int]) -> None:
     """RunError unless the blocks still to compute and the output merged beside all of them
     fit on the output's file system."""
-    blocks, merged = fmt.run_bytes(run.variables, tiling, pending)
+    blocks, merged = run.output.format.run_bytes(run.variables, tiling, pending)
     free = shutil.disk_usage(out.parent).free
     if blocks + merged > free:
         raise RunError(
@@ -217,7 +214,7 @@ def run_survey(
         raise RunError(why)  # an optional dependency: refused before anything is written
     with _take_lock(out, command):
         asked = None if block_points is None else run.output.block_points
-        plan = _inspect(out, survey, overwrite, asked, warn, fmt)
+        plan = _inspect(out, run, overwrite, asked, warn)
         tiling = (
             plan.store.tiling
             if plan.store is not None
@@ -226,7 +223,7 @@ def run_survey(
         done = plan.scan.good
         pending = [i for i in range(tiling.nblocks) if i not in done]
         if check_space:
-            _check_space(out, run, tiling, pending, fmt)
+            _check_space(out, run, tiling, pending)
         # Compile (or load from numba's cache) on one point of the grid before anything is
         # written: the engine may still refuse the survey. This also warms the cache before
         # dask workers start (concurrent first compiles race, numba#4807).
@@ -240,13 +237,13 @@ def run_survey(
         except BackendError as exc:
             raise RunFailed(f"{exc}; nothing was written") from None
         try:
-            store = _prepare(out, survey, plan, tiling, warn, level(compression, complevel), fmt)
+            store = _prepare(out, run, plan, tiling, warn)
             once = dict(fingerprint=plan.fp, command=command, overwrite=overwrite)
             blocks = _compute(store, backend, run, pending, len(done), progress, on_block)
             ended: list[float] = []  # when the last block was stored
             incoming = _timed(blocks, ended)
             summary = _merge(
-                fmt, store, survey, out, **once, compression=compression, complevel=complevel,
+                store, run, out, **once, compression=compression, complevel=complevel,
                 pending=pending, incoming=incoming, warn=warn,
             )  # fmt: skip
             t1 = ended[0] if ended else t0
@@ -273,9 +270,8 @@ def run_survey(
 
 
 def _prepare(
-    out: Path, survey: Survey, plan: _Store, tiling: Tiling, warn: Callable, complevel: int,
-    fmt: OutputFormat,
-) -> BlockStore | RunStore:  # fmt: skip
+    out: Path, run: RunPlan, plan: _Store, tiling: Tiling, warn: Callable
+) -> BlockStore | RunStore:
     """Step 4's first writes: remove what goes, create or tidy the store."""
     root = parts_dir(out)
     try:
@@ -285,7 +281,8 @@ def _prepare(
         if plan.store is not None:
             plan.store.discard(plan.scan)
             return plan.store
-        return fmt.create(root, survey, tiling, complevel, warn)
+        complevel = level(run.output.compression, run.output.complevel)
+        return run.output.format.create(root, run, tiling, complevel, warn)
     except OSError as exc:
         raise RunFailed(_cannot_write(exc, root)) from None
 
@@ -337,16 +334,14 @@ def _cannot_write(exc: OSError, where: Path) -> str:
     return f"cannot write {exc.filename or where}: {exc.strerror or exc}"
 
 
-def _merge(
-    fmt: OutputFormat, store: BlockStore | RunStore, survey: Survey, out: Path, **options: Any
-) -> Summary:
+def _merge(store: BlockStore | RunStore, run: RunPlan, out: Path, **options: Any) -> Summary:
     """The blocks merged into the output by its format's ``commit`` (netCDF: while they are
     computed, :func:`engine.io.netcdf.merge`; Zarr: the final commit,
     :func:`engine.io.zarr.merge`):
     RunError if the output appeared meanwhile, RunFailed if it cannot be written or a block
     changed, and what the compute raised."""
     try:
-        return fmt.commit(store, survey, out, **options)
+        return run.output.format.commit(store, run, out, **options)
     except FileExistsError:
         raise RunError(
             f"output file exists: {out} (created while this run computed; use --overwrite)"

@@ -15,7 +15,7 @@ from .api import run_plan
 from .fates import Horizon
 from .plan import plan_from_survey
 from .scene import Scene
-from .schema import DIMS, LAUNCH_DIMS, SLIDING_LAUNCH_DIMS, result_variables, survey_attrs
+from .schema import DIMS, LAUNCH_DIMS, SLIDING_LAUNCH_DIMS
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -79,27 +79,21 @@ class Survey:
         return self.r0 is not None
 
     def variables(self) -> dict[str, np.dtype]:
-        """Names and dtypes of the result variables, in file order (:mod:`engine.schema`); the
-        float ones float32 with ``precision = "single"``."""
-        names = result_variables(self.method, self.scene, self.energy_relative, self.launch)
-        if self.precision == "single":
-            return {n: np.dtype(np.float32) if dt.kind == "f" else dt for n, dt in names.items()}
-        return names
+        """Names and dtypes of the result variables, in file order (its plan's: the float ones
+        float32 with ``precision = "single"``)."""
+        return plan_from_survey(self).variables
 
     def attrs(self) -> dict[str, Any]:
-        """The global attributes of its results (:func:`engine.schema.survey_attrs`), and
-        ``precision`` where it is single."""
-        attrs = survey_attrs(self.scene, self.method, self.circular_tol, self.rtol,
-                             self.energy_relative, self.horizon, self.launch)  # fmt: skip
-        if self.precision == "single":
-            attrs["precision"] = "single: float results stored as float32 (~7 digits)"
-        return attrs
+        """The global attributes of its results (its plan's, :meth:`engine.plan.RunPlan.attrs`:
+        :func:`engine.schema.survey_attrs`, and ``precision`` where it is single)."""
+        return plan_from_survey(self).attrs()
 
     def run(self, progress: Callable[[int, int], None] | None = None) -> xr.Dataset:
         """Evaluate the survey in memory (its plan, :func:`engine.plan.plan_from_survey`, run
         by :func:`engine.api.run_plan`); ``progress(done, total)`` per block."""
-        ds = run_plan(plan_from_survey(self), progress)
-        for name, dt in self.variables().items():
+        plan = plan_from_survey(self)
+        ds = run_plan(plan, progress)
+        for name, dt in plan.variables.items():
             if name in ds and ds[name].dtype != dt:
                 ds[name] = ds[name].astype(dt)
         return ds

@@ -83,7 +83,7 @@ from .kernels.geometry import CIRCULAR_TOL as DEFAULT_CIRCULAR_TOL
 from .methods import DEFAULT_RTOL, METHODS, Method
 from .scene import Scene
 from .schema import DIMS as AXES
-from .schema import FATE_KINDS, LAUNCH_DIMS, RELEASE, launch_dims, map_kind
+from .schema import LAUNCH_DIMS, RELEASE, launch_dims, map_kind
 from .surveyaxes import MAX_AXIS_POINTS, RELATIVE_TO, SCALES, AxisReader, frozen
 from .surveydef import Survey
 
@@ -107,6 +107,8 @@ _TOP_KEYS = ("title", "method", "rtol", "circular_tol", "precision", "scene", "h
 _HORIZON_KEYS = ("time", "revolutions")
 #: Key paths of the plan's fields that a survey file spells otherwise.
 _KEYS = {"horizon_time": "horizon.time", "horizon_revolutions": "horizon.revolutions"}
+#: How a survey file asks for a horizon (:func:`engine.checks.check_horizon`'s ``hint``).
+_HORIZON_HINT = "add a [horizon] table with time = SECONDS and/or revolutions = N"
 _SCENE_FIELDS = tuple(f.name for f in dataclasses.fields(Scene) if not f.name.startswith("_"))
 
 
@@ -271,15 +273,9 @@ class _Reader(AxisReader):
         """``[horizon]``: how long a fate map follows each orbit (the API's check)."""
         table = self.table(doc, "horizon", "", required=False) or {}
         self.check_keys(table, _HORIZON_KEYS, "horizon")
-        if not table and map_kind(method.name, scene) in FATE_KINDS:  # in the file's words
-            raise self.fail(
-                "horizon",
-                "a fate map follows each orbit to its first terminal event (spill, slip, rest, "
-                "vertex) or a horizon: add a [horizon] table with time = SECONDS and/or "
-                "revolutions = N",
-            )
-        with self.checked():
-            return check_horizon(method, scene, table.get("time"), table.get("revolutions"))
+        with self.checked():  # the API's check, asking for the file's keys
+            return check_horizon(map_kind(method.name, scene), table.get("time"),
+                                 table.get("revolutions"), hint=_HORIZON_HINT)  # fmt: skip
 
     @contextlib.contextmanager
     def checked(self) -> Iterator[None]:

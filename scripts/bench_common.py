@@ -1,4 +1,6 @@
-"""What the benchmarks share: the machine in words, the load, and the serial share of a call.
+"""What the benchmarks share: the machine in words, the load, their timing loops (the best of
+interleaved rounds, first calls, a fresh interpreter's import and first calls), the verdict on a
+target, and the serial share of a call.
 
 The serial share is the part of a call that threads cannot shorten: at 1 thread, the wall time
 spent outside its parallel region (validating, allocating, assembling the outputs), as a share
@@ -8,11 +10,14 @@ threads at 11.4x.
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import platform
+import subprocess
+import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numba
@@ -31,6 +36,55 @@ def best(fn: Callable[[], object], repeats: int) -> float:
 def load() -> str:
     """The load average (1, 5, 15 min)."""
     return ", ".join(f"{x:.2f}" for x in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
+
+
+def interleaved(
+    fns: dict[str, Callable[[], object]],
+    rounds: int,
+    clocks: Sequence[Callable[[], float]] = (time.perf_counter,),
+) -> dict[str, tuple[float, ...]]:
+    """The best time [s] of each call by each clock (wall: ``time.perf_counter``; CPU:
+    ``time.process_time`` or ``time.thread_time``) over ``rounds`` rounds, each calling every
+    function once in turn: a load that comes and goes falls on all of them alike."""
+    best = {name: [math.inf] * len(clocks) for name in fns}
+    for _ in range(rounds):
+        for name, fn in fns.items():
+            start = [clock() for clock in clocks]
+            fn()
+            ends = [clock() for clock in clocks]
+            best[name] = [min(b, e - s) for b, s, e in zip(best[name], start, ends, strict=True)]
+    return {name: tuple(b) for name, b in best.items()}
+
+
+def first_calls(fns: dict[str, Callable[[], object]]) -> tuple[dict[str, float], dict]:
+    """Each function called once, in order: the wall time [s] of each first call (its compile,
+    or its load from the cache, included) and what each returned."""
+    seconds, results = {}, {}
+    for name, fn in fns.items():
+        t0 = time.perf_counter()
+        results[name] = fn()
+        seconds[name] = time.perf_counter() - t0
+    return seconds, results
+
+
+def fresh_interpreter(probe: str, cache_dir: str | None = None, timeout: float = 1800) -> dict:
+    """Run ``probe`` (Python that prints one JSON object as its last line: its own timings) in a
+    fresh interpreter, with the compile cache ``cache_dir`` (None: the user's), and return
+    that object with ``process``, the wall time [s] of the whole process, added."""
+    env = {k: v for k, v in os.environ.items() if k != "CONESURVEY_NO_CACHE"}
+    if cache_dir is not None:
+        env["CONESURVEY_CACHE_DIR"] = cache_dir
+    t0 = time.perf_counter()
+    res = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True,
+                         check=True, timeout=timeout)  # fmt: skip
+    out = json.loads(res.stdout.strip().splitlines()[-1])
+    out["process"] = time.perf_counter() - t0
+    return out
+
+
+def verdict(value: float, target: float) -> str:
+    """ "met" if ``value`` reaches ``target`` (larger is better), else "MISSED"."""
+    return "met" if value >= target else "MISSED"
 
 
 def _cpu_model() -> str:

@@ -24,7 +24,10 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
+from functools import partial
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -41,6 +44,9 @@ from engine.kernels.rk import ERR_FLOOR, MIN_FACTOR, SAFETY, initial_step
 from engine.kernels.tableaux import RK_TABLEAUX
 from engine.methods import METHODS
 from engine.scene import Scene
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_common import first_calls, interleaved  # noqa: E402
 
 RK45 = METHODS["rk45"].kernel_id
 SCALAR = "generic scalar kernel, gravity"
@@ -271,8 +277,6 @@ def main() -> None:
         "dop853, gravity only": (base, "dop853"),
         "symplectic, gravity only": (base, "symplectic"),
     }
-    runs = {}
-    first = {}
 
     def run_generic(scene, method):
         out_f = np.empty((5, n))
@@ -297,32 +301,18 @@ def main() -> None:
         hand_points(alpha, energy, hh, Lz, base.params(), args.rtol, max_steps, out_f, out_n)
         return out_f, out_n
 
-    t0 = time.perf_counter()
-    hand_f, hand_n = run_hand()
-    first["hand-written DP5, gravity only"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    scal_f, scal_n, scal_s = run_scalar()
-    first[SCALAR] = time.perf_counter() - t0
-    for name, (scene, method) in scenes.items():
-        t0 = time.perf_counter()
-        runs[name] = run_generic(scene, method)
-        first[name] = time.perf_counter() - t0
+    calls = {"hand-written DP5, gravity only": run_hand, SCALAR: run_scalar}
+    calls.update({name: partial(run_generic, *sm) for name, sm in scenes.items()})
+    first, runs = first_calls(calls)
+    hand_f, hand_n = runs["hand-written DP5, gravity only"]
+    scal_f, scal_n, scal_s = runs[SCALAR]
     gen_f, gen_n, gen_s = runs["gravity only"]
     assert (gen_s == 0).all() and (scal_s == 0).all(), "generic kernel failed on some points"
     assert np.array_equal(gen_f, scal_f, equal_nan=True), "batch != scalar"
     assert np.array_equal(gen_n, scal_n), "batch != scalar"
     same_steps = np.array_equal(scal_n, hand_n)
     dT = np.nanmax(np.abs(scal_f[0] / hand_f[0] - 1))
-    best = dict.fromkeys(["hand-written DP5, gravity only", SCALAR, *scenes], math.inf)
-    for _ in range(args.repeats):
-        for name, fn in (("hand-written DP5, gravity only", run_hand), (SCALAR, run_scalar)):
-            t0 = clock()
-            fn()
-            best[name] = min(best[name], clock() - t0)
-        for name, (scene, method) in scenes.items():
-            t0 = clock()
-            run_generic(scene, method)
-            best[name] = min(best[name], clock() - t0)
+    best = {name: t for name, (t,) in interleaved(calls, args.repeats, (clock,)).items()}
     steps = gen_n.mean()
     print(f"{n} bounded orbits, one radial period each, rtol {args.rtol:g}, "
           f"{numba.get_num_threads()} numba thread(s), best of {args.repeats}")  # fmt: skip

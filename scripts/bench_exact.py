@@ -32,11 +32,9 @@ Wall times are printed too. scipy is a benchmark extra (``pip install conesurvey
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import platform
-import subprocess
 import sys
 import tempfile
 import time
@@ -48,15 +46,22 @@ import numpy as np
 from numba import njit, prange
 
 import engine
-from engine.backends import block_spec
 from engine.evaluation import evaluate_block, evaluate_flat, minimum_energy_flat
 from engine.grid import Tiling
 from engine.kernels.batch import STAGES, empty_outputs, profile_batch
 from engine.kernels.geometry import BOUNDED, scene_params
+from engine.plan import map_plan, plan_from_survey
 from engine.surveyfile import load_survey
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import MACHINE, serial_share  # noqa: E402
+from bench_common import (  # noqa: E402
+    MACHINE,
+    fresh_interpreter,
+    interleaved,
+    load,
+    serial_share,
+    verdict,
+)
 from readme_block import update_readme  # noqa: E402
 
 #: Where ``--doc`` writes the table (between ``<!-- bench_exact: start/end -->``).
@@ -81,10 +86,10 @@ def random_bounded_points(n: int, seed: int = 20240601) -> dict[str, np.ndarray]
     h = rng.uniform(-2.0, 2.0, m)
     Lz = rng.uniform(0.05, 2.0, m)
     vmin = engine.minimum_energy(alpha, h, Lz, SCENE)
-    r_c = evaluate_flat(alpha, vmin, h, Lz, SCENE)["r_circ"]
+    r_c = evaluate_flat(alpha, vmin, h, Lz, map_plan(SCENE))["r_circ"]
     C = M * G * np.cos(alpha) / (1.0 + K)
     energy = vmin + rng.uniform(0.0, 3.0, m) * C * r_c
-    res = evaluate_flat(alpha, energy, h, Lz, SCENE)
+    res = evaluate_flat(alpha, energy, h, Lz, map_plan(SCENE))
     keep = np.flatnonzero(res["orbit_class"] == BOUNDED)[:n]
     if keep.size < n:
         raise RuntimeError(f"only {keep.size} of {n} random points are bounded")
@@ -159,14 +164,7 @@ def _reference_kernel(x, out):
 
 def measure(fns: dict[str, Callable[[], object]], rounds: int) -> dict[str, tuple[float, float]]:
     """Best (wall, CPU) seconds of each call over interleaved rounds."""
-    best = {name: (math.inf, math.inf) for name in fns}
-    for _ in range(rounds):
-        for name, fn in fns.items():
-            c0, w0 = time.process_time(), time.perf_counter()
-            fn()
-            w, c = time.perf_counter() - w0, time.process_time() - c0
-            best[name] = (min(best[name][0], w), min(best[name][1], c))
-    return best
+    return interleaved(fns, rounds, (time.perf_counter, time.process_time))
 
 
 def threaded(nt: int, fn: Callable[[], object]) -> Callable[[], object]:
@@ -190,7 +188,7 @@ def survey_block() -> tuple[dict, tuple[slice, ...], int]:
     n = math.prod(
         len(range(*s.indices(size))) for s, size in zip(slices, survey.shape, strict=True)
     )
-    return block_spec(survey), slices, n
+    return plan_from_survey(survey), slices, n
 
 
 def profile(pts: dict[str, np.ndarray], rounds: int) -> list[tuple[str, float]]:
@@ -218,11 +216,12 @@ t0 = time.perf_counter()
 import numpy as np
 import engine
 from engine.evaluation import evaluate_flat
+from engine.plan import map_plan
 t1 = time.perf_counter()
 a = np.full(64, 0.5); e = np.full(64, 10.0); h = np.full(64, 1.0); lz = np.full(64, 1.0)
-evaluate_flat(a, e, h, lz, engine.Scene())
+evaluate_flat(a, e, h, lz, map_plan(engine.Scene()))
 t2 = time.perf_counter()
-evaluate_flat(a, e, h, lz, engine.Scene())
+evaluate_flat(a, e, h, lz, map_plan(engine.Scene()))
 t3 = time.perf_counter()
 print(json.dumps({"import": t1 - t0, "first": t2 - t1, "second": t3 - t2}))
 """
@@ -230,24 +229,14 @@ print(json.dumps({"import": t1 - t0, "first": t2 - t1, "second": t3 - t2}))
 
 def first_call(cache_dir: str | None) -> dict[str, float]:
     """Import and first/second ``evaluate_flat`` call times [s] in a fresh interpreter."""
-    env = {k: v for k, v in os.environ.items() if k not in ("CONESURVEY_CACHE_DIR",)}
-    env.pop("CONESURVEY_NO_CACHE", None)
-    if cache_dir is not None:
-        env["CONESURVEY_CACHE_DIR"] = cache_dir
-    t0 = time.perf_counter()
-    res = subprocess.run(
-        [sys.executable, "-c", _PROBE], env=env, capture_output=True, text=True, check=True
-    )
-    out = json.loads(res.stdout.strip().splitlines()[-1])
-    out["process"] = time.perf_counter() - t0
-    return out
+    return fresh_interpreter(_PROBE, cache_dir)
 
 
 def doc_table(n, n_grid, rounds, goals, ceiling, stages, peer_rate, serial) -> str:
     """The exact-path table of docs/performance.md (from this run's numbers)."""
     lines = [
         f"Exact path (`python scripts/bench_exact.py -n {n}`, {time.strftime('%Y-%m-%d')}, "
-        f"{MACHINE}, load average {_load()}; per core = CPU time of one thread, best of "
+        f"{MACHINE}, load average {load()}; per core = CPU time of one thread, best of "
         f"{rounds} interleaved rounds; {n:.0e} random bounded orbits of the issue's task, and "
         f"a {n_grid}-point block of `{SURVEY.name}`; peer: numpy turning points + scipy "
         "Carlson R_F/R_D/R_J):",
@@ -261,7 +250,7 @@ def doc_table(n, n_grid, rounds, goals, ceiling, stages, peer_rate, serial) -> s
         peer_txt = "-" if threads else f"{peer_r:.3g} points/s"
         lines.append(
             f"| {label} | {engine_rate:.3g} points/s{extra} | {peer_txt} | {ratio:.2f} | "
-            f">= {target:g} | {_verdict(ratio, target).lower()} |"
+            f">= {target:g} | {verdict(ratio, target).lower()} |"
         )
     for label, share in serial.items():
         met = "met" if share <= TARGET_SERIAL else "missed"
@@ -274,14 +263,6 @@ def doc_table(n, n_grid, rounds, goals, ceiling, stages, peer_rate, serial) -> s
         f"{sum(t for _, t in stages):.0f} (the peer: {1e9 / peer_rate:.0f}).",
     ]
     return "\n".join(lines)
-
-
-def _load() -> str:
-    return ", ".join(f"{x:.2f}" for x in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
-
-
-def _verdict(value: float, target: float) -> str:
-    return "met" if value >= target else "MISSED"
 
 
 def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top to bottom)
@@ -306,7 +287,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
         f"python {platform.python_version()}, numba {numba.__version__}, numpy {np.__version__}, "
         f"scipy {scipy.__version__}, conesurvey {engine.__version__}"
     )
-    print(f"load average before the run (1, 5, 15 min): {_load()}")
+    print(f"load average before the run (1, 5, 15 min): {load()}")
 
     n = args.n
     pts = random_bounded_points(n)
@@ -329,13 +310,13 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
     sub = [np.asarray(ax)[s] for ax, s in zip(spec.axes, slices, strict=True)]
     A, E, H, L = (x.reshape(-1) for x in np.meshgrid(*sub, indexing="ij"))
     vmin = minimum_energy_flat(A, H, L, SCENE)  # the energy axis is relative to V_min
-    flat = evaluate_flat(A, vmin + E * np.abs(vmin), H, L, SCENE)
+    flat = evaluate_flat(A, vmin + E * np.abs(vmin), H, L, map_plan(SCENE))
     same = all(
         np.array_equal(flat[k], block[k].reshape(-1), equal_nan=True) for k in flat if k in block
     )
 
     def flat_path():
-        evaluate_flat(a, e, h, lz, SCENE)
+        evaluate_flat(a, e, h, lz, map_plan(SCENE))
 
     def grid_path():
         evaluate_block(spec, slices)
@@ -362,7 +343,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
     print(
         f"\n{n} random bounded points (g = {G}, k = {K}) and a {n_grid}-point survey block "
         f"({SURVEY.name}, block 0); best of {args.rounds} interleaved rounds; threading layer "
-        f"{layer}; load now {_load()}"
+        f"{layer}; load now {load()}"
     )
     print(
         "agreement: peer vs engine max |rel diff| T_r {:.1e}, psi {:.1e}; Carlson-only peer "
@@ -395,11 +376,11 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
     sp_grid = best["grid 1"][0] / best["grid 2"][0]
     print("\n(e) goals")
     print(f"exact (random points) / peer, per core (CPU): {per_core:.2f}x "
-          f"(target >= {TARGET_VS_PEER:g}x: {_verdict(per_core, TARGET_VS_PEER)}); "
+          f"(target >= {TARGET_VS_PEER:g}x: {verdict(per_core, TARGET_VS_PEER)}); "
           f"wall {wall_1:.2f}x; vs the Carlson-only peer {per_core_strict:.2f}x")  # fmt: skip
     print(f"survey grid / peer, per core (CPU): {per_core_grid:.2f}x")
     print(f"2 threads vs 1 (wall): random points {sp_flat:.2f}, survey grid {sp_grid:.2f} "
-          f"(target >= {TARGET_SPEEDUP:g}: {_verdict(min(sp_flat, sp_grid), TARGET_SPEEDUP)}); "
+          f"(target >= {TARGET_SPEEDUP:g}: {verdict(min(sp_flat, sp_grid), TARGET_SPEEDUP)}); "
           f"the reference kernel got {ceiling:.2f} at the same time")  # fmt: skip
 
     region = (engine.evaluation, "run_units")
@@ -448,7 +429,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
                 f"{label:34s} {d['import']:8.3f} {d['first']:9.3f} {d['second']:9.5f} "
                 f"{d['process']:8.3f}"
             )
-    print(f"\nload average after the run: {_load()}; total benchmark time "
+    print(f"\nload average after the run: {load()}; total benchmark time "
           f"{time.perf_counter() - t_start:.1f} s")  # fmt: skip
     return 0
 

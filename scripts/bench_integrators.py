@@ -34,11 +34,8 @@ from __future__ import annotations
 
 import argparse
 import datetime
-import json
 import math
-import os
 import platform
-import subprocess
 import sys
 import tempfile
 import time
@@ -58,7 +55,7 @@ from engine.methods import METHODS
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import integrator_peers as peers  # noqa: E402
-from bench_common import MACHINE, load, serial_share  # noqa: E402
+from bench_common import MACHINE, fresh_interpreter, load, serial_share  # noqa: E402
 from readme_block import update_readme  # noqa: E402
 
 #: Where ``--doc`` writes the table (between ``<!-- bench_integrators: start/end -->``).
@@ -299,12 +296,7 @@ print(json.dumps(out))
 def first_call(cache_dir: str | None) -> dict:
     """Import time and the first evaluate_integrated per RK method in a fresh interpreter [s]:
     with an empty compile cache (``cache_dir``) or the user's."""
-    env = dict(os.environ)
-    if cache_dir is not None:
-        env["CONESURVEY_CACHE_DIR"] = cache_dir
-    res = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True, text=True,
-                         check=True, timeout=1800)  # fmt: skip
-    return json.loads(res.stdout.strip().splitlines()[-1])
+    return fresh_interpreter(_PROBE, cache_dir)
 
 
 # ------------------------------------------------------------------------------------ report

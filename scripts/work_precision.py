@@ -60,6 +60,7 @@ import engine
 from engine.evaluation import evaluate_flat
 from engine.integrated import evaluate_integrated
 from engine.kernels.geometry import BOUNDED, CIRCULAR, CLASS_NAMES, HYPERBOLIC
+from engine.plan import map_plan
 
 ROOT = Path(__file__).resolve().parents[1]
 METHODS = ("rk45", "dop853", "symplectic")
@@ -223,7 +224,7 @@ def batch_timer(orbits, groups, method: str, rtol: float, tile: int) -> Callable
 
     def run() -> None:
         for arrs, scene in batches:
-            evaluate_flat(*arrs, scene, method, rtol=rtol)
+            evaluate_flat(*arrs, map_plan(scene, method, rtol=rtol))
 
     return run
 

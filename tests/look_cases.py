@@ -15,6 +15,7 @@ import xarray as xr
 from engine.grid import Tiling
 from engine.io.blocks import BlockStore
 from engine.io.manifest import Manifest, parts_dir
+from engine.plan import plan_from_survey
 from engine.runner import run_survey
 from engine.surveyfile import Survey, parse_survey
 
@@ -115,7 +116,7 @@ def unfinished_run(
     survey = parse_survey(text)
     full = survey.run()
     tiling = Tiling(survey.shape, chunk, block)
-    store = BlockStore.create(parts_dir(out), Manifest.new(survey, tiling))
+    store = BlockStore.create(parts_dir(out), Manifest.new(plan_from_survey(survey), tiling))
     for i in keep:
         sl = tiling.slices(i)
         store.commit(i, {n: full[n].values[sl] for n in store.names})

@@ -7,7 +7,7 @@ import pytest
 import engine
 from engine.evaluation import evaluate_block, evaluate_flat, family_values, minimum_energy_flat
 from engine.kernels.geometry import OUT_OF_RANGE
-from engine.plan import survey_plan
+from engine.plan import map_plan, survey_plan
 from engine.schema import DIMS
 
 
@@ -53,7 +53,7 @@ def test_grid_path_equals_flat_path_bit_for_bit(relative, scene):
         vmin = minimum_energy_flat(A, H, L, scene)
         assert np.array_equal(per_point["V_min"], vmin, equal_nan=True)
         E = vmin + E * np.abs(vmin)
-    flat = evaluate_flat(A, E, H, L, scene)
+    flat = evaluate_flat(A, E, H, L, map_plan(scene))
     undefined = np.isnan(E)  # no V_min: forbidden, nothing but r_circ
     flat["orbit_class"][undefined] = 0
     for name, col in flat.items():
@@ -86,10 +86,10 @@ def test_threads_share_the_units_and_give_the_same_numbers():
     before = numba.get_num_threads()
     try:
         numba.set_num_threads(1)
-        one = evaluate_flat(a, e, h, lz, engine.Scene()), evaluate_block(spec, grid)
+        one = evaluate_flat(a, e, h, lz, map_plan(engine.Scene())), evaluate_block(spec, grid)
         numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
         for _ in range(3):
-            many = evaluate_flat(a, e, h, lz, engine.Scene()), evaluate_block(spec, grid)
+            many = evaluate_flat(a, e, h, lz, map_plan(engine.Scene())), evaluate_block(spec, grid)
             for res1, res2 in zip(one, many, strict=True):
                 assert set(res1) == set(res2)
                 for name in res1:

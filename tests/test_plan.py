@@ -135,7 +135,10 @@ def test_the_survey_file_and_the_api_make_the_same_plan(monkeypatch, text, api, 
         n: np.dtype(np.float32) if single and dt.kind == "f" else dt
         for n, dt in from_api.variables.items()
     }
-    assert from_file == dataclasses.replace(from_api, output=output, variables=variables)
+    provenance = dict(title=survey.title, source_text=text)  # a file's own; the API has none
+    assert (from_api.title, from_api.source_text) == ("conesurvey survey", "")
+    assert from_file == dataclasses.replace(from_api, output=output, variables=variables,
+                                            **provenance)  # fmt: skip
     # what the plan holds, read from the inputs above (not from the code under test)
     launch = text is LAUNCH
     assert from_file.dims == (LAUNCH_DIMS if launch else DIMS)
@@ -286,6 +289,10 @@ def test_a_missing_horizon_is_asked_for_in_each_entry_points_words(tmp_path, cap
     assert file.value.key == "horizon"
     assert "[horizon] table with time = SECONDS" in file.value.problem
     assert "horizon_time" not in file.value.problem
+    cause = file.value.__context__  # decided by the same check, not by a pre-check of its own
+    assert isinstance(cause, PlanError) and "check_horizon" in _frames(cause), cause
+    same = "is required: a fate map follows each orbit to its first terminal event"
+    assert api.value.problem.startswith(same) and file.value.problem.startswith(same)
     (tmp_path / "bad.toml").write_text(text)
     for command in ("validate", "run"):
         proc = runs.here(tmp_path, capsys, command, "bad.toml")

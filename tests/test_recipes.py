@@ -1,26 +1,39 @@
-"""The recipe "a new effect" (docs/architecture.md), applied to a copy of the package and run.
+"""The recipes of docs/architecture.md, applied to one copy of the package and run.
 
-A toy effect, linear air drag (a force -c_drag M (1+k) V on the centre: the centre's velocity
-decays at the rate c_drag), is added as one row of the effects table, its terms in the right-hand
-side (the force and the power it dissipates), its parameter slot and its Scene field, and nothing
-else. The copy must then take it in survey files and ``conesurvey validate``, refuse it in the
-methods that cannot follow dissipative forces, follow it to each orbit's fate in a written
-survey, and list the fate map's variables in the schema.
+Each recipe is a list of edits (and new files); the copy takes all of them, then one
+subprocess exercises each recipe end to end (one compile cache for all, kept by
+``runs.copy_cache``). Each test asserts that its recipe touched exactly the files the doc lists
+for it, with the lines the doc gives, and that the copy ran it:
+
+- a new effect: a toy linear air drag (a force -c_drag M (1+k) V on the centre: the centre's
+  velocity decays at the rate c_drag), one row of the effects table, its terms in the
+  right-hand side (the force and the power it dissipates), its parameter slot and its Scene
+  field; the copy must take it in survey files and ``conesurvey validate``, refuse it in the
+  methods that cannot follow dissipative forces, follow it to each orbit's fate in a written
+  survey, and list the fate map's variables in the schema;
+- a new output variable: ``apsidal_degrees``, the one-period map's apsidal angle in degrees,
+  declared in the schema and written by the kernel's row; a survey file's results hold it,
+  with its units, equal to the apsidal angle in degrees;
+- a new command: a toy ``conesurvey hello SURVEY.toml`` (one module and its registration); the
+  command line lists it, runs it on a survey file and refuses a missing one with status 2.
 """
 
 from __future__ import annotations
 
+import difflib
 import os
+import re
 import shutil
 import subprocess
 import sys
-import textwrap
 from pathlib import Path
 
+import pytest
 from runs import copy_cache
 
 ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "engine"
+DOC = ROOT / "docs" / "architecture.md"
 
 
 #: The recipe: the effect's row in the effects table.
@@ -50,7 +63,7 @@ POWER_TERM = """
     if effects & AIR_DRAG:
         power += p[P_DRAG] * (u * u + v * v) / p[P_INV_M1K]"""
 #: (file, old text, new text): the recipe's edits; each old text occurs once.
-EDITS = [
+EFFECT_EDITS = [
     ("kernels/effects.py", ROW_AFTER, ROW_AFTER + ROW),
     ("kernels/model.py", _ATT, _ATT + '\nAIR_DRAG = EFFECT_BITS["air_drag"]'),
     (
@@ -68,55 +81,209 @@ EDITS = [
 ]
 
 
-def _apply(copy: Path) -> int:
-    """Apply the recipe to the package copy; returns the number of lines it adds."""
-    added = 0
-    for rel, old, new in EDITS:
+#: The recipe "a new output variable": its row in the schema, the map kind's lists that hold it,
+#: and the kernel row that computes it.
+VARIABLE_ROW = """
+    "apsidal_degrees": _f("degree", "apsidal angle of one integrated radial period, in degrees"),"""
+_STATUS_ROW = '    "status": Variable("int8", None, "integrator status", STATUS_FLAGS),'
+_LOSS_STORE = "    out_f[4, i] = loss"
+VARIABLE_EDITS = [
+    ("schema.py", _STATUS_ROW, _STATUS_ROW + VARIABLE_ROW),
+    (
+        "schema.py",
+        'INTEGRATED = ("n_steps", "energy_drift", "status")',
+        'INTEGRATED = ("n_steps", "energy_drift", "status", "apsidal_degrees")',
+    ),
+    (
+        "schema.py",
+        '(*REPLACED_BY_INTEGRATION, "energy_drift", *effect_variables(scene, "period"))',
+        '(*REPLACED_BY_INTEGRATION, "energy_drift", "apsidal_degrees",\n'
+        '            *effect_variables(scene, "period"))',
+    ),
+    (
+        "kernels/orbit.py",
+        '"energy_drift", "energy_loss")',
+        '"energy_drift", "energy_loss",\n               "apsidal_degrees")',
+    ),
+    ("kernels/orbit.py", _LOSS_STORE, _LOSS_STORE + "\n    out_f[5, i] = psi * (180.0 / math.pi)"),
+]
+
+#: The recipe "a new command": its module, and its registration.
+HELLO = '''"""``conesurvey hello SURVEY.toml``: greet a survey (a toy command)."""
+
+from __future__ import annotations
+
+import argparse
+
+from . import Command, load_plan
+
+__all__ = ["COMMAND"]
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("survey", metavar="SURVEY.toml", help="survey definition (TOML)")
+
+
+def _hello(args: argparse.Namespace, command: str) -> int:
+    plan = load_plan(args.survey)
+    print(f"hello, {plan.title}: {plan.size:,} points, a {plan.map_kind} map")
+    return 0
+
+
+COMMAND = Command(
+    name="hello",
+    help="greet a survey",
+    description="Greet SURVEY.toml.",
+    add_arguments=add_arguments,
+    run=_hello,
+)
+'''
+_VALIDATE_IMPORT = "from .commands import validate as _validate"
+COMMAND_EDITS = [
+    ("commands/hello.py", None, HELLO),
+    ("cli.py", _VALIDATE_IMPORT, "from .commands import hello as _hello\n" + _VALIDATE_IMPORT),
+    ("cli.py", "    _convert.COMMAND,\n", "    _convert.COMMAND,\n    _hello.COMMAND,\n"),
+]
+
+#: The recipes, by their title in docs/architecture.md.
+RECIPES = {
+    "A new effect": EFFECT_EDITS,
+    "A new output variable": VARIABLE_EDITS,
+    "A new command": COMMAND_EDITS,
+}
+
+
+def _apply(copy: Path, edits: list) -> dict[str, tuple[int, int]]:
+    """Apply ``edits`` to the package copy: (file, old text, new text), each old text occurring
+    once (old text None: a new file). Returns the lines each file gained and lost, diffed."""
+    before: dict[str, str] = {}
+    for rel, old, new in edits:
         path = copy / rel
+        if old is None:
+            assert not path.exists(), rel
+            before.setdefault(rel, "")
+            path.write_text(new)
+            continue
         src = path.read_text()
+        before.setdefault(rel, src)
         assert src.count(old) == 1, (rel, old)
         path.write_text(src.replace(old, new))
-        added += new.count("\n") - old.count("\n")
-    return added
+    stats = {}
+    for rel, old in before.items():
+        new = (copy / rel).read_text().splitlines()
+        diff = list(difflib.unified_diff(old.splitlines(), new, lineterm="", n=0))
+        plus = sum(1 for d in diff if d.startswith("+") and not d.startswith("+++"))
+        minus = sum(1 for d in diff if d.startswith("-") and not d.startswith("---"))
+        stats[rel] = (plus, minus)
+    return stats
+
+
+def _doc_says(title: str) -> tuple[set[str], tuple[int, int]]:
+    """The files and the lines added and removed that docs/architecture.md gives for a recipe:
+    its paragraph ``**Title** (applied by ...; files: `a`, `b`; +N/-M lines)``."""
+    text = DOC.read_text()
+    start = text.index(f"**{title}**")
+    para = text[start : text.find("\n\n", start)].replace("\n", " ")
+    m = re.search(r"files: ((?:`[^`]+`(?:, |; ))+)\+(\d+)/-(\d+) lines", para)
+    assert m, para
+    return set(re.findall(r"`([^`]+)`", m.group(1))), (int(m.group(2)), int(m.group(3)))
 
 
 CHECK = r"""
+import contextlib
+import io
 import sys
+import traceback
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
 import engine
-from engine.cli import main
+from engine.cli import build_parser, main
 from engine.methods import check_method
-from engine.schema import map_kind, period_variables, result_variables
+from engine.schema import RESULTS, map_kind, period_variables, result_variables
 from engine.kernels import symplectic
 
 tmp = Path(sys.argv[1])
-scene = engine.Scene(c_drag=0.5)
-assert scene.effects == ("air_drag",), scene.effects
-try:
-    engine.Scene(c_drag=-1.0)
-    raise AssertionError("a negative c_drag was taken")
-except ValueError as exc:
-    assert "Scene.c_drag" in str(exc), exc
-# refusals: the closed form and the symplectic method cannot follow dissipative forces
-for name, why in (("exact", "lossless"), ("symplectic", "conservative")):
+failed = []
+
+
+@contextlib.contextmanager
+def section(name):
     try:
-        check_method(name, scene)
-        raise AssertionError(f"{name} took air drag")
+        yield
+        print(f"{name} ok", flush=True)
+    except BaseException:
+        failed.append(name)
+        print(f"{name} FAILED\n{traceback.format_exc()}", flush=True)
+
+
+with section("command"):
+    assert "hello" in build_parser().format_help()
+    (tmp / "hello.toml").write_text(
+        'title = "greeted"\n[axes.alpha]\nvalues = [0.5]\n[axes.energy]\nvalues = [1.0, 2.0]\n'
+        '[axes.h]\nvalues = [0.0]\n[axes.Lz]\nvalues = [0.3, 0.6, 0.9]\n'
+    )
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(["hello", str(tmp / "hello.toml")]) == 0
+    assert out.getvalue() == "hello, greeted: 6 points, a closed form map\n", out.getvalue()
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        assert main(["hello", str(tmp / "missing.toml")]) == 2
+    assert "survey file not found" in err.getvalue(), err.getvalue()
+
+with section("variable"):
+    assert RESULTS["apsidal_degrees"].units == "degree"
+    assert "apsidal_degrees" in result_variables("symplectic", engine.Scene())
+    survey = tmp / "degrees.toml"
+    survey.write_text('''
+title = "apsidal angle in degrees"
+method = "symplectic"
+[axes.alpha]
+values = [0.6]
+[axes.energy]
+values = [0.5, 1.0]
+relative_to = "V_min"
+[axes.h]
+values = [0.0]
+[axes.Lz]
+values = [0.5]
+''')
+    assert main(["run", str(survey), "-o", str(tmp / "degrees.nc"), "-q"]) == 0
+    with xr.open_dataset(tmp / "degrees.nc") as ds:
+        assert ds.attrs["map_kind"] == "one period"
+        assert ds.apsidal_degrees.attrs["units"] == "degree"
+        psi = ds.apsidal_angle.values.ravel()
+        deg = ds.apsidal_degrees.values.ravel()
+        assert np.all(np.isfinite(psi)) and np.all(psi > 0), psi
+        np.testing.assert_allclose(deg, np.degrees(psi), rtol=4e-16)
+
+with section("effect"):
+    scene = engine.Scene(c_drag=0.5)
+    assert scene.effects == ("air_drag",), scene.effects
+    try:
+        engine.Scene(c_drag=-1.0)
+        raise AssertionError("a negative c_drag was taken")
     except ValueError as exc:
-        assert "air_drag" in str(exc) and why in str(exc), exc
-assert symplectic.UNSUPPORTED_EFFECTS & 16
-check_method("rk45", scene)
-# the schema: an integrator follows the drag to each orbit's fate
-assert map_kind("rk45", scene) == "fate"
-assert "fate" in result_variables("rk45", scene)
-assert "energy_loss" in period_variables(scene)
-# a survey file: validate and run
-survey = tmp / "drag.toml"
-survey.write_text('''
+        assert "Scene.c_drag" in str(exc), exc
+    # refusals: the closed form and the symplectic method cannot follow dissipative forces
+    for name, why in (("exact", "lossless"), ("symplectic", "conservative")):
+        try:
+            check_method(name, scene)
+            raise AssertionError(f"{name} took air drag")
+        except ValueError as exc:
+            assert "air_drag" in str(exc) and why in str(exc), exc
+    assert symplectic.UNSUPPORTED_EFFECTS & 16
+    check_method("rk45", scene)
+    # the schema: an integrator follows the drag to each orbit's fate
+    assert map_kind("rk45", scene) == "fate"
+    assert "fate" in result_variables("rk45", scene)
+    assert "energy_loss" in period_variables(scene)
+    # a survey file: validate and run
+    survey = tmp / "drag.toml"
+    survey.write_text('''
 title = "air drag"
 method = "rk45"
 rtol = 1e-8
@@ -133,43 +300,70 @@ values = [0.5]
 [axes.w0]
 values = [0.0]
 ''')
-assert main(["validate", str(survey)]) == 0
-assert main(["run", str(survey), "-o", str(tmp / "drag.nc"), "-q"]) == 0
-with xr.open_dataset(tmp / "drag.nc") as ds:
-    assert ds.attrs["scene_c_drag"] == 0.5
-    assert ds.attrs["map_kind"] == "fate"
-    fates = [engine.FATE_NAMES[int(f)] for f in ds.fate.values.ravel()]
-    # the drag takes the orbit's energy and angular momentum: it rolls down to the vertex
-    assert set(fates) == {"vertex"}, fates
-    lost = ds.energy_lost.values.ravel()
-    assert np.all(lost > 0), lost
-    # the work the drag term's power integrates matches the energy the drag force took
-    drift = ds.invariant_drift.values.ravel()
-    assert np.all(drift < 1e-6), drift
-print("ok")
+    assert main(["validate", str(survey)]) == 0
+    assert main(["run", str(survey), "-o", str(tmp / "drag.nc"), "-q"]) == 0
+    with xr.open_dataset(tmp / "drag.nc") as ds:
+        assert ds.attrs["scene_c_drag"] == 0.5
+        assert ds.attrs["map_kind"] == "fate"
+        fates = [engine.FATE_NAMES[int(f)] for f in ds.fate.values.ravel()]
+        # the drag takes the orbit's energy and angular momentum: it rolls down to the vertex
+        assert set(fates) == {"vertex"}, fates
+        lost = ds.energy_lost.values.ravel()
+        assert np.all(lost > 0), lost
+        # the work the drag term's power integrates matches the energy the drag force took
+        drift = ds.invariant_drift.values.ravel()
+        assert np.all(drift < 1e-6), drift
+
+sys.exit(1 if failed else 0)
 """
 
 
-def test_recipe_new_effect(tmp_path, capsys):
-    """One row, its right-hand-side terms, its parameter slot and Scene field: the effect reaches
-    survey files, validate, fate maps, refusals and the schema."""
-    copy = tmp_path / "engine"
+@pytest.fixture(scope="module")
+def applied(tmp_path_factory):
+    """Every recipe applied to one copy of the package and the copy's check run once: the
+    lines each recipe's files gained and lost, and the check's process."""
+    tmp = tmp_path_factory.mktemp("recipes")
+    copy = tmp / "engine"
     shutil.copytree(PKG, copy, ignore=shutil.ignore_patterns("__pycache__"))
-    lines = _apply(copy)
-    assert lines <= 25, lines
-    env = dict(
-        os.environ,
-        PYTHONPATH=str(tmp_path),
-        CONESURVEY_CACHE_DIR=str(copy_cache(tmp_path, "new-effect")),
-    )
+    stats = {title: _apply(copy, edits) for title, edits in RECIPES.items()}
+    env = dict(os.environ, PYTHONPATH=str(tmp), CONESURVEY_CACHE_DIR=str(copy_cache(tmp, "all")))
     env["NUMBA_NUM_THREADS"] = "1"
     res = subprocess.run(
-        [sys.executable, "-c", textwrap.dedent(CHECK), str(tmp_path)],
-        env=env,
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
+        [sys.executable, "-c", CHECK, str(tmp)], env=env, cwd=tmp, capture_output=True, text=True
     )
-    assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-3000:]
+    return stats, res
+
+
+def _touched_as_documented(stats: dict, title: str) -> None:
+    files, lines = _doc_says(title)
+    assert set(stats[title]) == files, (title, sorted(stats[title]))
+    assert tuple(map(sum, zip(*stats[title].values(), strict=True))) == lines, stats[title]
+
+
+def _ran(res: subprocess.CompletedProcess, section: str) -> None:
+    assert f"{section} ok" in res.stdout.splitlines(), res.stdout[-3000:] + res.stderr[-3000:]
+
+
+def test_recipe_new_effect(applied):
+    """One row, its right-hand-side terms, its parameter slot and Scene field: the effect reaches
+    survey files, validate, fate maps, refusals and the schema."""
+    stats, res = applied
+    _touched_as_documented(stats, "A new effect")
+    _ran(res, "effect")
     assert "effect air_drag: honoured by rk45, dop853" in res.stdout
-    assert res.stdout.rstrip().endswith("ok")
+
+
+def test_recipe_new_output_variable(applied):
+    """Its schema row, the map kind's lists and its kernel row: the variable reaches a survey's
+    results, with its units and values."""
+    stats, res = applied
+    _touched_as_documented(stats, "A new output variable")
+    _ran(res, "variable")
+
+
+def test_recipe_new_command(applied):
+    """One module and its registration: the command line lists it, runs it and refuses a
+    missing survey file."""
+    stats, res = applied
+    _touched_as_documented(stats, "A new command")
+    _ran(res, "command")

@@ -17,6 +17,7 @@ from engine import runner
 from engine.grid import Tiling
 from engine.io import manifest as io_manifest
 from engine.io.netcdf import read_info
+from engine.plan import plan_from_survey
 from engine.runner import RunError, run_survey
 from engine.surveyfile import parse_survey
 
@@ -144,7 +145,9 @@ def test_completed_output_is_not_recomputed_and_info_reports_it(tmp_path, capsys
     with pytest.raises(runner.AlreadyComplete):
         run_survey(s, out)
     info = read_info(out)
-    assert info["complete"] and info["attrs"]["survey_fingerprint"] == io_manifest.fingerprint(s)
+    assert info["complete"] and info["attrs"]["survey_fingerprint"] == io_manifest.fingerprint(
+        plan_from_survey(s)
+    )
     assert sum(info["counts"].values()) == stats.points
     assert info["counts"]["bounded"] == int(stats.counts[1])
     from engine import cli

@@ -75,3 +75,19 @@ def test_figure_cli_runs_a_command_and_stops_on_failure(tmp_path, capsys):
     assert "valid" in capsys.readouterr().out
     with pytest.raises(SystemExit, match="conesurvey validate failed with status 2"):
         figure_cli.conesurvey("validate", tmp_path / "missing.toml")
+
+
+def test_the_benchmarks_timing_loop_interleaves_and_keeps_the_best():
+    """bench_common.interleaved: each round calls every function once, in turn; the best time
+    of each by each clock (a fake clock here: its readings are the test's own numbers)."""
+    from bench_common import first_calls, interleaved, verdict
+
+    order = []
+    ticks = iter([0.0, 5.0, 5.0, 6.0, 10.0, 12.0, 12.0, 19.0, 20.0, 23.0, 23.0, 24.0])
+    fns = {"a": lambda: order.append("a"), "b": lambda: order.append("b")}
+    best = interleaved(fns, 3, (lambda: next(ticks),))
+    assert order == ["a", "b"] * 3
+    assert best == {"a": (2.0,), "b": (1.0,)}  # a: 5, 2, 3; b: 1, 7, 1
+    seconds, results = first_calls({"x": lambda: 42})
+    assert results == {"x": 42} and seconds["x"] >= 0.0
+    assert (verdict(2.0, 2.0), verdict(1.9, 2.0)) == ("met", "MISSED")

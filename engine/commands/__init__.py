@@ -6,7 +6,8 @@ registers each one with :func:`engine.cli.register`; a new command (``plot``, ``
 one module here and one ``register`` call there.
 
 Shared here: :class:`InputError` (reported as ``conesurvey: error: ...``, exit status 2),
-:func:`error` and :func:`load` (a survey definition, with every problem an InputError).
+:func:`error`, :func:`load` (a survey definition, with every problem an InputError) and
+:func:`load_plan` (its run plan).
 """
 
 from __future__ import annotations
@@ -19,9 +20,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..io.atomic import NotRegularFile
+from ..plan import RunPlan, plan_from_survey
 from ..surveyfile import Survey, SurveyError, load_survey
 
-__all__ = ["PROG", "Command", "InputError", "error", "load"]
+__all__ = ["PROG", "Command", "InputError", "error", "load", "load_plan"]
 
 PROG = "conesurvey"
 
@@ -63,3 +65,9 @@ def load(path: str) -> Survey:
         raise InputError(f"cannot read survey file {source}: {exc.strerror or exc}") from None
     except SurveyError as exc:
         raise InputError(str(exc)) from None
+
+
+def load_plan(path: str) -> RunPlan:
+    """The run plan of the survey file ``path`` (:func:`engine.plan.plan_from_survey`; its
+    output in memory); InputError for every problem with the file."""
+    return plan_from_survey(load(path))

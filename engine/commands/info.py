@@ -23,6 +23,7 @@ from ..io.formats import format_for
 from ..io.leftovers import remove_leftovers
 from ..io.lock import Locked, LockError, OutputLock, describe_holder
 from ..io.manifest import MANIFEST, parts_dir, read_manifest
+from ..plan import plan_from_survey
 from ..surveyfile import SurveyError, parse_survey
 from . import Command, InputError
 
@@ -58,8 +59,8 @@ def _store_problem(path: Path) -> str | None:
     records (None if it can, or if that definition no longer parses)."""
     try:
         m = read_manifest(parts_dir(path))
-        why = m.mismatch(parse_survey(m.survey_definition))
-    except (OutputError, SurveyError):
+        why = m.mismatch(plan_from_survey(parse_survey(m.survey_definition)))
+    except (OutputError, SurveyError, ValueError):
         return None
     return None if why is None else f"its manifest does not match its own survey ({why})"
 

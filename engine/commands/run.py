@@ -25,10 +25,11 @@ from ..io.codecs import COMPRESSIONS, DEFAULT_COMPRESSION, DEFAULT_LEVELS
 from ..io.formats import format_for
 from ..io.manifest import fingerprint
 from ..kernels.geometry import CLASS_NAMES
+from ..plan import RunPlan, plan_from_survey
 from ..progress import Progress
 from ..runner import AlreadyComplete, RunError, RunFailed, RunStats, run_survey
 from ..scene import Scene
-from ..schema import flag_table, map_kind
+from ..schema import flag_table
 from . import PROG, Command, InputError, error, load
 from .validate import compile_seconds, energy_warning
 
@@ -207,19 +208,20 @@ def _output(args: argparse.Namespace, source: Path) -> Path:
 def _run(args: argparse.Namespace, command: str) -> int:
     source = Path(args.survey)
     survey = load(args.survey)
+    plan = plan_from_survey(survey)  # checked already by load: the estimates' plan
     out = _output(args, source)
-    if (warning := energy_warning(survey)) is not None:
+    if (warning := energy_warning(plan)) is not None:
         print(f"{PROG}: warning: {warning}", file=sys.stderr)
     if args.scheduler is not None or args.workers is not None:
         _quiet_dask("--workers" if args.workers is not None else "--scheduler")
     progress = None if args.quiet else Progress(sys.stderr)
     if progress is not None:
-        progress.kernels_cached = compile_seconds(survey) == 0.0
+        progress.kernels_cached = compile_seconds(plan) == 0.0
     before = _identity(out)
     try:
-        return _run_and_report(args, command, survey, source, out, progress)
+        return _run_and_report(args, command, survey, plan, source, out, progress)
     except KeyboardInterrupt:
-        if not _finished_since(out, survey, before):
+        if not _finished_since(out, plan, before):
             raise
         _close(progress)
         error(f"interrupted after the run had finished: {out} is complete; nothing to resume")
@@ -236,14 +238,14 @@ def _identity(out: Path) -> tuple[int, int] | None:
     return (st.st_dev, st.st_ino)
 
 
-def _finished_since(out: Path, survey: Survey, before: tuple[int, int] | None) -> bool:
+def _finished_since(out: Path, plan: RunPlan, before: tuple[int, int] | None) -> bool:
     """Whether this run renamed its complete output into place (a Ctrl-C after that point
     interrupts only the tidying and the summary: nothing is left to resume)."""
     now = _identity(out)
     if now is None or now == before:
         return False
     try:
-        return format_for(out).read_fingerprint(out) == fingerprint(survey)
+        return format_for(out).read_fingerprint(out) == fingerprint(plan)
     except (OSError, ValueError):
         return False
 
@@ -252,6 +254,7 @@ def _run_and_report(
     args: argparse.Namespace,
     command: str,
     survey: Survey,
+    plan: RunPlan,
     source: Path,
     out: Path,
     progress: Progress | None,
@@ -290,8 +293,7 @@ def _run_and_report(
     finally:
         _close(progress)
     if not args.quiet:
-        print_summary(stats, title=survey.title, method=survey.method,
-                      kind=map_kind(survey.method, survey.scene))  # fmt: skip
+        print_summary(stats, title=plan.title, method=plan.method.name, kind=plan.map_kind)
     return 0
 
 

@@ -55,7 +55,7 @@ from .atomic import (
 from .manifest import MANIFEST, Manifest, read_manifest, survey_variables, write_manifest
 
 if TYPE_CHECKING:
-    from ..surveyfile import Survey
+    from ..plan import RunPlan
 
 __all__ = [
     "JOURNAL",
@@ -75,10 +75,10 @@ _NPZ_MEMBER_OVERHEAD = 512
 _MAX_JOURNAL_BYTES = 1 << 30
 
 
-def estimate_bytes(survey: Survey) -> int:
+def estimate_bytes(plan: RunPlan) -> int:
     """Uncompressed size [bytes] of the results (the block files hold this much)."""
-    per_point = sum(dt.itemsize for dt in survey_variables(survey).values())
-    return per_point * survey.size
+    per_point = sum(dt.itemsize for dt in survey_variables(plan).values())
+    return per_point * plan.size
 
 
 def block_file_bytes(names: dict[str, np.dtype], points: int) -> int:

@@ -6,12 +6,12 @@ Every place that needs to know how a result is stored asks its row, :func:`forma
 
 A row (:class:`OutputFormat`) is the whole contract of a format:
 
-- ``create(root, survey, tiling, complevel, warn)``: the private directory of a new streamed
+- ``create(root, plan, tiling, complevel, warn)``: the private directory of a new streamed
   run (``OUT.parts/``, a :class:`engine.io.blocks.BlockStore` or a Zarr
   :class:`engine.io.zarrstore.RunStore`); ``open_run(root, warn)`` reopens it to resume;
   each computed block is written through it (``store.commit(index, block)``; a store with a
   ``writer`` has the workers write their own chunks);
-- ``commit(store, survey, out, *, fingerprint, command, overwrite, compression, complevel,
+- ``commit(store, plan, out, *, fingerprint, command, overwrite, compression, complevel,
   pending, incoming, warn) -> Summary``: the output from the run's store, taking each block
   from ``incoming`` as it is committed (netCDF writes while blocks are computed; Zarr drains
   it and commits the store the workers wrote), renamed into place complete;
@@ -23,7 +23,7 @@ A row (:class:`OutputFormat`) is the whole contract of a format:
   with ``dimensions``, ``chunking()``, slicing; ``ncattrs``/``getncattr``), which a conversion
   reads;
 - ``write_copy(src, out, attrs, hasher, recorded, overwrite)``: a converted copy
-  (:mod:`engine.io.convert`), ``write_survey(ds, path, survey, ...)``: an in-memory Dataset;
+  (:mod:`engine.io.convert`), ``write_survey(ds, path, plan, ...)``: an in-memory Dataset;
 - ``run_bytes(names, tiling, pending)``: (blocks, output) bytes a run still needs;
   ``output_bytes(names, shape)``: an upper bound of a result's size;
 - ``compressions`` (the first is the default), ``directory`` (the output is a directory),
@@ -65,8 +65,8 @@ def _block_run_bytes(names: dict, tiling: Any, pending: list[int]) -> tuple[int,
     return blocks, output_bytes(names, tiling.shape)
 
 
-def _create_blocks(root: Path, survey: Any, tiling: Any, complevel: int, warn: Callable):
-    return BlockStore.create(root, Manifest.new(survey, tiling), warn)
+def _create_blocks(root: Path, plan: Any, tiling: Any, complevel: int, warn: Callable):
+    return BlockStore.create(root, Manifest.new(plan, tiling), warn)
 
 
 def _refuse(what: str, name: str) -> Callable[..., Any]:
@@ -127,13 +127,13 @@ def _lazy(module: str, name: str) -> Callable[..., Any]:
     return call
 
 
-def _zarr_commit(store: RunStore, survey: Any, out: Path, *, incoming: Any, **options: Any):
+def _zarr_commit(store: RunStore, plan: Any, out: Path, *, incoming: Any, **options: Any):
     """Zarr: the workers wrote their chunks; every block is awaited, then the store committed."""
     for _ in incoming:
         pass
     keep = {k: options[k] for k in ("fingerprint", "command", "overwrite") if k in options}
     complevel = level(options.get("compression", "blosc_lz4"), options.get("complevel"))
-    return zarr_io.merge(store, survey, out, **keep, complevel=complevel)
+    return zarr_io.merge(store, plan, out, **keep, complevel=complevel)
 
 
 def _zarr_run_bytes(names: dict, tiling: Any, pending: list[int]) -> tuple[int, int]:

@@ -26,12 +26,12 @@ import numpy as np
 from .._version import __version__
 from ..evaluation import family_values
 from ..grid import Tiling
-from ..schema import GRID_DIMS, RESULTS, map_kind, variable_dims
+from ..schema import GRID_DIMS, RESULTS, variable_dims
 from . import OutputError
 from .atomic import NotRegularFile, read_regular, write_atomic
 
 if TYPE_CHECKING:
-    from ..surveyfile import Survey
+    from ..plan import RunPlan
 
 __all__ = [
     "FORMAT",
@@ -57,44 +57,43 @@ def parts_dir(out: Path) -> Path:
     return out.with_name(out.name + ".parts")
 
 
-def survey_variables(survey: Survey) -> dict[str, np.dtype]:
-    """Names and dtypes of the result variables of ``survey`` that its blocks hold, in file
+def survey_variables(plan: RunPlan) -> dict[str, np.dtype]:
+    """Names and dtypes of the result variables of ``plan`` that its blocks hold, in file
     order: those stored on every axis (r_circ and V_min, on fewer dims, are written whole by
     the writers: :func:`engine.schema.variable_dims`, :func:`survey_families`)."""
-    dims = tuple(survey.dims)
-    return {n: dt for n, dt in survey.variables().items() if variable_dims(n, dims) == dims}
+    dims = tuple(plan.dims)
+    return {n: dt for n, dt in plan.variables.items() if variable_dims(n, dims) == dims}
 
 
-def survey_families(survey: Survey) -> dict[str, np.ndarray]:
-    """The variables of ``survey`` stored on fewer dims, computed whole
+def survey_families(plan: RunPlan) -> dict[str, np.ndarray]:
+    """The variables of ``plan`` stored on fewer dims, computed whole
     (:func:`engine.evaluation.family_values`), name -> values shaped as their dims."""
-    axes = {d: np.asarray(getattr(survey, d), np.float64) for d in survey.dims}
-    kind = map_kind(survey.method, survey.scene)
-    return family_values(survey.dims, axes, survey.scene, kind, survey.variables())
+    axes = {d: np.asarray(plan.axis(d), np.float64) for d in plan.dims}
+    return family_values(plan.dims, axes, plan.scene, plan.map_kind, plan.variables)
 
 
-def fingerprint(survey: Survey) -> str:
+def fingerprint(plan: RunPlan) -> str:
     """SHA-256 of everything that determines the results: axes (their names and float64
     bytes), scene, method, tolerances, the horizon of a fate map, title and the engine
     version."""
     doc = {
         "engine": __version__,
-        "title": survey.title,
-        "method": survey.method,
-        "rtol": survey.rtol.hex(),
-        "circular_tol": survey.circular_tol.hex(),
-        "energy_relative": survey.energy_relative,
-        "scene": {k: str(v) for k, v in survey.scene.as_attrs().items()},
-        "axes": {d: int(np.size(getattr(survey, d))) for d in survey.dims},
+        "title": plan.title,
+        "method": plan.method.name,
+        "rtol": plan.rtol.hex(),
+        "circular_tol": plan.circular_tol.hex(),
+        "energy_relative": plan.energy_relative,
+        "scene": {k: str(v) for k, v in plan.scene.as_attrs().items()},
+        "axes": {d: int(np.size(plan.axis(d))) for d in plan.dims},
     }
-    if survey.precision != "double":  # float32 results (absent: the fingerprints of before)
-        doc["precision"] = survey.precision
-    if survey.horizon is not None:  # fate maps: how long each orbit is followed
-        doc["horizon"] = {k: str(v) for k, v in survey.horizon.as_attrs().items()}
+    if plan.output.precision != "double":  # float32 (absent: the fingerprints of before)
+        doc["precision"] = plan.output.precision
+    if plan.horizon is not None:  # fate maps: how long each orbit is followed
+        doc["horizon"] = {k: str(v) for k, v in plan.horizon.as_attrs().items()}
     h = hashlib.sha256(json.dumps(doc, sort_keys=True).encode())
-    for d in survey.dims:
+    for d in plan.dims:
         h.update(d.encode())
-        h.update(np.ascontiguousarray(getattr(survey, d), dtype="<f8"))  # no copy
+        h.update(np.ascontiguousarray(plan.axis(d), dtype="<f8"))  # no copy
     return h.hexdigest()
 
 
@@ -145,10 +144,10 @@ class Manifest:
     survey_definition: str = ""
 
     @classmethod
-    def new(cls, survey: Survey, tiling: Tiling) -> Manifest:
+    def new(cls, plan: RunPlan, tiling: Tiling) -> Manifest:
         """The manifest of a run of ``survey`` by this engine, in blocks of ``tiling``."""
-        names = tuple((n, dt.name) for n, dt in survey_variables(survey).items())
-        return cls(fingerprint(survey), __version__, tiling, names, survey.source_text)
+        names = tuple((n, dt.name) for n, dt in survey_variables(plan).items())
+        return cls(fingerprint(plan), __version__, tiling, names, plan.source_text)
 
     def to_doc(self) -> dict[str, Any]:
         """The JSON document, with the format tag and the checksum of its fields."""
@@ -187,15 +186,15 @@ class Manifest:
                 raise ValueError(f"variable {name!r} of dtype {dtype!r} is not a result variable")
         return cls(fp, engine, _tiling(doc), tuple(variables.items()), text)
 
-    def mismatch(self, survey: Survey) -> str | None:
+    def mismatch(self, plan: RunPlan) -> str | None:
         """Why this store cannot hold ``survey``'s results (None if it can)."""
-        current = Manifest.new(survey, self.tiling)
+        current = Manifest.new(plan, self.tiling)
         if self.fingerprint != current.fingerprint:
             if self.engine != current.engine:
                 return f"engine version {self.engine} != {current.engine}"
             return "the survey definition or scene differs"
-        if self.tiling.shape != tuple(survey.shape):
-            return f"its grid {list(self.tiling.shape)} is not the survey's {list(survey.shape)}"
+        if self.tiling.shape != tuple(plan.shape):
+            return f"its grid {list(self.tiling.shape)} is not the survey's {list(plan.shape)}"
         if self.variables != current.variables:
             return "its variables are not the survey's"
         return None

@@ -4,7 +4,7 @@ The netCDF row of :mod:`engine.io.formats` (the protocol of every format) is bui
 
 - ``write_survey(ds, path, survey, *, command, overwrite) -> Path``: an in-memory survey
   Dataset with the survey's title, definition and scene;
-- ``merge(store, survey, out, *, fingerprint, command, overwrite, compression, complevel,
+- ``merge(store, plan, out, *, fingerprint, command, overwrite, compression, complevel,
   pending, incoming) -> Summary``: the blocks of a streamed run
   (:class:`engine.io.blocks.BlockStore`) into ``out`` with its content checksum
   (:mod:`engine.io.contents`), written while the blocks still ``pending`` are computed (the
@@ -37,7 +37,7 @@ import netCDF4  # ~9 ms once engine is imported: not worth a lazy import
 import numpy as np
 
 from ..grid import storage_chunks
-from ..schema import FINGERPRINT_ATTR, axis_attrs, map_kind, variable_attrs, variable_dims
+from ..schema import FINGERPRINT_ATTR, axis_attrs, variable_attrs, variable_dims
 from . import WriteError
 from .atomic import fsync_path, replacing
 from .blocks import BlockStore
@@ -61,7 +61,7 @@ from .summary import Summary
 if TYPE_CHECKING:
     import xarray as xr
 
-    from ..surveyfile import Survey
+    from ..plan import RunPlan
 
 __all__ = [
     "CONVENTIONS",
@@ -128,7 +128,7 @@ def write_netcdf(
 def write_survey(
     ds: xr.Dataset,
     path: str | os.PathLike[str],
-    survey: Survey,
+    plan: RunPlan,
     *,
     command: str = "conesurvey",
     overwrite: bool = False,
@@ -136,25 +136,25 @@ def write_survey(
     complevel: int | None = None,
 ) -> Path:
     """Add the survey's title, definition and scene (:func:`cf_dataset`), then write it."""
-    full = cf_dataset(ds, **_provenance(survey, command))
+    full = cf_dataset(ds, **_provenance(plan, command))
     return write_netcdf(
         full, path, overwrite=overwrite, compression=compression, complevel=complevel
     )
 
 
-def _provenance(survey: Survey, command: str) -> dict[str, Any]:
+def _provenance(plan: RunPlan, command: str) -> dict[str, Any]:
     """The keywords of :func:`cf_attrs` that a survey and the command that ran it give."""
     return {
-        "title": survey.title,
-        "survey_definition": survey.source_text,
+        "title": plan.title,
+        "survey_definition": plan.source_text,
         "command": command,
-        "scene": survey.scene,
+        "scene": plan.scene,
     }
 
 
 def merge(
     store: BlockStore,
-    survey: Survey,
+    plan: RunPlan,
     out: Path,
     *,
     fingerprint: str,
@@ -192,11 +192,11 @@ def merge(
         n: variable_keywords(compression, complevel, chunk * dt.itemsize)
         for n, dt in store.names.items()
     }
-    families = survey_families(survey)  # on fewer dims: written whole as the file is defined
+    families = survey_families(plan)  # on fewer dims: written whole as the file is defined
     for n, values in families.items():
         kw = variable_keywords(compression, complevel, values.nbytes)
         codecs[n] = variable_keywords(FALLBACK, complevel, 0) if is_blosc(kw) else kw
-    attrs = cf_attrs(survey.attrs(), **_provenance(survey, command))
+    attrs = cf_attrs(plan.attrs(), **_provenance(plan, command))
     attrs[FINGERPRINT_ATTR] = fingerprint
     upstream: list[BaseException] = []  # what the compute raised: passed on as it is
 
@@ -213,7 +213,7 @@ def merge(
             with replacing(out, overwrite=overwrite, tmp_dir=store.root) as tmp:
                 try:
                     summary = _write_file(
-                        tmp, store, survey, attrs, codecs, families, pending, blocks, warn or _warn
+                        tmp, store, plan, attrs, codecs, families, pending, blocks, warn or _warn
                     )
                 except (RuntimeError, OSError) as exc:  # netCDF4 reports HDF5 failures (ENOSPC
                     # too) as RuntimeError, h5py as OSError
@@ -265,7 +265,7 @@ def _warn(msg: str) -> None:
 def _write_file(
     tmp: Path,
     store: BlockStore,
-    survey: Survey,
+    plan: RunPlan,
     attrs: dict[str, Any],
     codecs: dict[str, dict[str, Any]],
     families: dict[str, np.ndarray],
@@ -281,7 +281,7 @@ def _write_file(
     nc = netCDF4.Dataset(tmp, "w", format="NETCDF4")
     try:
         hasher = ContentHasher(store.tiling.block)
-        variables = _define(nc, store, survey, attrs, codecs, families, hasher)
+        variables = _define(nc, store, plan, attrs, codecs, families, hasher)
         chunks = _direct(nc, tmp, store, warn) if direct else None
         if chunks is not None:
             with chunks:
@@ -316,7 +316,7 @@ def _direct(nc: Any, tmp: Path, store: BlockStore, warn: Callable[[str], None]) 
 def _define(
     nc: Any,
     store: BlockStore,
-    survey: Survey,
+    plan: RunPlan,
     attrs: dict[str, Any],
     codecs: dict[str, dict[str, Any]],
     families: dict[str, np.ndarray],
@@ -326,19 +326,19 @@ def _define(
     (``families``: written and hashed whole) and the result variables the blocks hold (no
     values yet); returns the latter by name."""
     nc.setncatts({**attrs, CHECKSUM_BLOCK_ATTR: np.asarray(store.tiling.block, np.int64)})
-    for d in survey.dims:
-        values = np.asarray(getattr(survey, d), np.float64)
+    for d in plan.dims:
+        values = np.asarray(plan.axis(d), np.float64)
         nc.createDimension(d, values.size)
         v = nc.createVariable(d, "f8", (d,), fill_value=False)
-        v.setncatts(axis_attrs(d, survey.energy_relative))
+        v.setncatts(axis_attrs(d, plan.energy_relative))
         v[:] = values
         hasher.add(d, values)
-    kind = map_kind(survey.method, survey.scene)
+    kind = plan.map_kind
     variables = {}
-    for name, dt in survey.variables().items():
+    for name, dt in plan.variables.items():
         fill = False if dt.kind in "iu" else np.nan
         if name in families:
-            values, dims = families[name], variable_dims(name, survey.dims)
+            values, dims = families[name], variable_dims(name, plan.dims)
             kw = {"chunksizes": storage_chunks(values.shape), **codecs[name]}
             v = nc.createVariable(name, dt, dims, fill_value=fill, **kw)
             v.setncatts(typed_flags(variable_attrs(name, kind), dt))
@@ -346,7 +346,7 @@ def _define(
             hasher.add(name, values)
             continue
         v = nc.createVariable(
-            name, dt, survey.dims, chunksizes=store.tiling.chunk, fill_value=fill, **codecs[name]
+            name, dt, plan.dims, chunksizes=store.tiling.chunk, fill_value=fill, **codecs[name]
         )
         v.setncatts(typed_flags(variable_attrs(name, kind), dt))
         variables[name] = v

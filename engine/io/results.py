@@ -33,14 +33,8 @@ from xarray.backends import BackendArray
 from xarray.core import indexing
 
 from ..grid import Tiling, block_shape, storage_chunks
-from ..schema import (
-    FINGERPRINT_ATTR,
-    axis_attrs,
-    grid_dims,
-    map_kind,
-    variable_attrs,
-    variable_dims,
-)
+from ..plan import plan_from_survey
+from ..schema import FINGERPRINT_ATTR, axis_attrs, grid_dims, variable_attrs, variable_dims
 from ..surveyfile import SurveyError, parse_survey
 from . import OutputError
 from .blocks import BlockStore
@@ -199,13 +193,14 @@ def _open_parts(path: Path) -> Result:
     manifest = read_manifest(root)
     try:
         survey = parse_survey(manifest.survey_definition, origin=f"{root.name}/manifest.json")
+        plan = plan_from_survey(survey)
     except SurveyError as exc:
         raise OutputError(f"cannot read the unfinished run's survey definition: {exc}") from None
     tiling = manifest.tiling
-    axes = {d: np.asarray(getattr(survey, d), np.float64) for d in survey.dims}
+    axes = dict(zip(plan.dims, plan.axes, strict=True))
     if tuple(a.size for a in axes.values()) != tiling.shape:
         raise OutputError(f"{root}: the manifest's grid does not match its survey definition")
-    kind = map_kind(survey.method, survey.scene)
+    kind = plan.map_kind
     # Blocks journaled (committed) whose files are there; a reader hashes nothing and changes
     # nothing (the run that owns the store verifies its blocks).
     if (root / STORE).is_dir():
@@ -217,25 +212,25 @@ def _open_parts(path: Path) -> Result:
         store = BlockStore.open(root)
         done = frozenset(i for i in store.journal if store.path(i).is_file())
         load = _npz_loader(store)
-    coords = {d: xr.Variable(d, v, axis_attrs(d, survey.energy_relative)) for d, v in axes.items()}
+    coords = {d: xr.Variable(d, v, axis_attrs(d, plan.energy_relative)) for d, v in axes.items()}
     data = {}
     for name, dtype in store.names.items():
         arr = _BlockArray(
             tiling, done, load, np.dtype(np.float64) if dtype.kind in "iub" else dtype
         )
         arr.name = name
-        data[name] = xr.Variable(survey.dims, indexing.LazilyIndexedArray(arr),
+        data[name] = xr.Variable(plan.dims, indexing.LazilyIndexedArray(arr),
                                  variable_attrs(name, kind))  # fmt: skip
     attrs: dict[str, Any] = {
-        "title": survey.title,
-        **survey.attrs(),
+        "title": plan.title,
+        **plan.attrs(),
         "source": f"conesurvey {manifest.engine}",
         "survey_definition": manifest.survey_definition,
     }
-    for name, values in survey_families(survey).items():  # on fewer dims: computed here
-        dims = variable_dims(name, survey.dims)
+    for name, values in survey_families(plan).items():  # on fewer dims: computed here
+        dims = variable_dims(name, plan.dims)
         data[name] = xr.Variable(dims, values, variable_attrs(name, kind))
-    order = [n for n in survey.variables() if n in data]
+    order = [n for n in plan.variables if n in data]
     ds = xr.Dataset({n: data[n] for n in order}, coords=coords, attrs=attrs)
     return Result(path, ds, False, tiling, done, manifest.fingerprint, "parts")
 

@@ -27,14 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..grid import Tiling
-from ..schema import (
-    FINGERPRINT_ATTR,
-    axis_attrs,
-    grid_dims,
-    map_kind,
-    variable_attrs,
-    variable_dims,
-)
+from ..schema import FINGERPRINT_ATTR, axis_attrs, grid_dims, variable_attrs, variable_dims
 from . import OutputError
 from .atomic import exists_error, fsync_dir, not_regular, refuse_special
 from .blocks import check_parts_dir, survey_dims
@@ -58,7 +51,7 @@ from .zarrstore import RunStore, parts_state
 if TYPE_CHECKING:
     import xarray as xr
 
-    from ..surveyfile import Survey
+    from ..plan import RunPlan
 
 __all__ = [
     "SUFFIX",
@@ -90,29 +83,29 @@ def unavailable() -> str:
 
 
 def _layout(
-    survey: Survey, names: Mapping[str, np.dtype], families: Mapping[str, np.ndarray]
+    plan: RunPlan, names: Mapping[str, np.dtype], families: Mapping[str, np.ndarray]
 ) -> dict[str, Any]:
-    """The arguments of :func:`make_store` for ``survey``: its axes, the variables its blocks
+    """The arguments of :func:`make_store` for ``plan``: its axes, the variables its blocks
     hold (``names``) and the ones on fewer dims (``families``, their values)."""
-    kind = map_kind(survey.method, survey.scene)
+    kind = plan.map_kind
     axes = {
-        d: (np.asarray(getattr(survey, d), np.float64), axis_attrs(d, survey.energy_relative))
-        for d in survey.dims
+        d: (np.asarray(plan.axis(d), np.float64), axis_attrs(d, plan.energy_relative))
+        for d in plan.dims
     }
     variables = {n: (np.dtype(dt), variable_attrs(n, kind)) for n, dt in names.items()}
-    fixed = {n: (v, variable_dims(n, survey.dims), variable_attrs(n, kind), None)
+    fixed = {n: (v, variable_dims(n, plan.dims), variable_attrs(n, kind), None)
              for n, v in families.items()}  # fmt: skip
     return {"axes": axes, "variables": variables, "families": fixed}
 
 
 def create(
-    root: Path, survey: Survey, tiling: Tiling, complevel: int, warn: Callable[[str], None]
+    root: Path, plan: RunPlan, tiling: Tiling, complevel: int, warn: Callable[[str], None]
 ) -> RunStore:
     """The directory of a new run of ``survey`` into a Zarr store (:mod:`engine.io.zarrstore`)."""
-    manifest = Manifest.new(survey, tiling)
+    manifest = Manifest.new(plan, tiling)
     make = functools.partial(
         make_store,
-        **_layout(survey, manifest.names, survey_families(survey)),
+        **_layout(plan, manifest.names, survey_families(plan)),
         tiling=tiling,
         complevel=complevel,
     )
@@ -151,13 +144,13 @@ def _remove(path: Path) -> None:
         os.unlink(path)
 
 
-def _provenance_attrs(survey: Survey, command: str, fingerprint: str, block: tuple[int, ...]):
+def _provenance_attrs(plan: RunPlan, command: str, fingerprint: str, block: tuple[int, ...]):
     attrs = cf_attrs(
-        survey.attrs(),
-        title=survey.title,
-        survey_definition=survey.source_text,
+        plan.attrs(),
+        title=plan.title,
+        survey_definition=plan.source_text,
         command=command,
-        scene=survey.scene,
+        scene=plan.scene,
     )
     return {**attrs, FINGERPRINT_ATTR: fingerprint, CHECKSUM_BLOCK_ATTR: list(block)}
 
@@ -174,7 +167,7 @@ def _receipt_block(receipt: dict) -> dict[str, np.ndarray]:
 
 def merge(
     store: RunStore,
-    survey: Survey,
+    plan: RunPlan,
     out: Path,
     *,
     fingerprint: str,
@@ -193,10 +186,10 @@ def merge(
     store.check_files()
     tiling = store.tiling
     hasher = ContentHasher(tiling.block, BLOCK_SCHEME)
-    for d in survey.dims:
-        hasher.add(d, np.asarray(getattr(survey, d), np.float64))
+    for d in plan.dims:
+        hasher.add(d, np.asarray(plan.axis(d), np.float64))
     summary = Summary()
-    families = survey_families(survey)  # written when the store was made: the same values
+    families = survey_families(plan)  # written when the store was made: the same values
     for name, values in families.items():
         hasher.add(name, values)
     summary.add(families)
@@ -205,7 +198,7 @@ def merge(
         for name in store.names:
             hasher.add_digest(name, bytes.fromhex(receipt["values"][name]))
         summary.add(_receipt_block(receipt))
-    attrs = _provenance_attrs(survey, command, fingerprint, tiling.block)
+    attrs = _provenance_attrs(plan, command, fingerprint, tiling.block)
     commit_store(store.store, attrs, hasher, record=(store.root, store.run_id))
     put_in_place(store.store, out, overwrite=overwrite, aside=store.root / "replaced.zarr")
     return summary
@@ -214,7 +207,7 @@ def merge(
 def write_survey(
     ds: xr.Dataset,
     path: str | os.PathLike[str],
-    survey: Survey,
+    plan: RunPlan,
     *,
     command: str = "conesurvey",
     overwrite: bool = False,
@@ -224,19 +217,19 @@ def write_survey(
     path = Path(path)
     if os.path.lexists(path) and not overwrite:
         raise exists_error(path)
-    dims = tuple(survey.dims)
-    names = {n: ds[n].dtype for n in survey.variables() if n in ds and ds[n].dims == dims}
-    families = {n: ds[n].values for n in survey.variables() if n in ds and n not in names}
-    tiling = Tiling.for_grid(survey.shape)
+    dims = tuple(plan.dims)
+    names = {n: ds[n].dtype for n in plan.variables if n in ds and ds[n].dims == dims}
+    families = {n: ds[n].values for n in plan.variables if n in ds and n not in names}
+    tiling = Tiling.for_grid(plan.shape)
     blocks = (
         (i, {n: ds[n].values[tiling.slices(i)] for n in names}) for i in range(tiling.nblocks)
     )
     attrs = cf_attrs(
-        ds.attrs, title=survey.title, survey_definition=survey.source_text,
-        command=command, scene=survey.scene,
+        ds.attrs, title=plan.title, survey_definition=plan.source_text,
+        command=command, scene=plan.scene,
     )  # fmt: skip
     attrs[CHECKSUM_BLOCK_ATTR] = list(tiling.block)
-    layout = _layout(survey, names, families)
+    layout = _layout(plan, names, families)
     write_store(path, layout, tiling, blocks, attrs, overwrite=overwrite)
     return path
 

@@ -27,6 +27,7 @@ from engine.io.blocks import (
 )
 from engine.io.manifest import MANIFEST, Manifest, parts_dir, survey_variables
 from engine.io.summary import Summary
+from engine.plan import plan_from_survey
 from engine.surveyfile import parse_survey
 
 SURVEY = runs.gravity_survey("blocks test", alpha=(0.3, 0.6), energy=5, h=2, lz=3)
@@ -41,7 +42,9 @@ def survey():
 def store(tmp_path, survey):
     tiling = Tiling(survey.shape, (1, 1, 2, 3), (1, 1, 2, 3))  # 60 points in 10 blocks
     warnings: list[str] = []
-    s = BlockStore.create(tmp_path / "o.nc.parts", Manifest.new(survey, tiling), warnings.append)
+    s = BlockStore.create(
+        tmp_path / "o.nc.parts", Manifest.new(plan_from_survey(survey), tiling), warnings.append
+    )
     s.warnings = warnings
     return s
 
@@ -61,8 +64,8 @@ def names(directory):
 def test_estimate_bytes_counts_every_variable(survey):
     # orbit_class int8 + 6 closed-form floats per point (r_circ and V_min are on (alpha, h,
     # Lz): not in the blocks)
-    assert estimate_bytes(survey) == (1 + 8 * 6) * 60
-    assert sum(dt.itemsize for dt in survey_variables(survey).values()) == 49
+    assert estimate_bytes(plan_from_survey(survey)) == (1 + 8 * 6) * 60
+    assert sum(dt.itemsize for dt in survey_variables(plan_from_survey(survey)).values()) == 49
 
 
 def test_block_file_bytes_bounds_the_real_file(store):
@@ -80,7 +83,9 @@ def test_create_makes_a_private_directory_with_manifest_and_journal(store):
     assert os.stat(store.root).st_mode & 0o777 == 0o700
     assert (store.root / JOURNAL).read_bytes() == b""
     with pytest.raises(FileExistsError):
-        BlockStore.create(store.root, Manifest.new(parse_survey(SURVEY), store.tiling))
+        BlockStore.create(
+            store.root, Manifest.new(plan_from_survey(parse_survey(SURVEY)), store.tiling)
+        )
 
 
 def test_commit_journals_size_and_sha256_and_casts_to_the_schema_dtypes(store):

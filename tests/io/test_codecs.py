@@ -11,12 +11,13 @@ import runs
 import xarray as xr
 
 from engine import cli
-from engine.backends import block_spec, compute_block
+from engine.backends import compute_block
 from engine.grid import Tiling
 from engine.io import codecs, netcdf
 from engine.io.blocks import BlockStore
 from engine.io.contents import CHECKSUM_ATTR, verify_file
 from engine.io.manifest import Manifest, fingerprint, parts_dir
+from engine.plan import plan_from_survey
 from engine.runner import RunError, run_survey
 from engine.surveyfile import parse_survey
 
@@ -111,9 +112,9 @@ def test_a_chunk_blosc_cannot_shrink_is_written_with_zstd(tmp_path):
     survey = parse_survey(runs.free_fall_survey("incompressible", energy=64, lz=lz))
     tiling = Tiling(survey.shape, (1, 64, 2, 64), (1, 64, 2, 64))  # 8,192 points a block
     out = tmp_path / "out.nc"
-    store = BlockStore.create(parts_dir(out), Manifest.new(survey, tiling))
+    store = BlockStore.create(parts_dir(out), Manifest.new(plan_from_survey(survey), tiling))
     rng = np.random.default_rng(7)
-    spec = block_spec(survey)
+    spec = plan_from_survey(survey)
     for i in range(tiling.nblocks):
         arrays = compute_block(spec, tiling, i)[1]
         shape = arrays["r_min"].shape
@@ -121,7 +122,7 @@ def test_a_chunk_blosc_cannot_shrink_is_written_with_zstd(tmp_path):
         store.commit(i, arrays)
     warnings: list[str] = []
     netcdf.merge(
-        store, survey, out, fingerprint=fingerprint(survey), compression="blosc_lz4",
+        store, spec, out, fingerprint=fingerprint(spec), compression="blosc_lz4",
         warn=warnings.append,
     )  # fmt: skip
     assert len(warnings) == 1 and "r_min" in warnings[0] and "zstd" in warnings[0], warnings

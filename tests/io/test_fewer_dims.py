@@ -12,6 +12,7 @@ from engine import backends, cli
 from engine.evaluation import evaluate_flat
 from engine.io.formats import format_for
 from engine.io.results import open_result
+from engine.plan import map_plan
 from engine.schema import DIMS
 from engine.surveyfile import load_survey
 
@@ -76,7 +77,7 @@ def test_in_memory_survey_has_r_circ_and_v_min_on_alpha_h_lz(memory):
     # each point's own r_circ (the former per-point variable), bit for bit where it has one
     A, _, H, L = (x.values.reshape(-1) for x in xr.broadcast(ds.alpha, ds.energy, ds.h, ds.Lz))
     e_abs = ds.cone.energy_absolute().values.reshape(-1)
-    per_point = evaluate_flat(A, e_abs, H, L, engine.Scene(g=9.81, k=0.4))
+    per_point = evaluate_flat(A, e_abs, H, L, map_plan(engine.Scene(g=9.81, k=0.4)))
     mine = np.broadcast_to(ds.r_circ.values[:, None], ds.orbit_class.shape).reshape(-1)
     rc = per_point["r_circ"]
     assert np.isfinite(rc).sum() > 50 and np.array_equal(rc[np.isfinite(rc)], mine[np.isfinite(rc)])

@@ -32,11 +32,11 @@ NBLOCKS = Tiling.for_grid(parse_survey(SURVEY).shape, 65536).nblocks
 # --- the recipe: one row -------------------------------------------------------------------
 
 
-def _create(root, survey, tiling, complevel, warn):
-    return BlockStore.create(root, Manifest.new(survey, tiling), warn)
+def _create(root, plan, tiling, complevel, warn):
+    return BlockStore.create(root, Manifest.new(plan, tiling), warn)
 
 
-def _commit(store, survey, out, *, fingerprint, overwrite, incoming, **options):
+def _commit(store, plan, out, *, fingerprint, overwrite, incoming, **options):
     """Every block, as it comes (the rest read back verified), into one .npz file."""
     tiling, summary = store.tiling, Summary()
     values = {n: np.empty(tiling.shape, dt) for n, dt in store.names.items()}
@@ -51,8 +51,8 @@ def _commit(store, survey, out, *, fingerprint, overwrite, incoming, **options):
         for n, arr in block.items():
             values[n][tiling.slices(i)] = arr
         summary.add(block)
-    axes = {d: np.asarray(getattr(survey, d), np.float64) for d in survey.dims}
-    values.update(survey_families(survey))  # r_circ on (alpha, h, Lz): in no block
+    axes = dict(zip(plan.dims, plan.axes, strict=True))
+    values.update(survey_families(plan))  # r_circ on (alpha, h, Lz): in no block
     with replacing(out, overwrite=overwrite, tmp_dir=store.root) as tmp:
         with open(tmp, "wb") as f:
             np.savez(f, fingerprint=np.array(fingerprint), **axes, **values)

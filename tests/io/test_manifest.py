@@ -18,6 +18,7 @@ from engine.io.manifest import (
     read_manifest,
     write_manifest,
 )
+from engine.plan import plan_from_survey
 from engine.surveyfile import parse_survey
 
 SURVEY = runs.gravity_survey("manifest test", alpha=(0.3, 0.6), energy=5, h=2, lz=3)
@@ -25,7 +26,11 @@ SURVEY = runs.gravity_survey("manifest test", alpha=(0.3, 0.6), energy=5, h=2, l
 
 @pytest.fixture
 def survey():
-    return parse_survey(SURVEY)
+    return _plan(SURVEY)
+
+
+def _plan(text):
+    return plan_from_survey(parse_survey(text))
 
 
 @pytest.fixture
@@ -37,7 +42,7 @@ def written(tmp_path, survey):
 
 def test_fingerprint_is_stable_and_sees_every_input(survey, monkeypatch):
     fp = fingerprint(survey)
-    assert len(fp) == 64 and fp == fingerprint(parse_survey(SURVEY))
+    assert len(fp) == 64 and fp == fingerprint(_plan(SURVEY))
     variants = [
         SURVEY.replace("manifest test", "other"),
         SURVEY.replace("num = 5", "num = 6"),
@@ -48,7 +53,7 @@ def test_fingerprint_is_stable_and_sees_every_input(survey, monkeypatch):
         'method = "rk45"\n' + SURVEY,
         "rtol = 1e-8\n" + SURVEY,
     ]
-    fps = {fingerprint(parse_survey(text)) for text in variants}
+    fps = {fingerprint(_plan(text)) for text in variants}
     assert len(fps) == len(variants) and fp not in fps
     monkeypatch.setattr(manifest, "__version__", "9.9.9")
     assert fingerprint(survey) != fp
@@ -60,7 +65,7 @@ def test_fingerprint_of_a_ten_million_point_axis_is_cheap():
     import tracemalloc
 
     text = SURVEY.replace("num = 5", "num = 10000000").replace('scale = "log"\n', "")
-    big = parse_survey(text)
+    big = _plan(text)
     tracemalloc.start()
     t = time.perf_counter()
     fp = fingerprint(big)

@@ -14,6 +14,7 @@ import xarray as xr
 import engine
 from engine.io import netcdf
 from engine.io.netcdf import cf_dataset, encoding_for, write_netcdf, write_survey
+from engine.plan import plan_from_survey
 from engine.surveyfile import parse_survey
 
 # Free fall: B of both signs, so several classes and NaN fields occur. Non-ASCII and quotes
@@ -62,7 +63,9 @@ TMP = re.compile(r"out\.nc\.[0-9a-f]{12}\.tmp")
 
 
 def write(ds, path, survey, **kw):
-    return write_survey(ds, path, survey, command="conesurvey run roundtrip.toml", **kw)
+    return write_survey(
+        ds, path, plan_from_survey(survey), command="conesurvey run roundtrip.toml", **kw
+    )
 
 
 def test_survey_has_several_classes_and_nans(ds):

@@ -14,6 +14,7 @@ import xarray as xr
 from engine import cli
 from engine.io.contents import verify_file
 from engine.io.manifest import fingerprint
+from engine.plan import plan_from_survey
 from engine.runner import run_survey
 from engine.surveyfile import SurveyError, parse_survey
 
@@ -61,7 +62,9 @@ def test_the_in_memory_run_and_the_fingerprint_follow_it():
     s, d = parse_survey(SINGLE), parse_survey(DOUBLE)
     assert s.run()["period"].dtype == np.float32 and d.run()["period"].dtype == np.float64
     assert s.run()["orbit_class"].dtype == np.int8
-    assert fingerprint(s) != fingerprint(d)  # a double run's blocks are never resumed as single
+    assert fingerprint(plan_from_survey(s)) != fingerprint(
+        plan_from_survey(d)
+    )  # a double run's blocks are never resumed as single
 
 
 def test_validate_reports_it_and_a_bad_value_is_refused(tmp_path, capsys):

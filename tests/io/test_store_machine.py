@@ -22,19 +22,20 @@ from hypothesis import settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, rule
 
-from engine.backends import block_spec, compute_block
+from engine.backends import compute_block
 from engine.grid import Tiling
 from engine.io import OutputError, netcdf
 from engine.io.blocks import JOURNAL, BlockStore, _line
 from engine.io.manifest import Manifest, fingerprint, parts_dir
+from engine.plan import plan_from_survey
 from engine.surveyfile import parse_survey
 
 SURVEY = parse_survey(runs.free_fall_survey("store machine", energy=5, lz=(-0.5, 0.2, 0.5)))
 TILING = Tiling(SURVEY.shape, (1, 1, 2, 3), (1, 1, 2, 3))  # 60 points in 10 blocks
 N = TILING.nblocks
-FP = fingerprint(SURVEY)
-MANIFEST = Manifest.new(SURVEY, TILING)
-_SPEC = block_spec(SURVEY)
+_SPEC = plan_from_survey(SURVEY)
+FP = fingerprint(_SPEC)
+MANIFEST = Manifest.new(_SPEC, TILING)
 REF_BLOCKS = [compute_block(_SPEC, TILING, i)[1] for i in range(N)]
 assert len({REF_BLOCKS[i]["r_min"].tobytes() for i in range(N)}) > N // 2  # blocks differ
 
@@ -47,7 +48,7 @@ def _reference_file() -> tuple[bytes, dict]:
         store = BlockStore.create(parts_dir(d / "ref.nc"), MANIFEST)
         for i in range(N):
             store.commit(i, REF_BLOCKS[i])
-        netcdf.merge(store, SURVEY, d / "ref.nc", fingerprint=FP)
+        netcdf.merge(store, _SPEC, d / "ref.nc", fingerprint=FP)
         return (d / "ref.nc").read_bytes(), _contents(d / "ref.nc")
     finally:
         shutil.rmtree(d, ignore_errors=True)
@@ -184,7 +185,7 @@ class StoreMachine(RuleBasedStateMachine):
     @rule()
     def merge(self) -> None:
         try:
-            netcdf.merge(self.store, SURVEY, self.out, fingerprint=FP, overwrite=True)
+            netcdf.merge(self.store, _SPEC, self.out, fingerprint=FP, overwrite=True)
         except OutputError:
             pass  # a block missing or changed: refused (and that block deleted)
 

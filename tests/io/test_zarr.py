@@ -26,6 +26,7 @@ from engine.io.contents import BLOCK_SCHEME, CHECKSUM_ATTR, ContentHasher, block
 from engine.io.results import open_result
 from engine.io.zarrlayout import RUN_ATTR, UNFINISHED_ATTR, ChunkWriter
 from engine.io.zarrstore import JOURNAL, RunStore
+from engine.plan import plan_from_survey
 from engine.runner import RunError, run_survey
 from engine.surveyfile import parse_survey
 
@@ -242,7 +243,7 @@ def test_a_writer_never_writes_into_another_runs_store(tmp_path, reference):
     out = tmp_path / "z.zarr"
     root = tmp_path / "z.zarr.parts"
     tiling = Tiling.for_grid(survey.shape, 1 << 16)
-    run = zarr_io.create(root, survey, tiling, 1, print)
+    run = zarr_io.create(root, plan_from_survey(survey), tiling, 1, print)
     stale = ChunkWriter(**{**run.writer.__dict__, "run_id": "0" * 32})
     values = {n: np.zeros([s.stop - s.start for s in tiling.slices(0)], dt)
               for n, dt in run.names.items()}  # fmt: skip

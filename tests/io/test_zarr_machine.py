@@ -28,20 +28,21 @@ pytest.importorskip("zarr")
 
 import xarray as xr  # noqa: E402
 
-from engine.backends import block_spec, compute_block  # noqa: E402
+from engine.backends import compute_block
 from engine.grid import Tiling  # noqa: E402
 from engine.io import OutputError  # noqa: E402
 from engine.io import zarr as zarr_io  # noqa: E402
 from engine.io.blocks import remove_store  # noqa: E402
 from engine.io.manifest import fingerprint, parts_dir  # noqa: E402
 from engine.io.zarrstore import JOURNAL, RunStore  # noqa: E402
+from engine.plan import plan_from_survey  # noqa: E402
 from engine.surveyfile import parse_survey  # noqa: E402
 
 SURVEY = parse_survey(runs.free_fall_survey("zarr machine", energy=5, lz=(-0.5, 0.2, 0.5)))
 TILING = Tiling(SURVEY.shape, (1, 1, 2, 3), (1, 1, 2, 3))  # 60 points in 10 blocks
 N = TILING.nblocks
-FP = fingerprint(SURVEY)
-_SPEC = block_spec(SURVEY)
+_SPEC = plan_from_survey(SURVEY)
+FP = fingerprint(_SPEC)
 REF_BLOCKS = [compute_block(_SPEC, TILING, i)[1] for i in range(N)]
 
 
@@ -50,7 +51,7 @@ class Killed(BaseException):
 
 
 def _new_store(out: Path) -> RunStore:
-    return zarr_io.create(parts_dir(out), SURVEY, TILING, 1, lambda msg: None)
+    return zarr_io.create(parts_dir(out), _SPEC, TILING, 1, lambda msg: None)
 
 
 def _write(store: RunStore, i: int) -> dict:
@@ -75,7 +76,7 @@ def _reference() -> dict:
     store = _new_store(d / "ref.zarr")
     for i in range(N):
         store.commit(i, _write(store, i))
-    zarr_io.merge(store, SURVEY, d / "ref.zarr", fingerprint=FP)
+    zarr_io.merge(store, _SPEC, d / "ref.zarr", fingerprint=FP)
     store.remove()
     return _contents(d / "ref.zarr")
 
@@ -146,7 +147,7 @@ class ZarrMachine(RuleBasedStateMachine):
 
         setattr(target, name, patched)
         try:
-            zarr_io.merge(self.store, SURVEY, self.out, fingerprint=FP, overwrite=True)
+            zarr_io.merge(self.store, _SPEC, self.out, fingerprint=FP, overwrite=True)
         except (Killed, OutputError, OSError):
             pass
         finally:
@@ -233,7 +234,7 @@ class ZarrMachine(RuleBasedStateMachine):
         if self.store is None:
             return
         try:
-            zarr_io.merge(self.store, SURVEY, self.out, fingerprint=FP, overwrite=True)
+            zarr_io.merge(self.store, _SPEC, self.out, fingerprint=FP, overwrite=True)
         except (OutputError, OSError):
             return
         self.store.remove()
