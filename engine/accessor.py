@@ -8,6 +8,7 @@ the helpers work on a Dataset read back from netCDF as well as on a fresh one::
     ds.cone.class_fractions()                 # fraction of points per class
     ds.cone.where_class("bounded")            # other points masked with NaN
     ds.cone.precession_per_revolution()       # 2 psi - 2 pi [degree]
+    ds.cone.energy_absolute()                 # V_min + energy |V_min| (relative energy axis)
     ds.cone.names("fate")                     # flag codes as names (orbit_class, fate, ...)
     ds.cone.class_map(x="Lz", y="energy", alpha=0.5, h=0.0)
     print(ds.cone.summary())
@@ -24,6 +25,7 @@ import xarray as xr
 
 from .mapspec import LookError
 from .plot import CLASS_COLORS, draw_map, legend_handles, matplotlib_parts, style_for
+from .schema import variable_attrs
 
 __all__ = ["ConeAccessor", "CLASS_COLORS"]
 
@@ -188,6 +190,24 @@ class ConeAccessor:
             "units": key,
             "long_name": "apsidal precession per radial period, 2 psi - 2 pi",
         }
+        return out
+
+    def energy_absolute(self) -> xr.DataArray:
+        """The radial energy calE [J] of every point of a survey whose energy axis is relative
+        to V_min: V_min + energy |V_min| in float64, on (alpha, energy, h, Lz); NaN where V has
+        no minimum. The numbers the run used (and that files stored as ``energy_absolute``
+        before V_min was stored on (alpha, h, Lz)), bit for bit."""
+        ds = self._ds
+        if "V_min" not in ds or "energy" not in ds.dims:
+            raise ValueError(
+                "the Dataset has no 'V_min': its energy axis is not relative to V_min (the "
+                "energy axis is then the absolute energy itself)"
+            )
+        vmin = ds["V_min"].astype(np.float64)
+        out = vmin + ds["energy"].astype(np.float64) * abs(vmin)
+        out = out.transpose(*[d for d in ("alpha", "energy", "h", "Lz") if d in out.dims], ...)
+        out.name = "energy_absolute"
+        out.attrs = variable_attrs("energy_absolute")
         return out
 
     # -- presentation ------------------------------------------------------------------------

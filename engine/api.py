@@ -9,7 +9,7 @@ import numpy as np
 import xarray as xr
 
 from .checks import check_numbers, check_values
-from .evaluation import evaluate_block, evaluate_flat, minimum_energy_flat
+from .evaluation import evaluate_block, evaluate_flat, family_values, minimum_energy_flat
 from .grid import BLOCK_POINTS, Tiling
 from .kernels.geometry import CIRCULAR_TOL
 from .kernels.model import radial_energy as _radial_energy
@@ -22,6 +22,7 @@ from .schema import (
     launch_dims,
     result_attrs,
     variable_attrs,
+    variable_dims,
 )
 
 __all__ = [
@@ -239,7 +240,12 @@ def run_plan(plan: RunPlan, progress: Callable[[int, int], None] | None = None) 
         if progress is not None:
             progress(done, tiling.size)
     dims, kind = plan.dims, plan.map_kind
-    data_vars = {name: (dims, col, variable_attrs(name, kind)) for name, col in results.items()}
+    results.update(family_values(dims, dict(zip(dims, plan.axes, strict=True)), plan.scene, kind,
+                                 plan.variables))  # r_circ, V_min on fewer dims  # fmt: skip
+    order = [n for n in plan.variables if n in results] + [
+        n for n in results if n not in plan.variables
+    ]
+    data_vars = {n: (variable_dims(n, dims), results[n], variable_attrs(n, kind)) for n in order}
     coords = {
         name: (name, np.array(arr), axis_attrs(name, plan.energy_relative))
         for name, arr in zip(dims, plan.axes, strict=True)

@@ -8,7 +8,10 @@ the in-memory survey, local streamed runs and dask workers compute the very same
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
+from collections.abc import Iterator, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING
 
@@ -30,12 +33,13 @@ from .schema import (
     RELEASE,
     REPLACED_BY_INTEGRATION,
     RESULTS,
+    variable_dims,
 )
 
 if TYPE_CHECKING:
     from .plan import MapPlan, RunPlan
 
-__all__ = ["evaluate_flat", "evaluate_block", "minimum_energy_flat"]
+__all__ = ["evaluate_flat", "evaluate_block", "family_values", "minimum_energy_flat", "well_flat"]
 
 
 def evaluate_flat(
@@ -51,8 +55,8 @@ def evaluate_flat(
     """Kernel call on equal-length 1-D float64 arrays (validated by the caller), for the map
     of ``plan`` (:func:`engine.plan.map_plan`; a survey's :class:`engine.plan.RunPlan` is one).
 
-    Returns a dict of 1-D arrays: the plan's variables but ``energy_absolute`` and a launch
-    grid's invariants. Every map holds the closed form; what else depends on the plan's
+    Returns a dict of 1-D arrays: the plan's variables but ``V_min`` and a launch grid's
+    invariants. Every map holds the closed form; what else depends on the plan's
     ``map_kind``: where rolling ends on a cone with a rim or a friction limit (closed form),
     one integrated radial period, or each orbit's fate (integrated up to the plan's horizon
     from ``r_start``, by default r_min; then the closed form describes the launch orbit on the
@@ -149,8 +153,14 @@ def orbit_grid(alpha: np.ndarray, energy: np.ndarray, h: np.ndarray, Lz: np.ndar
 
 def minimum_energy_flat(alpha: np.ndarray, h: np.ndarray, Lz: np.ndarray, scene: Scene):
     """V_min [J] at each (alpha, h, Lz) of 1-D float64 arrays; NaN where V has no minimum."""
-    out = np.empty(alpha.size)
-    minimum_energy_batch(alpha, h, Lz, scene.params(), out)
+    return well_flat(alpha, h, Lz, scene.params())[0]
+
+
+def well_flat(alpha: np.ndarray, h: np.ndarray, Lz: np.ndarray, params: np.ndarray) -> np.ndarray:
+    """V_min [J] (row 0) and r_c [m] (row 1) at each (alpha, h, Lz) of 1-D float64 arrays, on
+    the scene's parameter array ``params``; NaN where V has no minimum."""
+    out = np.empty((2, alpha.size))
+    minimum_energy_batch(alpha, h, Lz, params, out)
     return out
 
 
@@ -160,14 +170,15 @@ def evaluate_block(plan: RunPlan, slices: tuple[slice, ...]) -> dict[str, np.nda
     ``plan``: the validated run plan (:class:`engine.plan.RunPlan`): its dims (one of
     :data:`engine.schema.GRID_DIMS`) and axes, scene, method, map kind, ``energy_relative``,
     ``circular_tol``, ``rtol`` and ``horizon`` (fate maps).
-    With a relative energy axis the absolute energy (``energy_absolute``) is V_min + offset
-    |V_min| from the slab's own V_min; where V has no minimum it is NaN and the point is classed
-    forbidden (out_of_range where its numbers are, as :func:`evaluate_flat` says). On a grid
-    of launch states the invariants of each launch are computed
-    (:func:`engine.launch.invariants`) and returned too, and fates start at the launch. A
-    closed-form map on (alpha, energy, h, L_z) runs the grid kernel, which computes what does
-    not depend on the energy once per (alpha, h, L_z); its numbers equal
-    :func:`evaluate_flat`'s on the same points bit for bit.
+    With a relative energy axis the absolute energy is V_min + offset |V_min| from the slab's
+    own V_min; where V has no minimum it is NaN and the point is classed forbidden
+    (out_of_range where its numbers are, as :func:`evaluate_flat` says). On a grid of launch
+    states the invariants of each launch are computed (:func:`engine.launch.invariants`) and
+    returned too, and fates start at the launch. A closed-form map on (alpha, energy, h, L_z)
+    runs the grid kernel, which computes what does not depend on the energy once per
+    (alpha, h, L_z); its numbers equal :func:`evaluate_flat`'s on the same points bit for bit.
+    On that grid r_circ and V_min, stored on (alpha, h, Lz), are in no block
+    (:func:`family_values`).
     """
     dims = plan.dims
     sub = [np.ascontiguousarray(ax[s], np.float64) for ax, s in zip(plan.axes, slices, strict=True)]
@@ -176,7 +187,55 @@ def evaluate_block(plan: RunPlan, slices: tuple[slice, ...]) -> dict[str, np.nda
         res = _closed_form_grid(sub, plan)
     else:
         res = _flat_block(sub, plan)
-    return {name: col.reshape(shape) for name, col in res.items()}
+    fewer = [n for n in res if variable_dims(n, dims) != tuple(dims)]  # r_circ: family_values
+    return {name: col.reshape(shape) for name, col in res.items() if name not in fewer}
+
+
+def family_values(
+    dims: tuple[str, ...],
+    axes: Mapping[str, np.ndarray],
+    scene: Scene,
+    kind: str,
+    variables: Mapping[str, np.dtype],
+) -> dict[str, np.ndarray]:
+    """The ``variables`` stored on fewer dims than the grid ``dims``
+    (:func:`engine.schema.variable_dims`): on the (alpha, energy, h, L_z) grid r_circ and
+    V_min, which depend on (alpha, h, L_z) only, computed once per triple of the axes
+    (``axes``: name -> 1-D values), of ``variables``' dtypes, shaped (alpha, h, Lz); {} on
+    other grids. r_circ is the family's radius of the circular orbit, NaN where V has no
+    minimum (a point out of range at some energy keeps it: its class says so). For a map of
+    ``kind`` that follows a scene to its fate, of the ideal cone, as :func:`evaluate_flat`'s
+    closed form. Writers and the in-memory survey call it; blocks never hold these."""
+    names = [n for n in variables if variable_dims(n, dims) != tuple(dims)]
+    if not names:
+        return {}
+    a, hh, lz = (np.ascontiguousarray(axes[d], np.float64) for d in ("alpha", "h", "Lz"))
+    A, H, L = (x.reshape(-1) for x in np.meshgrid(a, hh, lz, indexing="ij"))
+    p = scene.params()
+    if kind in FATE_KINDS:  # the launch orbit on the ideal cone
+        p = ideal_cone(p)
+    with _pool_environment():
+        well = well_flat(A, H, L, p).reshape(2, a.size, hh.size, lz.size)
+    found = {"V_min": well[0], "r_circ": well[1]}
+    return {n: found[n].astype(variables[n]) for n in names}
+
+
+@contextlib.contextmanager
+def _pool_environment() -> Iterator[None]:
+    """While a local dask cluster runs, distributed's Nanny writes its workers'
+    NUMBA_NUM_THREADS into this process's environment (:mod:`engine.backends`); numba re-reads
+    it when it compiles a kernel here and refuses a count other than its running pool's. The
+    writers compute :func:`family_values` in this process: the pool's count meanwhile."""
+    key, running = "NUMBA_NUM_THREADS", str(numba.config.NUMBA_NUM_THREADS)
+    saved = os.environ.get(key)
+    if saved is None or saved == running:
+        yield
+        return
+    os.environ[key] = running
+    try:
+        yield
+    finally:
+        os.environ[key] = saved
 
 
 def _closed_form_grid(sub: list[np.ndarray], plan: RunPlan):
@@ -191,8 +250,6 @@ def _closed_form_grid(sub: list[np.ndarray], plan: RunPlan):
     for i, name in enumerate(BATCH_ROWS):
         if name in wanted:
             out[name] = f[i]
-    if relative:
-        out["energy_absolute"] = e_abs
     return out
 
 
@@ -225,7 +282,6 @@ def _flat_block(sub: list[np.ndarray], plan: RunPlan):
                     col[undefined] = np.nan
             if "fate" in res:
                 res["fate"][undefined] = 0  # no orbit
-        res["energy_absolute"] = e_abs
     if r_start is not None:
         res.update(energy=E, h=H, Lz=L)
     return res

@@ -287,6 +287,18 @@ def _panels(ds: xr.Dataset, spec: MapSpec) -> tuple[list[int] | None, str]:
     return idx, f"{len(idx)} of {n} values of {spec.facet}, evenly spaced"
 
 
+def on_grid(ds: xr.Dataset, name: str, dims: Any) -> xr.DataArray:
+    """Variable ``name`` of the survey ``ds`` over at least its axes ``dims``: one stored on
+    fewer dims (r_circ and V_min on (alpha, h, Lz)) repeated along the others it lacks, as a
+    map over them draws it."""
+    da = ds[name]
+    missing = {d: ds[d].values for d in ds.dims if d in set(dims) - set(da.dims)}
+    if not missing:
+        return da
+    order = [d for d in ds["orbit_class"].dims if d in da.dims or d in missing]
+    return da.expand_dims(missing).transpose(*order)
+
+
 def map_figure(
     ds: xr.Dataset,
     spec: MapSpec,
@@ -299,7 +311,7 @@ def map_figure(
     ``context``, the survey, the fixed axes and ``note`` (e.g. that the run is unfinished)."""
     m = matplotlib_parts()
     sel = spec.selection()
-    da = ds[spec.variable].isel(sel).load()
+    da = on_grid(ds, spec.variable, {spec.x, spec.y, spec.facet, *sel}).isel(sel).load()
     comp = None if computed is None else computed.isel(sel).load()
     idx, thinned = _panels(ds, spec)
     if idx is not None:

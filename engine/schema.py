@@ -27,26 +27,10 @@ if TYPE_CHECKING:
     from .fates import Horizon
     from .scene import Scene
 
-__all__ = [
-    "DIMS",
-    "LAUNCH_DIMS",
-    "GRID_DIMS",
-    "RELEASE",
-    "FINGERPRINT_ATTR",
-    "Variable",
-    "AXES",
-    "RESULTS",
-    "TRAJECTORY",
-    "axis_attrs",
-    "variable_attrs",
-    "result_variables",
-    "result_attrs",
-    "survey_attrs",
-    "map_kind",
-    "map_summary",
-    "grid_dims",
-    "launch_dims",
-]
+__all__ = ["DIMS", "LAUNCH_DIMS", "GRID_DIMS", "RELEASE", "FINGERPRINT_ATTR", "Variable", "AXES",
+           "RESULTS", "TRAJECTORY", "axis_attrs", "variable_attrs", "variable_dims",
+           "result_variables", "result_attrs", "survey_attrs", "map_kind", "map_summary",
+           "grid_dims", "launch_dims"]  # fmt: skip
 
 #: The four survey axes, in the order of a survey's dims.
 DIMS = ("alpha", "energy", "h", "Lz")
@@ -75,6 +59,9 @@ class Variable:
     flags: tuple[str, ...] | None = None
     #: The flags' codes (None: 0, 1, ... in order).
     codes: tuple[int, ...] | None = None
+    #: The axes of the (alpha, energy, h, L_z) grid it depends on (None: every axis); it is
+    #: stored on those dims only (:func:`variable_dims`).
+    depends: tuple[str, ...] | None = None
 
     def attrs(self) -> dict[str, Any]:
         """CF attributes: units and long_name, or long_name and int8 flag_values/meanings."""
@@ -89,8 +76,8 @@ class Variable:
         return out
 
 
-def _f(units: str, long_name: str) -> Variable:
-    return Variable("float64", units, long_name)
+def _f(units: str, long_name: str, depends: tuple[str, ...] | None = None) -> Variable:
+    return Variable("float64", units, long_name, depends=depends)
 
 
 #: The survey axes (also the coordinates of :func:`engine.evaluate`'s results).
@@ -106,6 +93,7 @@ AXES: dict[str, Variable] = {
     "slip_u": _f("m s-1", "launch slip velocity of the contact point along the generatrix"),
     "slip_v": _f("m s-1", "launch slip velocity of the contact point along the parallel"),
 }
+_FAM = ("alpha", "h", "Lz")  # what a property of an (alpha, h, L_z) family depends on
 _ENERGY_RELATIVE = _f("1", "energy offset from the potential minimum, (calE - V_min)/|V_min|")
 
 #: Every result variable of a map, in file order.
@@ -113,7 +101,7 @@ RESULTS: dict[str, Variable] = {
     "orbit_class": Variable("int8", None, "orbit class", CLASS_NAMES),
     "r_min": _f("m", "inner turning point (distance from the vertex of the centre's cone)"),
     "r_max": _f("m", "outer turning point (+inf for escaping orbits)"),
-    "r_circ": _f("m", "radius of the circular orbit (minimum of the effective potential)"),
+    "r_circ": _f("m", "radius of the circular orbit (minimum of the effective potential)", _FAM),
     "period": _f("s", "radial period (time from r_max to the next r_max)"),
     "apsidal_angle": _f(
         "radian", "azimuth swept from r_min to r_max (to infinity for escaping orbits)"
@@ -156,8 +144,9 @@ RESULTS: dict[str, Variable] = {
     "lost_rolling_resistance": _f("J", "energy lost to rolling resistance (both modes)"),
     "lost_sliding_friction": _f("J", "energy lost to kinetic friction (and sticking)"),
     "lost_spin_friction": _f("J", "energy lost to spin friction (both modes)"),
-    # surveys with an energy axis relative to V_min
-    "energy_absolute": _f("J", "radial energy calE (absolute)"),
+    # surveys with an energy axis relative to V_min: calE = V_min + energy |V_min|
+    "V_min": _f("J", "minimum of the effective potential V(r) (NaN: V has none)", _FAM),
+    "energy_absolute": _f("J", "radial energy calE (absolute) = V_min + energy |V_min|"),
     # surveys over launch states: the invariants of each launch
     **{name: AXES[name] for name in INVARIANTS},
     # engine.integrated.evaluate_integrated with rolling resistance (one period, not a map)
@@ -263,6 +252,15 @@ def variable_attrs(name: str, kind: str | None = None) -> dict[str, Any]:
     return attrs
 
 
+def variable_dims(name: str, dims: tuple[str, ...]) -> tuple[str, ...]:
+    """The dims ``name`` is stored on in a survey of grid ``dims``: the axes it depends on
+    (``Variable.depends``; r_circ, V_min: alpha, h, Lz) on the invariants' grid, else all."""
+    var = RESULTS.get(name)
+    if var is None or var.depends is None or tuple(dims) != DIMS:
+        return tuple(dims)
+    return tuple(d for d in dims if d in var.depends)
+
+
 def flag_table(name: str, kind: str | None = None) -> tuple[tuple[int, str], ...]:
     """(code, meaning) of each flag of the flag variable ``name`` in a map of ``kind``."""
     attrs = variable_attrs(name, kind)
@@ -333,8 +331,8 @@ def result_variables(
     elif kind in FATE_KINDS:
         names += FATE
         names += effect_variables(scene, "fate")
-    if energy_relative:
-        names.append("energy_absolute")
+    if energy_relative:  # calE = V_min + energy |V_min| (the accessor's energy_absolute)
+        names.append("V_min")
     if launch:
         names += INVARIANTS
     return {n: np.dtype(RESULTS[n].dtype) for n in names}

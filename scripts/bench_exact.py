@@ -46,7 +46,7 @@ import numpy as np
 from numba import njit, prange
 
 import engine
-from engine.evaluation import evaluate_block, evaluate_flat
+from engine.evaluation import evaluate_block, evaluate_flat, minimum_energy_flat
 from engine.grid import Tiling
 from engine.kernels.batch import STAGES, empty_outputs, profile_batch
 from engine.kernels.geometry import BOUNDED, scene_params
@@ -309,7 +309,8 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
     block = evaluate_block(spec, slices)
     sub = [np.asarray(ax)[s] for ax, s in zip(spec.axes, slices, strict=True)]
     A, E, H, L = (x.reshape(-1) for x in np.meshgrid(*sub, indexing="ij"))
-    flat = evaluate_flat(A, block["energy_absolute"].reshape(-1), H, L, map_plan(SCENE))
+    vmin = minimum_energy_flat(A, H, L, SCENE)  # the energy axis is relative to V_min
+    flat = evaluate_flat(A, vmin + E * np.abs(vmin), H, L, map_plan(SCENE))
     same = all(
         np.array_equal(flat[k], block[k].reshape(-1), equal_nan=True) for k in flat if k in block
     )

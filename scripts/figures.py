@@ -180,7 +180,7 @@ def figure_gravity_maps(out: Path, dpi: int = DPI, h: float = -1.0) -> Path:
     fig.colorbar(pc2, ax=axes[1], label=r"$\mu_{\rm required}$ [1]")
     # Where V_min changes sign (possible for h L_z < 0) the relative energy axis degenerates:
     # |V_min| -> 0, so every offset there is a nearly circular orbit. Mark it.
-    vmin = ds.energy_absolute.isel(energy=0).values
+    vmin = ds.V_min.values
     lz0 = [
         Lz[j] - vmin[j] * (Lz[j + 1] - Lz[j]) / (vmin[j + 1] - vmin[j])
         for j in np.flatnonzero(np.sign(vmin[:-1]) != np.sign(vmin[1:]))

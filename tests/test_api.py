@@ -79,7 +79,11 @@ def test_survey_outer_product_matches_evaluate():
     A, E, H, L = np.meshgrid(a, e, h, lz, indexing="ij")
     pts = engine.evaluate(A, E, H, L)
     for v in ("orbit_class", *VARS):
-        np.testing.assert_array_equal(ds[v].values, pts[v].values)
+        got = ds[v].broadcast_like(ds.orbit_class).transpose(*ds.orbit_class.dims).values
+        if v == "r_circ":  # the family's, on (alpha, h, Lz): each point's where it has one
+            assert ds.r_circ.dims == ("alpha", "h", "Lz")
+            got = np.where(np.isnan(pts.r_circ.values), np.nan, got)
+        np.testing.assert_array_equal(got, pts[v].values)
     for name in ("alpha", "energy", "h", "Lz"):
         assert "units" in ds[name].attrs
 
@@ -92,13 +96,16 @@ def test_survey_energy_relative_to_minimum():
     assert (cls[:, 0] == 2).all()  # offset 0: circular
     assert (cls[:, 1:] == 1).all()
     vmin = engine.minimum_energy(0.4, -1.0, 0.5)
-    assert ds.energy_absolute.values[0, 2, 0, 0] == pytest.approx(vmin + abs(vmin), rel=1e-15)
+    # V_min is stored once per (alpha, h, Lz); the absolute energy is the accessor's
+    assert ds.V_min.dims == ("alpha", "h", "Lz") and "energy_absolute" not in ds
+    assert ds.V_min.values[0, 0, 0] == vmin and ds.r_circ.dims == ("alpha", "h", "Lz")
+    assert ds.cone.energy_absolute().values[0, 2, 0, 0] == vmin + 1.0 * abs(vmin)
 
 
 def test_survey_relative_energy_undefined_without_minimum():
     # free fall with B >= 0 (h Lz > 0): V has no minimum
     ds = engine.survey([0.5], [0.5], [1.0], [1.0], engine.Scene(g=0.0), energy_relative=True)
-    assert ds.orbit_class.values.item() == 0 and np.isnan(ds.energy_absolute).all()
+    assert ds.orbit_class.values.item() == 0 and np.isnan(ds.cone.energy_absolute()).all()
 
 
 def test_minimum_energy_is_the_potential_minimum():

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 import engine
-from engine.evaluation import evaluate_block, evaluate_flat, minimum_energy_flat
+from engine.evaluation import evaluate_block, evaluate_flat, family_values, minimum_energy_flat
+from engine.kernels.geometry import OUT_OF_RANGE
 from engine.plan import map_plan, survey_plan
 from engine.schema import DIMS
 
@@ -42,11 +43,15 @@ def test_grid_path_equals_flat_path_bit_for_bit(relative, scene):
     spec = survey_plan(DIMS, axes, scene, "exact", energy_relative=relative, circular_tol=1e-12,
                        rtol=1e-10)  # fmt: skip
     block = evaluate_block(spec, (slice(0, 3), slice(0, 23), slice(0, 3), slice(0, 5)))
+    # r_circ and V_min are not in a block: stored on (alpha, h, Lz), computed once per triple
+    fam = family_values(DIMS, axes, scene, spec.map_kind, spec.variables)
+    assert set(fam) == ({"r_circ", "V_min"} if relative else {"r_circ"})
+    assert all(v.shape == (3, 3, 5) for v in fam.values())
+    per_point = {n: np.broadcast_to(v[:, None], (3, 23, 3, 5)).reshape(-1) for n, v in fam.items()}
     A, E, H, L = (x.reshape(-1) for x in np.meshgrid(*axes.values(), indexing="ij"))
     if relative:
         vmin = minimum_energy_flat(A, H, L, scene)
-        assert np.array_equal(block["energy_absolute"].reshape(-1), vmin + E * np.abs(vmin),
-                              equal_nan=True)  # fmt: skip
+        assert np.array_equal(per_point["V_min"], vmin, equal_nan=True)
         E = vmin + E * np.abs(vmin)
     flat = evaluate_flat(A, E, H, L, map_plan(scene))
     undefined = np.isnan(E)  # no V_min: forbidden, nothing but r_circ
@@ -54,7 +59,12 @@ def test_grid_path_equals_flat_path_bit_for_bit(relative, scene):
     for name, col in flat.items():
         if name != "r_circ" and col.dtype.kind == "f":
             col[undefined] = np.nan
-    assert set(block) == set(flat) | ({"energy_absolute"} if relative else set())
+    # the family's r_circ is each point's, bit for bit, wherever the point reports one; a point
+    # reports NaN only where it is out of range (its class says so)
+    rc, fam_rc = flat.pop("r_circ"), per_point["r_circ"]
+    assert np.array_equal(rc[~np.isnan(rc)], fam_rc[~np.isnan(rc)])
+    assert (flat["orbit_class"][np.isnan(rc) & ~np.isnan(fam_rc)] == OUT_OF_RANGE).all()
+    assert set(block) == set(flat)
     for name, col in flat.items():
         assert np.array_equal(block[name].reshape(-1), col, equal_nan=True), name
     assert len(np.unique(flat["orbit_class"])) >= 3

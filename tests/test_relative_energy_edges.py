@@ -28,9 +28,9 @@ def test_relative_survey_is_out_of_range_where_evaluate_is(method):
     cls = ds.orbit_class.values[0, :, 0, :]
     assert (cls[:, 2:] == OUT_OF_RANGE).all(), cls
     assert (cls[:, 0] == FORBIDDEN).all(), cls  # L_z = 0: no minimum, forbidden as before
-    assert np.isnan(ds.energy_absolute.values[0, :, 0, 2:]).all()
+    assert np.isnan(ds.cone.energy_absolute().values[0, :, 0, 2:]).all()
     # an ordinary L_z: the class of the absolute energy V_min + offset |V_min|
-    e_abs = ds.energy_absolute.values[0, :, 0, 1]
+    e_abs = ds.cone.energy_absolute().values[0, :, 0, 1]
     want = [int(engine.evaluate(alpha, e, h, 0.01, method=method).orbit_class) for e in e_abs]
     assert list(cls[:, 1]) == want
     assert OUT_OF_RANGE not in want

@@ -202,12 +202,32 @@ def _axes(src: _Source, hasher: ContentHasher) -> dict[str, tuple[np.ndarray, di
     return out
 
 
+def _families(src: _Source, hasher: ContentHasher) -> dict[str, tuple]:
+    """The variables on fewer dims than the grid (r_circ, V_min on (alpha, h, Lz)), read and
+    hashed whole: name -> (values, dims, attributes, storage chunks)."""
+    out = {}
+    for name, var in src.variables().items():
+        dims = tuple(var.dimensions)
+        if name in src.dims or dims == src.dims or not set(dims) < set(src.dims):
+            continue
+        try:
+            values = np.asarray(var[...])
+        except Exception as exc:  # a chunk that does not decompress
+            raise OutputError(f"{src.path}: variable {name} cannot be read ({exc})") from None
+        hasher.add(name, values)
+        chunks = var.chunking()
+        chunks = tuple(chunks) if isinstance(chunks, list | tuple) else None
+        out[name] = (values, dims, _var_attrs(var), chunks)
+    return out
+
+
 def to_zarr(src, out, attrs, hasher, recorded, overwrite) -> str:
     """Write ``src`` (a result being converted) as the Zarr store ``out``; its checksum."""
     grids = {n: v for n, v in src.variables().items() if tuple(v.dimensions) == src.dims}
     layout = {
         "axes": _axes(src, hasher),
         "variables": {n: (np.dtype(v.dtype), _var_attrs(v)) for n, v in grids.items()},
+        "families": _families(src, hasher),
     }
     return zarr_io.write_store(
         out,
@@ -222,13 +242,22 @@ def to_zarr(src, out, attrs, hasher, recorded, overwrite) -> str:
 
 
 def _define_netcdf(nc: Any, src: _Source, hasher: ContentHasher) -> dict[str, Any]:
-    """The dims, axes (with their values) and 4-D variables of the netCDF file ``nc``: the
-    source's dtypes, attributes, fill values and storage chunks, zlib + shuffle."""
+    """The dims, axes and variables on fewer dims (with their values) and the 4-D variables of
+    the netCDF file ``nc``: the source's dtypes, attributes, fill values and storage chunks,
+    zlib + shuffle."""
     for d, (values, a) in _axes(src, hasher).items():
         nc.createDimension(d, values.size)
         v = nc.createVariable(d, "f8", (d,), fill_value=False)
         v.setncatts(a)
         v[:] = values
+    for name, (values, dims, _, chunks) in _families(src, hasher).items():
+        var = src.ds.variables[name]
+        attrs = {k: var.getncattr(k) for k in var.ncattrs()}
+        fill = attrs.pop("_FillValue", False)
+        v = nc.createVariable(name, np.dtype(var.dtype).newbyteorder("="), dims, fill_value=fill,
+                              chunksizes=chunks, **compression_keywords("zlib"))  # fmt: skip
+        v.setncatts(attrs)
+        v[...] = values
     variables = {}
     for name, var in src.variables().items():
         if tuple(var.dimensions) == src.dims:

@@ -24,8 +24,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .._version import __version__
+from ..evaluation import family_values
 from ..grid import Tiling
-from ..schema import GRID_DIMS, RESULTS
+from ..schema import GRID_DIMS, RESULTS, variable_dims
 from . import OutputError
 from .atomic import NotRegularFile, read_regular, write_atomic
 
@@ -39,6 +40,7 @@ __all__ = [
     "fingerprint",
     "parts_dir",
     "read_manifest",
+    "survey_families",
     "survey_variables",
     "write_manifest",
 ]
@@ -56,8 +58,18 @@ def parts_dir(out: Path) -> Path:
 
 
 def survey_variables(plan: RunPlan) -> dict[str, np.dtype]:
-    """Names and dtypes of the result variables of ``survey``, in file order."""
-    return plan.variables
+    """Names and dtypes of the result variables of ``plan`` that its blocks hold, in file
+    order: those stored on every axis (r_circ and V_min, on fewer dims, are written whole by
+    the writers: :func:`engine.schema.variable_dims`, :func:`survey_families`)."""
+    dims = tuple(plan.dims)
+    return {n: dt for n, dt in plan.variables.items() if variable_dims(n, dims) == dims}
+
+
+def survey_families(plan: RunPlan) -> dict[str, np.ndarray]:
+    """The variables of ``plan`` stored on fewer dims, computed whole
+    (:func:`engine.evaluation.family_values`), name -> values shaped as their dims."""
+    axes = {d: np.asarray(plan.axis(d), np.float64) for d in plan.dims}
+    return family_values(plan.dims, axes, plan.scene, plan.map_kind, plan.variables)
 
 
 def fingerprint(plan: RunPlan) -> str:

@@ -36,7 +36,8 @@ from typing import TYPE_CHECKING, Any
 import netCDF4  # ~9 ms once engine is imported: not worth a lazy import
 import numpy as np
 
-from ..schema import FINGERPRINT_ATTR, axis_attrs, variable_attrs
+from ..grid import storage_chunks
+from ..schema import FINGERPRINT_ATTR, axis_attrs, variable_attrs, variable_dims
 from . import WriteError
 from .atomic import fsync_path, replacing
 from .blocks import BlockStore
@@ -52,6 +53,7 @@ from .codecs import (
 from .contents import CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher
 from .deflate import DirectChunks, unavailable
 from .feed import feed
+from .manifest import survey_families
 from .netcdf_info import read_fingerprint, read_info
 from .space import free_bytes, output_bytes
 from .summary import Summary
@@ -190,6 +192,10 @@ def merge(
         n: variable_keywords(compression, complevel, chunk * dt.itemsize)
         for n, dt in store.names.items()
     }
+    families = survey_families(plan)  # on fewer dims: written whole as the file is defined
+    for n, values in families.items():
+        kw = variable_keywords(compression, complevel, values.nbytes)
+        codecs[n] = variable_keywords(FALLBACK, complevel, 0) if is_blosc(kw) else kw
     attrs = cf_attrs(plan.attrs(), **_provenance(plan, command))
     attrs[FINGERPRINT_ATTR] = fingerprint
     upstream: list[BaseException] = []  # what the compute raised: passed on as it is
@@ -207,7 +213,7 @@ def merge(
             with replacing(out, overwrite=overwrite, tmp_dir=store.root) as tmp:
                 try:
                     summary = _write_file(
-                        tmp, store, plan, attrs, codecs, pending, blocks, warn or _warn
+                        tmp, store, plan, attrs, codecs, families, pending, blocks, warn or _warn
                     )
                 except (RuntimeError, OSError) as exc:  # netCDF4 reports HDF5 failures (ENOSPC
                     # too) as RuntimeError, h5py as OSError
@@ -262,6 +268,7 @@ def _write_file(
     plan: RunPlan,
     attrs: dict[str, Any],
     codecs: dict[str, dict[str, Any]],
+    families: dict[str, np.ndarray],
     pending: Collection[int],
     blocks: Iterable[tuple[int, dict[str, np.ndarray]]],
     warn: Callable[[str], None],
@@ -274,7 +281,7 @@ def _write_file(
     nc = netCDF4.Dataset(tmp, "w", format="NETCDF4")
     try:
         hasher = ContentHasher(store.tiling.block)
-        variables = _define(nc, store, plan, attrs, codecs, hasher)
+        variables = _define(nc, store, plan, attrs, codecs, families, hasher)
         chunks = _direct(nc, tmp, store, warn) if direct else None
         if chunks is not None:
             with chunks:
@@ -285,6 +292,7 @@ def _write_file(
                 nc = netCDF4.Dataset(tmp, "a")
                 variables = {n: nc[n] for n in store.names}
             summary = _fill(store, _netcdf4_writer(variables), codecs, hasher, pending, blocks)
+        summary.add(families)  # their ranges
         nc.setncattr(CHECKSUM_ATTR, hasher.finish(nc))
     except BaseException:
         with contextlib.suppress(Exception):  # after a failed write the close fails too
@@ -311,10 +319,12 @@ def _define(
     plan: RunPlan,
     attrs: dict[str, Any],
     codecs: dict[str, dict[str, Any]],
+    families: dict[str, np.ndarray],
     hasher: ContentHasher,
 ) -> dict[str, Any]:
-    """Define the whole file up front: global attributes, axes (written and hashed) and the
-    result variables (no values yet); returns the result variables by name."""
+    """Define the whole file up front: global attributes, axes and the variables on fewer dims
+    (``families``: written and hashed whole) and the result variables the blocks hold (no
+    values yet); returns the latter by name."""
     nc.setncatts({**attrs, CHECKSUM_BLOCK_ATTR: np.asarray(store.tiling.block, np.int64)})
     for d in plan.dims:
         values = np.asarray(plan.axis(d), np.float64)
@@ -325,8 +335,16 @@ def _define(
         hasher.add(d, values)
     kind = plan.map_kind
     variables = {}
-    for name, dt in store.names.items():
+    for name, dt in plan.variables.items():
         fill = False if dt.kind in "iu" else np.nan
+        if name in families:
+            values, dims = families[name], variable_dims(name, plan.dims)
+            kw = {"chunksizes": storage_chunks(values.shape), **codecs[name]}
+            v = nc.createVariable(name, dt, dims, fill_value=fill, **kw)
+            v.setncatts(typed_flags(variable_attrs(name, kind), dt))
+            v[...] = values
+            hasher.add(name, values)
+            continue
         v = nc.createVariable(
             name, dt, plan.dims, chunksizes=store.tiling.chunk, fill_value=fill, **codecs[name]
         )

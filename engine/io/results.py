@@ -34,12 +34,12 @@ from xarray.core import indexing
 
 from ..grid import Tiling, block_shape, storage_chunks
 from ..plan import plan_from_survey
-from ..schema import FINGERPRINT_ATTR, axis_attrs, grid_dims, variable_attrs
+from ..schema import FINGERPRINT_ATTR, axis_attrs, grid_dims, variable_attrs, variable_dims
 from ..surveyfile import SurveyError, parse_survey
 from . import OutputError
 from .blocks import BlockStore
 from .formats import format_for
-from .manifest import parts_dir, read_manifest
+from .manifest import parts_dir, read_manifest, survey_families
 from .zarr import zarr_module
 from .zarrlayout import STORE, UNFINISHED_ATTR
 from .zarrstore import RunStore
@@ -227,7 +227,11 @@ def _open_parts(path: Path) -> Result:
         "source": f"conesurvey {manifest.engine}",
         "survey_definition": manifest.survey_definition,
     }
-    ds = xr.Dataset(data, coords=coords, attrs=attrs)
+    for name, values in survey_families(plan).items():  # on fewer dims: computed here
+        dims = variable_dims(name, plan.dims)
+        data[name] = xr.Variable(dims, values, variable_attrs(name, kind))
+    order = [n for n in plan.variables if n in data]
+    ds = xr.Dataset({n: data[n] for n in order}, coords=coords, attrs=attrs)
     return Result(path, ds, False, tiling, done, manifest.fingerprint, "parts")
 
 

@@ -27,13 +27,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..grid import Tiling
-from ..schema import FINGERPRINT_ATTR, axis_attrs, variable_attrs
+from ..schema import FINGERPRINT_ATTR, axis_attrs, grid_dims, variable_attrs, variable_dims
 from . import OutputError
 from .atomic import exists_error, fsync_dir, not_regular, refuse_special
 from .blocks import check_parts_dir, survey_dims
 from .cf import cf_attrs
 from .contents import BLOCK_SCHEME, CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher, verify_file
-from .manifest import Manifest, parts_dir
+from .manifest import Manifest, parts_dir, survey_families
 from .netcdf_info import class_counts, fate_counts
 from .space import output_bytes
 from .summary import Summary
@@ -82,14 +82,20 @@ def unavailable() -> str:
 # --- making a store -----------------------------------------------------------------------------
 
 
-def _layout(plan: RunPlan, names: Mapping[str, np.dtype]) -> dict[str, Any]:
+def _layout(
+    plan: RunPlan, names: Mapping[str, np.dtype], families: Mapping[str, np.ndarray]
+) -> dict[str, Any]:
+    """The arguments of :func:`make_store` for ``plan``: its axes, the variables its blocks
+    hold (``names``) and the ones on fewer dims (``families``, their values)."""
     kind = plan.map_kind
     axes = {
         d: (np.asarray(plan.axis(d), np.float64), axis_attrs(d, plan.energy_relative))
         for d in plan.dims
     }
     variables = {n: (np.dtype(dt), variable_attrs(n, kind)) for n, dt in names.items()}
-    return {"axes": axes, "variables": variables}
+    fixed = {n: (v, variable_dims(n, plan.dims), variable_attrs(n, kind), None)
+             for n, v in families.items()}  # fmt: skip
+    return {"axes": axes, "variables": variables, "families": fixed}
 
 
 def create(
@@ -98,7 +104,10 @@ def create(
     """The directory of a new run of ``survey`` into a Zarr store (:mod:`engine.io.zarrstore`)."""
     manifest = Manifest.new(plan, tiling)
     make = functools.partial(
-        make_store, **_layout(plan, manifest.names), tiling=tiling, complevel=complevel
+        make_store,
+        **_layout(plan, manifest.names, survey_families(plan)),
+        tiling=tiling,
+        complevel=complevel,
     )
     return RunStore.create(root, manifest, make, complevel, warn)
 
@@ -180,6 +189,10 @@ def merge(
     for d in plan.dims:
         hasher.add(d, np.asarray(plan.axis(d), np.float64))
     summary = Summary()
+    families = survey_families(plan)  # written when the store was made: the same values
+    for name, values in families.items():
+        hasher.add(name, values)
+    summary.add(families)
     for i in range(tiling.nblocks):
         receipt = store.journal[i]
         for name in store.names:
@@ -204,7 +217,9 @@ def write_survey(
     path = Path(path)
     if os.path.lexists(path) and not overwrite:
         raise exists_error(path)
-    names = {n: ds[n].dtype for n in plan.variables if n in ds}
+    dims = tuple(plan.dims)
+    names = {n: ds[n].dtype for n in plan.variables if n in ds and ds[n].dims == dims}
+    families = {n: ds[n].values for n in plan.variables if n in ds and n not in names}
     tiling = Tiling.for_grid(plan.shape)
     blocks = (
         (i, {n: ds[n].values[tiling.slices(i)] for n in names}) for i in range(tiling.nblocks)
@@ -214,7 +229,8 @@ def write_survey(
         command=command, scene=plan.scene,
     )  # fmt: skip
     attrs[CHECKSUM_BLOCK_ATTR] = list(tiling.block)
-    write_store(path, _layout(plan, names), tiling, blocks, attrs, overwrite=overwrite)
+    layout = _layout(plan, names, families)
+    write_store(path, layout, tiling, blocks, attrs, overwrite=overwrite)
     return path
 
 
@@ -230,7 +246,7 @@ def write_store(
     hasher: ContentHasher | None = None,
     before_commit: Callable[[], None] | None = None,
 ) -> str:
-    """Write a whole store in this process: ``layout`` (axes, variables: see
+    """Write a whole store in this process: ``layout`` (axes, variables, families: see
     :func:`make_store`), the ``(index, arrays)`` of every block of ``tiling``, the global
     ``attrs``; built as ``OUT.<random>.tmp`` beside ``out``, committed and renamed into place.
     The content checksum is ``hasher``'s if given (the caller adds every value to it; a
@@ -247,6 +263,8 @@ def write_store(
         own = ContentHasher(tiling.block, BLOCK_SCHEME)
         for d, (values, _) in layout["axes"].items():
             own.add(d, values)
+        for name, (values, *_) in layout.get("families", {}).items():
+            own.add(name, values)
         for i, block in blocks:
             receipt = writer.write(i, tiling.slices(i), block)
             for name in variables:
@@ -312,9 +330,11 @@ def _store_info(path: Path, verify: bool) -> dict[str, Any]:
         raise OutputError(f"{path} is not a readable Zarr store ({exc})") from None
     attrs = {k: view.getncattr(k) for k in view.ncattrs()}
     info["attrs"] = attrs
-    info["dims"] = {}
+    dims: dict[str, int] = {}
     for var in view.variables.values():
-        info["dims"].update(zip(var.dimensions, var.shape, strict=False))
+        dims.update(zip(var.dimensions, var.shape, strict=False))
+    grid = [d for d in grid_dims(dims) if d in dims]  # in the grid's order, as a netCDF file's
+    info["dims"] = {**{d: dims[d] for d in grid}, **dims}
     counts = class_counts(view, info["notes"])
     if counts is not None:
         info["counts"] = counts

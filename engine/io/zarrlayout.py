@@ -1,15 +1,14 @@
 """What a conesurvey Zarr store looks like, and the writer of its chunks.
 
-- the metadata (:func:`make_store`): a Zarr v3 root group, the axes (one chunk each, their
-  values), the data variables with the netCDF file's storage chunks, ``dimension_names``, CF
-  attributes from :mod:`engine.schema` (``_FillValue`` NaN on float variables encoded as xarray
-  does in Zarr v3; none on integers and axes), Blosc compression (:data:`BLOSC`);
-- :class:`ChunkWriter`: the chunks of one block, encoded by zarr exactly as the store's arrays
-  declare, each written under a fresh ``O_EXCL | O_NOFOLLOW`` temporary name, fsynced and
-  renamed, every directory opened without following links relative to one open descriptor of
-  the store, after checking the store is still the run's (its root names the run's id): a store
-  removed and made again by another run is never written through. It returns the block's
-  receipt (:mod:`engine.io.zarrstore`);
+- the metadata (:func:`make_store`): a Zarr v3 root group, the axes and the variables on fewer
+  dims (their values), the data variables with the netCDF file's storage chunks,
+  ``dimension_names``, CF attributes from :mod:`engine.schema` (``_FillValue`` NaN on floats
+  as xarray encodes it in Zarr v3; none on integers and axes), Blosc (:data:`BLOSC`);
+- :class:`ChunkWriter`: the chunks of one block, encoded by zarr as the store's arrays declare,
+  each written under a fresh ``O_EXCL | O_NOFOLLOW`` temporary name, fsynced and renamed, every
+  directory opened without following links from one descriptor of the store, after checking
+  the store is still the run's (its root names the run's id); returns the block's receipt
+  (:mod:`engine.io.zarrstore`);
 - :class:`ZarrView`: a store seen through the netCDF4 calls :mod:`engine.io.contents` makes,
   so the content checksum is computed and verified the same way in both formats.
 """
@@ -31,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from ..errortext import install_hint
-from ..grid import Tiling
+from ..grid import Tiling, storage_chunks
 from . import OutputError
 from .atomic import NEW_FILE, O_CLOEXEC, O_NOFOLLOW, fsync_dir, fsync_path, read_regular
 from .cf import typed_flags
@@ -127,9 +126,8 @@ class ChunkWriter:
 
     def encode(self, slab: tuple[slice, ...], values: dict[str, np.ndarray]) -> dict[str, bytes]:
         """The chunk files (key -> bytes) of the hyperslab ``slab`` of every variable, encoded
-        by zarr exactly as the store's arrays declare (zarr compresses a variable's chunks on
-        its own threads; encoding the variables on threads of ours as well used more memory
-        and, on the loaded 2-core machine, sometimes twice the CPU)."""
+        by zarr exactly as the store's arrays declare (on zarr's threads: ours as well used
+        more memory and, on the loaded 2-core machine, up to twice the CPU)."""
         files: dict[str, bytes] = {}
         for name, dtype in self.arrays:
             files.update(self._encode(slab, name, dtype, values[name]))
@@ -305,9 +303,11 @@ def make_store(
     variables: Mapping[str, tuple[np.dtype, dict[str, Any]]],
     tiling: Tiling,
     complevel: int,
+    families: Mapping[str, tuple[np.ndarray, tuple[str, ...], dict[str, Any], Any]] = {},
 ) -> None:
     """Create the store ``path`` (a new directory): the root group marked unfinished with the
-    run's id, the axes with their values, the data variables (no chunk yet)."""
+    run's id, the axes with their values, the data variables (no chunk yet), ``families`` (on
+    fewer dims: name -> (values, dims, attributes, chunks or None), written whole)."""
     zarr = zarr_module()
     os.mkdir(path)
     store = zarr.storage.LocalStore(path)
@@ -321,22 +321,43 @@ def make_store(
             attributes={k: json_attr(v) for k, v in a.items()},
         )  # fmt: skip
         arr[:] = values
-    for name, (dt, a) in variables.items():
-        attrs = {k: json_attr(v) for k, v in typed_flags(a, dt).items()}
+    specs = [(n, dt, a, tiling.shape, tiling.chunk, dims, None) for n, (dt, a) in variables.items()]
+    specs += [(n, v.dtype, a, v.shape, c or storage_chunks(v.shape), d, v)
+              for n, (v, d, a, c) in families.items()]  # fmt: skip
+    for name, dt, a, shape, chunks, vdims, values in specs:
+        dt = np.dtype(dt)
+        attrs = {k: json_attr(v) for k, v in typed_flags(a, dt).items() if k != "_FillValue"}
         if dt.kind == "f":
             attrs["_FillValue"] = fill_attr(dt)
-        zarr.create_array(
-            store, name=name, shape=tiling.shape, chunks=tiling.chunk, dtype=dt,
-            fill_value=fill_value(dt), compressors=codecs(complevel), dimension_names=dims,
+        arr = zarr.create_array(
+            store, name=name, shape=shape, chunks=tuple(chunks), dtype=dt,
+            fill_value=fill_value(dt), compressors=codecs(complevel), dimension_names=vdims,
             attributes=attrs, config={"write_empty_chunks": True},
         )  # fmt: skip
+        if values is not None:
+            arr[...] = values
     for dirpath, _, filenames in os.walk(path):
         for name in filenames:
             fsync_path(Path(dirpath) / name)
         fsync_dir(Path(dirpath))
 
 
-class _Var:
+class _Attrs:
+    """The attributes of a store or array, as netCDF4 gives them."""
+
+    _attrs: dict[str, Any]
+
+    def ncattrs(self) -> list[str]:
+        return list(self._attrs)
+
+    def getncattr(self, key: str) -> Any:
+        return self._attrs[key]
+
+    def set_auto_maskandscale(self, flag: bool) -> None:
+        """Nothing to switch off: a Zarr array gives its stored values."""
+
+
+class _Var(_Attrs):
     """One array of a store, as engine.io.contents reads a netCDF variable."""
 
     def __init__(self, arr: Any) -> None:
@@ -347,23 +368,14 @@ class _Var:
         self.dimensions = tuple(arr.metadata.dimension_names or ())
         self._attrs = _decoded(dict(arr.attrs), self.dtype)
 
-    def ncattrs(self) -> list[str]:
-        return list(self._attrs)
-
-    def getncattr(self, key: str) -> Any:
-        return self._attrs[key]
-
     def chunking(self) -> list[int]:
         return list(self.arr.chunks)
-
-    def set_auto_maskandscale(self, flag: bool) -> None:
-        """Nothing to switch off: a Zarr array gives its stored values."""
 
     def __getitem__(self, key: Any) -> np.ndarray:
         return np.asarray(self.arr[key])
 
 
-class ZarrView:
+class ZarrView(_Attrs):
     """A Zarr store seen through the netCDF4 calls :mod:`engine.io.contents` makes (the
     content checksum is computed and verified the same way in both formats). ``attrs``
     replaces the root's attributes (the ones a commit is about to write)."""
@@ -374,15 +386,6 @@ class ZarrView:
         group = zarr.open_group(store, mode="r", zarr_format=3)
         self._attrs = dict(group.attrs) if attrs is None else dict(attrs)
         self.variables = {name: _Var(arr) for name, arr in group.arrays()}
-
-    def ncattrs(self) -> list[str]:
-        return list(self._attrs)
-
-    def getncattr(self, key: str) -> Any:
-        return self._attrs[key]
-
-    def set_auto_maskandscale(self, flag: bool) -> None:
-        """Nothing to switch off: a Zarr array gives its stored values."""
 
 
 def read_meta(path: Path) -> dict:

@@ -123,8 +123,7 @@ def families(AL, HH, LZ, m, p, eager, F, R):
 
 @kernel
 def select_lanes(F, m, p, circ_tol, S):
-    """Which lanes are bounded under gravity (the lanes' path), and the scalar orbit of the
-    others."""
+    """Which lanes are bounded under gravity (the lanes' path); the others' scalar orbits."""
     for j in range(m):
         e = S[_E, j]
         vmin = F[F_VMIN, j]
@@ -224,8 +223,7 @@ def scalar_lanes(F, m, p, circ_tol, S):
 
 @kernel
 def store_lanes(m, p, S, out_cls, out_f, oidx):
-    """The scene's rules (.geometry.scene_point) and the outputs of every lane, to column
-    oidx[j]."""
+    """The scene's rules (.geometry.scene_point) and every lane's outputs, to column oidx[j]."""
     plain = not (p[P_RIM_SLANT] < math.inf or p[P_MU] < math.inf)
     for j in range(m):
         o = oidx[j]
@@ -306,8 +304,7 @@ def profile_batch(alpha, energy, h, Lz, p, circ_tol, out_cls, out_f, upto):
 
 @kernel
 def _grid_triples(alpha, h, Lz, ne, t0, m, S, base):
-    """Triples t0..t0+m-1 of the grid (alpha x h x Lz, Lz fastest) into the lanes' table, and
-    the flat index of each at energy 0."""
+    """Triples t0..t0+m-1 of the grid (Lz fastest) into the lanes' table; base: each at energy 0."""
     nh, nl = h.size, Lz.size
     for j in range(m):
         t = t0 + j
@@ -402,10 +399,13 @@ def orbit_units(u0, u1, alpha, energy, h, Lz, grid, relative, p, circ_tol, out_c
 
 @parallel_kernel
 def minimum_energy_batch(alpha, h, Lz, p, out):
-    """V_min [J] for each (alpha, h, Lz) of the scene ``p``; NaN where V has no minimum."""
-    n = alpha.shape[0]
-    for i in prange(n):
-        out[i] = math.nan if Lz[i] == 0.0 else family(alpha[i], h[i], Lz[i], p, False).V_min
+    """V_min [J] (out[0, i]) and r_c [m] (out[1, i]) of each (alpha, h, Lz) of the scene ``p``;
+    NaN where V has no minimum."""
+    for i in prange(alpha.shape[0]):
+        out[0, i] = out[1, i] = math.nan
+        if Lz[i] != 0.0:
+            fam = family(alpha[i], h[i], Lz[i], p, False)
+            out[0, i], out[1, i] = fam.V_min, fam.r_c
 
 
 def empty_outputs(n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -62,9 +62,10 @@ def names(directory):
 
 
 def test_estimate_bytes_counts_every_variable(survey):
-    # orbit_class int8 + 7 closed-form floats + energy_absolute (relative energy axis)
-    assert estimate_bytes(plan_from_survey(survey)) == (1 + 8 * 7 + 8) * 60
-    assert sum(dt.itemsize for dt in survey_variables(plan_from_survey(survey)).values()) == 65
+    # orbit_class int8 + 6 closed-form floats per point (r_circ and V_min are on (alpha, h,
+    # Lz): not in the blocks)
+    assert estimate_bytes(plan_from_survey(survey)) == (1 + 8 * 6) * 60
+    assert sum(dt.itemsize for dt in survey_variables(plan_from_survey(survey)).values()) == 49
 
 
 def test_block_file_bytes_bounds_the_real_file(store):

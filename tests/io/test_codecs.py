@@ -74,7 +74,10 @@ def test_each_file_has_the_filters_asked_for_and_opens_with_plain_xarray(files):
             assert period["zlib"] and period["shuffle"] and period["complevel"] == 1
         else:
             assert not any(period[k] for k in ("zlib", "zstd", "blosc", "shuffle"))
-    assert sizes["none"] > 1.2 * max(sizes[n] for n in ("blosc_lz4", "zstd", "zlib")), sizes
+    # zstd 1 without shuffle shrinks these ~1.09x (1.3x while r_circ, which repeats along the
+    # energy axis, was stored per point); the others ~1.3x
+    assert sizes["none"] > 1.05 * max(sizes[n] for n in ("blosc_lz4", "zstd", "zlib")), sizes
+    assert sizes["none"] > 1.2 * max(sizes[n] for n in ("blosc_lz4", "zlib")), sizes
 
 
 def test_bad_compression_option_exits_2_naming_it_and_writes_nothing(tmp_path, capsys):

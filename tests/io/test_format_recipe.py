@@ -19,7 +19,7 @@ from engine.grid import Tiling
 from engine.io.atomic import fsync_path, replacing
 from engine.io.blocks import BlockStore
 from engine.io.formats import FORMATS, OutputFormat, format_for, register, unregister
-from engine.io.manifest import Manifest
+from engine.io.manifest import Manifest, survey_families
 from engine.io.summary import Summary
 from engine.runner import AlreadyComplete, RunFailed, run_survey
 from engine.surveyfile import parse_survey
@@ -52,6 +52,7 @@ def _commit(store, plan, out, *, fingerprint, overwrite, incoming, **options):
             values[n][tiling.slices(i)] = arr
         summary.add(block)
     axes = dict(zip(plan.dims, plan.axes, strict=True))
+    values.update(survey_families(plan))  # r_circ on (alpha, h, Lz): in no block
     with replacing(out, overwrite=overwrite, tmp_dir=store.root) as tmp:
         with open(tmp, "wb") as f:
             np.savez(f, fingerprint=np.array(fingerprint), **axes, **values)

@@ -81,10 +81,12 @@ def test_manifest_round_trip_and_format(tmp_path, survey, written):
     doc = json.loads((tmp_path / MANIFEST).read_text())
     assert doc["format"] == FORMAT and len(doc["check"]) == 64
     assert doc["shape"] == list(survey.shape) and doc["block"] == [1, 1, 2, 3]
+    # the blocks hold the variables on every axis; r_circ and V_min (on (alpha, h, Lz)) are
+    # written whole by the writers
     assert doc["variables"] == {
         "orbit_class": "int8",
-        **{n: "float64" for n in ("r_min", "r_max", "r_circ", "period", "apsidal_angle")},
-        **{n: "float64" for n in ("precession_rate", "mu_required", "energy_absolute")},
+        **{n: "float64" for n in ("r_min", "r_max", "period", "apsidal_angle")},
+        **{n: "float64" for n in ("precession_rate", "mu_required")},
     }
     assert doc["survey_definition"] == SURVEY
     assert written.mismatch(survey) is None

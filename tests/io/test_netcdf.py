@@ -163,13 +163,16 @@ def test_blosc_is_kept_from_variables_smaller_than_a_chunk_it_can_shrink(ds):
     assert encoding_for(big, "zstd", 3)["r_min"]["complevel"] == 3
 
 
-def test_energy_absolute_and_relative_axis_round_trip(tmp_path, ds_relative):
+def test_v_min_and_relative_axis_round_trip(tmp_path, ds_relative):
     full = cf_dataset(ds_relative, title="rel", survey_definition="x = 1\n")
     path = write_netcdf(full, tmp_path / "rel.nc")
     with xr.open_dataset(path) as back:
         assert back.energy.attrs["units"] == "1"
-        assert back.energy_absolute.attrs["units"] == "J"
-        np.testing.assert_array_equal(back.energy_absolute.values, ds_relative.energy_absolute)
+        assert back.V_min.attrs["units"] == "J" and back.V_min.dims == ("alpha", "h", "Lz")
+        np.testing.assert_array_equal(back.V_min.values, ds_relative.V_min)
+        np.testing.assert_array_equal(
+            back.cone.energy_absolute().values, ds_relative.cone.energy_absolute().values
+        )
 
 
 def test_cf_dataset_does_not_modify_its_input_and_prepends_history(ds):

@@ -16,7 +16,7 @@ from engine.kernels.batch import (
     minimum_energy_batch,
     profile_batch,
 )
-from engine.kernels.geometry import BOUNDED, CLASS_NAMES, orbit_point, scene_params
+from engine.kernels.geometry import BOUNDED, CLASS_NAMES, OUT_OF_RANGE, orbit_point, scene_params
 
 # (M, g, k, a, rim, mu): gravity, extreme scales, free fall, a point particle, a rim, a
 # friction limit, both.
@@ -59,8 +59,9 @@ def _points(n, seed, M, g, k):
     h = np.where(rng.random(n) < 0.2, 0.0, sign() * lu(-6, 6))
     Lz = np.where(rng.random(n) < 0.05, 0.0, sign() * lu(-6, 6))
     offset = np.where(rng.random(n) < 0.1, 0.0, lu(-16, 3) * np.where(rng.random(n) < 0.15, -1, 1))
-    vmin = np.empty(n)
-    minimum_energy_batch(alpha, h, Lz, scene_params(M, g, k), vmin)
+    well = np.empty((2, n))
+    minimum_energy_batch(alpha, h, Lz, scene_params(M, g, k), well)
+    vmin = well[0]
     absolute = np.where(rng.random(n) < 0.2, 0.0, sign() * lu(-6, 6))
     relative = (rng.random(n) < 0.75) & np.isfinite(vmin)
     energy = np.where(relative, vmin + offset * np.abs(vmin), absolute)
@@ -117,9 +118,15 @@ def test_grid_equals_flat_kernel(relative, scene):
     cls, f, e_abs = *empty_outputs(n), np.empty(n)
     orbit_grid(alpha, energy, h, Lz, relative, scene_params(*scene), 1e-12, cls, f, e_abs)
     A, E, H, L = (x.reshape(-1) for x in np.meshgrid(alpha, energy, h, Lz, indexing="ij"))
+    well = np.empty((2, n))
+    minimum_energy_batch(A, H, L, scene_params(*scene), well)
+    # r_circ is the family's r_c (stored on (alpha, h, Lz)): at every energy where the point
+    # reports one, bit for bit; NaN elsewhere only where the point is out of range
+    rc = f[2]
+    assert np.array_equal(rc[~np.isnan(rc)], well[1][~np.isnan(rc)])
+    assert (cls[np.isnan(rc) & ~np.isnan(well[1])] == OUT_OF_RANGE).all()
     if relative:
-        vmin = np.empty(n)
-        minimum_energy_batch(A, H, L, scene_params(M, g, k), vmin)
+        vmin = well[0]
         E = vmin + E * np.abs(vmin)  # the rule of engine.evaluation (numpy arithmetic)
     assert _same(e_abs, E)
     c2, f2 = empty_outputs(n)
