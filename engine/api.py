@@ -9,7 +9,8 @@ import numpy as np
 import xarray as xr
 
 from .checks import check_numbers, check_values
-from .evaluation import evaluate_block, evaluate_flat, family_values, minimum_energy_flat
+from .evaluation import evaluate_block, evaluate_flat
+from .families import family_values, minimum_energy_flat
 from .grid import BLOCK_POINTS, Tiling
 from .kernels.geometry import CIRCULAR_TOL
 from .kernels.model import radial_energy as _radial_energy

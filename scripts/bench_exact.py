@@ -46,7 +46,8 @@ import numpy as np
 from numba import njit, prange
 
 import engine
-from engine.evaluation import evaluate_block, evaluate_flat, minimum_energy_flat
+from engine.evaluation import evaluate_block, evaluate_flat
+from engine.families import minimum_energy_flat
 from engine.grid import Tiling
 from engine.kernels.batch import STAGES, empty_outputs, profile_batch
 from engine.kernels.geometry import BOUNDED, scene_params

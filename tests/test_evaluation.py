@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 import engine
-from engine.evaluation import evaluate_block, evaluate_flat, family_values, minimum_energy_flat
+from engine.evaluation import evaluate_block, evaluate_flat
+from engine.families import family_values, minimum_energy_flat
 from engine.kernels.geometry import OUT_OF_RANGE
 from engine.plan import map_plan, survey_plan
 from engine.schema import DIMS

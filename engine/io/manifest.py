@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .._version import __version__
-from ..evaluation import family_values
+from ..families import family_values
 from ..grid import Tiling
 from ..schema import GRID_DIMS, RESULTS, variable_dims
 from . import OutputError
@@ -67,7 +67,7 @@ def survey_variables(plan: RunPlan) -> dict[str, np.dtype]:
 
 def survey_families(plan: RunPlan) -> dict[str, np.ndarray]:
     """The variables of ``plan`` stored on fewer dims, computed whole
-    (:func:`engine.evaluation.family_values`), name -> values shaped as their dims."""
+    (:func:`engine.families.family_values`), name -> values shaped as their dims."""
     axes = {d: np.asarray(plan.axis(d), np.float64) for d in plan.dims}
     return family_values(plan.dims, axes, plan.scene, plan.map_kind, plan.variables)
 
