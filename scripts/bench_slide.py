@@ -72,14 +72,21 @@ def main() -> None:
         counts = np.bincount(res["fate"], minlength=len(names))
         fates_text = ", ".join(f"{n} {c}" for n, c in zip(names, counts, strict=True) if c)
         print(f"{name:14s} fates: {fates_text}; steps {int(res['n_steps'].sum())}")
+    one = {}
     for name, fn in runs.items():
         t = {}
         for threads in (1, 2):
             numba.set_num_threads(threads)
             t[threads] = best(fn, args.repeats)
+        one[name] = t[1]
         print(f"{name:14s} {args.points / t[1]:9.1f} orbits/s on 1 thread, "
               f"{args.points / t[2]:9.1f} on 2; 2-thread speedup {t[1] / t[2]:.2f}; "
               f"load average {os.getloadavg()[0]:.2f} (2 cores)")  # fmt: skip
+    for name in ("hybrid", "hybrid + spin"):
+        print(
+            f"{name:14s} per core: {one[name] / one['rolling']:.2f} x the rolling fate "
+            "map's time per orbit (same launches, same run)"
+        )
 
 
 if __name__ == "__main__":

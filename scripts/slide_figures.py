@@ -1,12 +1,13 @@
-"""Draw the launch map of the whole story (sliding, rolling again, spin friction): a ball
-thrown outward on a wide cone with radial speed u0 and backspin a omega0, orbiting at v0,
-coloured by its fate and by the total time it slid.
+"""Draw the launch map of the whole story (sliding, rolling again, spin friction) from the
+shipped survey ``surveys/slide_and_roll.toml``: a ball thrown outward on a wide cone with
+radial speed u0 and a slip velocity slip_u at release (backspin a omega0 = slip_u - u0),
+orbiting at v0, in two panels: coloured by its fate, and by the total time it slid.
 
-    python scripts/slide_figures.py --out docs/figures [--n 48]
+    conesurvey run surveys/slide_and_roll.toml -o slide.nc
+    python scripts/slide_figures.py --nc slide.nc --out docs/figures
 
-Writes ``slide_and_roll.png`` (two panels: fate, slide time). The scene: M = 1 kg, a = 1 cm,
-k = 2/5, mu = 0.4, mu_k = 0.3, c_spin = 0.005, c_rr = 0.002, a rim at 0.6 m; alpha = 1.2,
-r0 = 0.3 m, v0 = 0.5 m/s, w0 = 0; dop853 at rtol 1e-9 up to 5 s.
+Without ``--nc`` the survey file is run here (``engine.surveyfile.load_survey(...).run()``,
+the same map). Writes ``slide_and_roll.png``. ``--tiny`` runs the file on a 3 x 3 launch grid.
 """
 
 from __future__ import annotations
@@ -20,70 +21,76 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+import xarray as xr  # noqa: E402
 from matplotlib.colors import BoundaryNorm, ListedColormap  # noqa: E402
 
-from engine.kernels.hybrid import HYBRID_FATE_NAMES  # noqa: E402
-from engine.scene import Scene  # noqa: E402
-from engine.story import launch_fates  # noqa: E402
+from engine.surveyfile import parse_survey  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENE = Scene(mu=0.4, mu_k=0.3, c_spin=0.005, c_rr=0.002, rim=0.6)
-ALPHA, R0, V0 = 1.2, 0.3, 0.5
+SURVEY = ROOT / "surveys" / "slide_and_roll.toml"
 COLOURS = {"rolling": "#4c72b0", "sliding": "#dd8452", "spilled": "#c44e52", "rest": "#55a868",
            "vertex": "#8172b3", "failed": "#000000"}  # fmt: skip
 
 
-def launch_map(n: int) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-    u0 = np.linspace(0.05, 2.5, n)
-    spin = np.linspace(0.0, 4.0, n)
-    U, S = np.meshgrid(u0, spin)
-    res = launch_fates(ALPHA, R0, V0, 0.0, u0=U, slip_u=U + S, slip_v=V0, scene=SCENE,
-                       rtol=1e-9, horizon_time=5.0)  # fmt: skip
-    return u0, spin, res
+def run_survey(tiny: bool) -> xr.Dataset:
+    """The shipped survey's map (``tiny``: its u0 and slip_u axes cut to 3 points each)."""
+    text = SURVEY.read_text()
+    if tiny:
+        for num in ("num = 60", "num = 70"):
+            assert text.count(num) == 1, num
+            text = text.replace(num, "num = 3")
+    return parse_survey(text, origin=str(SURVEY)).run()
 
 
-def draw(u0, spin, res, path: Path) -> None:
-    names = [nm for nm in COLOURS if nm in HYBRID_FATE_NAMES]
-    codes = np.array([HYBRID_FATE_NAMES.index(nm) for nm in names])
-    order = {c: i for i, c in enumerate(codes)}
-    img = np.vectorize(lambda c: order.get(int(c), -1))(res["fate"])
+def launch_panels(ds: xr.Dataset) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(u0, backspin slip_u - u0, fate, slide_time) on the u0 x slip_u grid (2-D, [slip, u0])."""
+    sel = ds.isel({d: 0 for d in ds["fate"].dims if d not in ("u0", "slip_u")})
+    sel = sel.transpose("slip_u", "u0")
+    U, S = np.meshgrid(sel["u0"].values, sel["slip_u"].values)
+    return U, S - U, sel["fate"].values, sel["slide_time"].values
+
+
+def draw(ds: xr.Dataset, path: Path) -> dict[str, int]:
+    meanings = ds["fate"].attrs["flag_meanings"].split()
+    values = [int(v) for v in np.atleast_1d(ds["fate"].attrs["flag_values"])]
+    code = dict(zip(meanings, values, strict=True))
+    U, B, fate, slide = launch_panels(ds)
+    names = [nm for nm in COLOURS if nm in code and (fate == code[nm]).any()] or ["rolling"]
+    order = {code[nm]: i for i, nm in enumerate(names)}
+    img = np.vectorize(lambda c: order.get(int(c), -1))(fate)
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.4), constrained_layout=True)
     cmap = ListedColormap([COLOURS[nm] for nm in names])
     norm = BoundaryNorm(np.arange(len(names) + 1) - 0.5, len(names))
-    ext = (u0[0], u0[-1], spin[0], spin[-1])
-    im = a1.imshow(img, origin="lower", aspect="auto", extent=ext, cmap=cmap, norm=norm,
-                   interpolation="nearest")  # fmt: skip
+    im = a1.pcolormesh(U, B, img, cmap=cmap, norm=norm, shading="nearest")
     cb = fig.colorbar(im, ax=a1, ticks=range(len(names)))
     cb.ax.set_yticklabels(names)
-    a1.set_title("fate after 5 s")
-    im2 = a2.imshow(res["slide_time"], origin="lower", aspect="auto", extent=ext,
-                    cmap="viridis", interpolation="nearest")  # fmt: skip
+    t_max = ds.attrs.get("horizon_time", "")
+    a1.set_title(f"fate after {t_max} s")
+    im2 = a2.pcolormesh(U, B, slide, cmap="viridis", shading="nearest")
     fig.colorbar(im2, ax=a2, label="slide_time [s]")
     a2.set_title("total time sliding")
     for ax in (a1, a2):
         ax.set_xlabel("radial throw speed u0 [m/s]")
-        ax.set_ylabel("backspin a omega0 [m/s]")
-    fig.suptitle(f"thrown on a cone alpha = {ALPHA}, r0 = {R0} m, v0 = {V0} m/s; "
-                 f"mu = {SCENE.mu}, mu_k = {SCENE.mu_k}, c_spin = {SCENE.c_spin}, "
-                 f"c_rr = {SCENE.c_rr}, rim {SCENE.rim} m")  # fmt: skip
+        ax.set_ylabel("backspin a omega0 = slip_u - u0 [m/s]")
+    fig.suptitle(f"{ds.attrs.get('title', SURVEY.name)} (surveys/{SURVEY.name})")
     fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return {nm: int((fate == code[nm]).sum()) for nm in names}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--nc", type=Path, help="the survey's netCDF (else it is run here)")
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "figures")
-    parser.add_argument("--n", type=int, default=48)
-    parser.add_argument("--tiny", action="store_true", help="a 3x3 smoke run (tests)")
+    parser.add_argument("--tiny", action="store_true", help="a 3x3 launch grid (tests)")
     args = parser.parse_args()
-    if args.tiny:
-        args.n = 3
     t0 = time.perf_counter()
-    u0, spin, res = launch_map(args.n)
+    ds = xr.open_dataset(args.nc) if args.nc else run_survey(args.tiny)
     dt = time.perf_counter() - t0
     args.out.mkdir(parents=True, exist_ok=True)
-    draw(u0, spin, res, args.out / "slide_and_roll.png")
-    counts = {nm: int((res["fate"] == HYBRID_FATE_NAMES.index(nm)).sum()) for nm in COLOURS}
-    print(f"{args.n}x{args.n} launches in {dt:.1f} s (compile included); fates {counts}")
+    counts = draw(ds, args.out / "slide_and_roll.png")
+    how = f"read from {args.nc}" if args.nc else "computed, compile included"
+    print(f"{ds['fate'].size} launches in {dt:.1f} s ({how}); fates {counts}")
 
 
 if __name__ == "__main__":

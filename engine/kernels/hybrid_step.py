@@ -61,6 +61,9 @@ HYBRID_EVENT_NAMES = ("spill", "vertex", "horizon", "slip", "roll", "spin_stop",
 #: since the last switch) and the spin's stop (|w| has, since the last stop or release).
 ARMED_ROLL = 1
 ARMED_SPIN = 2
+#: The slip within this many stop thresholds may be declared stopped when a step cannot make it
+#: smaller (:func:`stalled`).
+STALL_BAND = 1000.0
 #: Largest number of function evaluations (re-steps) to locate one event.
 LOCATE_ITERATIONS = 60
 
@@ -212,6 +215,78 @@ def first_event(method, y0, y1, h, hp, mode, stuck, armed, K, ytmp, yout, rtol, 
     return best, best_th
 
 
+@kernel
+def kink_step(method, y, h, hp, mode, stuck, armed, K):
+    """The step [s] to retry with when the attempt of size h [s] from y (stages in K) went
+    through a kink of the right-hand side that an armed event must stop at, else h.
+
+    The kinks: the slip s = 0 while sliding with the return to rolling armed, where kinetic
+    friction turns (reverses) with the slip; the spin w = 0 with spin friction on, the spin not
+    stuck and its stop armed, where the spin couple jumps. A stage went through one when its
+    slip has a component <= 0 along the slip at y (its spin: the sign of w at y flipped). Such
+    a step cannot be trusted (the error estimate of a step across a kink can pass, and a run
+    of them keeps |s| a few times the stop threshold forever: docs/physics.md "Reaching the
+    switch"), so it is retried with min(h/2, the time the slip (spin) takes at its rate at y
+    to fall to half the stop threshold)."""
+    A = tableau(method)[0]
+    ns = tableau(method)[5]
+    v_rest = hp[P_V_REST]
+    s1 = y[2] - y[5]
+    s2 = y[3] + y[4]
+    sl = math.sqrt(s1 * s1 + s2 * s2)
+    slip_on = mode == MODE_SLIDING and armed & ARMED_ROLL and sl > v_rest
+    w0 = y[6]
+    spin_on = not stuck and hp[H_C_SPIN] > 0.0 and armed & ARMED_SPIN and abs(w0) > v_rest
+    if not slip_on and not spin_on:
+        return h
+    slip_x = False
+    spin_x = False
+    for i in range(1, ns + 1):
+        a2 = 0.0
+        a3 = 0.0
+        a4 = 0.0
+        a5 = 0.0
+        a6 = 0.0
+        for m in range(i):
+            a2 += A[i, m] * K[m, 2]
+            a3 += A[i, m] * K[m, 3]
+            a4 += A[i, m] * K[m, 4]
+            a5 += A[i, m] * K[m, 5]
+            a6 += A[i, m] * K[m, 6]
+        if slip_on and (s1 + h * (a2 - a5)) * s1 + (s2 + h * (a3 + a4)) * s2 <= 0.0:
+            slip_x = True
+        if spin_on and (w0 + h * a6) * w0 <= 0.0:
+            spin_x = True
+    if not slip_x and not spin_x:
+        return h
+    h_new = 0.5 * h
+    if slip_x:
+        rate = -((K[0, 2] - K[0, 5]) * s1 + (K[0, 3] + K[0, 4]) * s2) / sl
+        if rate > 0.0:
+            h_new = min(h_new, (sl - 0.5 * v_rest) / rate)
+    if spin_x:
+        rate = -math.copysign(1.0, w0) * K[0, 6]
+        if rate > 0.0:
+            h_new = min(h_new, (abs(w0) - 0.5 * v_rest) / rate)
+    return h_new
+
+
+@kernel
+def stalled(y, ynew, K, hp):
+    """Whether the accepted sliding step y -> ynew (K[0] = f(y)) left the slip no smaller along
+    its direction at y although friction is slowing it there (its rate along that direction is
+    < 0), with the slip within :data:`STALL_BAND` times the stop threshold: the slip is then
+    as near zero as the integration resolves it (docs/physics.md "Reaching the switch")."""
+    s1 = y[2] - y[5]
+    s2 = y[3] + y[4]
+    sl = math.sqrt(s1 * s1 + s2 * s2)
+    if not 0.0 < sl <= STALL_BAND * hp[P_V_REST]:
+        return False
+    rate = (K[0, 2] - K[0, 5]) * s1 + (K[0, 3] + K[0, 4]) * s2
+    along = (ynew[2] - ynew[5]) * s1 + (ynew[3] + ynew[4]) * s2
+    return rate < 0.0 and along >= sl * sl
+
+
 #: Segment ends of :func:`segment` beyond the event kinds of :mod:`.hybrid_step`.
 SEG_TIME = 100
 SEG_FAILED = 101
@@ -249,6 +324,11 @@ def segment(method, y, hp, mode, stuck, armed, t, t_end, rtol, atol, max_steps, 
             return SEG_FAILED, t, steps, t - t0, armed
         err = hybrid_attempt(method, y, h_try, hp, mode, stuck, K, ytmp, ynew, rtol, atol)
         steps += 1
+        h_kink = kink_step(method, y, h_try, hp, mode, stuck, armed, K)
+        if h_kink < h_try:  # a stage went through s = 0 or w = 0: retry short of it
+            h = h_kink
+            rejected = True
+            continue
         accepted, h_used, h_next, err_old, rejected = decide(err, ynew[0], h_try, err_old,
                                                              rejected, ctl)  # fmt: skip
         if not accepted:
@@ -256,6 +336,11 @@ def segment(method, y, hp, mode, stuck, armed, t, t_end, rtol, atol, max_steps, 
             continue
         kind, th = first_event(method, y, ynew, h_try, hp, mode, stuck, armed, K, ytmp, yev,
                                rtol, atol)  # fmt: skip
+        if kind < 0 and mode == MODE_SLIDING and armed & ARMED_ROLL and stalled(y, ynew, K, hp):
+            kind = EV_STICK  # the slip is as near zero as the steps can follow it
+            th = 1.0
+            for j in range(n):
+                yev[j] = ynew[j]
         if kind >= 0:
             for j in range(n):
                 y[j] = yev[j]
