@@ -209,8 +209,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.where:
         step, control = where_time_goes(args.rounds)
         print(f"where the lanes' time goes (CPU ns per orbit and step, each part timed alone): "
-              f"the step {step:.0f}, the step-size control {control:.0f} (scalar code: the "
-              "terminal events' functions and the PI controller's power do not vectorise)"
+              f"the step {step:.0f}, the step-size control {control:.0f} (both vector "
+              "code)"
               )  # fmt: skip
     print(
         f"serial share of engine.evaluate's fate map at 1 thread (wall time outside the fate "

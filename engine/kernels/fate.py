@@ -79,7 +79,9 @@ MAX_RESTARTS = 10_000
 
 
 @kernel
-def _fate_of_status(status):
+def fate_of_status(status):
+    """The fate of a run that ended with ``status`` (:func:`run_restarting`'s: RESTED, the
+    sphere stays at rest)."""
     if status == OK:
         return ROLLING
     if status == SPILLED:
@@ -88,6 +90,8 @@ def _fate_of_status(status):
         return FATE_SLIPPED
     if status == AT_VERTEX:
         return FATE_VERTEX
+    if status == RESTED:
+        return FATE_REST
     return FAILED
 
 
@@ -135,31 +139,25 @@ def come_to_rest(y, p, effects):
 @kernel
 def starts_at_rest(effects, y, p):
     """Whether a run from y ends before it starts: a sphere at rest where rolling resistance
-    holds it (and friction can: else it slips at once). Returns (ended, fate)."""
+    holds it (status RESTED) or friction cannot (SLIPPED). Returns (ended, status)."""
     if effects & ROLLING_RESISTANCE:
         if y[2] == 0.0 and y[3] == 0.0:
             _, at_rest = come_to_rest(y, p, effects)
-            if at_rest == RESTED:
-                return True, FATE_REST
-            if at_rest == SLIPPED:
-                return True, FATE_SLIPPED
-    return False, ROLLING
+            return at_rest != OK, at_rest
+    return False, OK
 
 
 @kernel
 def after_run(effects, status, y, p, t):
     """What follows a run that ended with ``status`` at state y (time t [s] since the start):
-    the fate, or (a stop by rolling resistance the sphere does not stay in) a restart from
-    rest, y carried to zero speed in place. Returns (ended, fate, t [s])."""
+    the end (the run's status; at a stop by rolling resistance, RESTED where the sphere stays
+    at rest, SLIPPED where friction cannot hold it), or a restart from rest (status OK). A
+    stop is carried to zero speed in place (:func:`come_to_rest`). Returns (ended, status,
+    t [s]). The one rule of :func:`run_restarting` and the lanes (:mod:`.lanes_fate`)."""
     if status != RESTED:
-        return True, _fate_of_status(status), t
+        return True, status, t
     dt, at_rest = come_to_rest(y, p, effects)
-    t += dt
-    if at_rest == RESTED:
-        return True, FATE_REST, t
-    if at_rest == SLIPPED:
-        return True, FATE_SLIPPED, t
-    return False, ROLLING, t
+    return at_rest != OK, at_rest, t + dt
 
 
 @kernel
@@ -181,11 +179,9 @@ def run_restarting(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, 
     n_ev = 0
     n_tr = 0
     t0 = 0.0
-    if effects & ROLLING_RESISTANCE:
-        if y[2] == 0.0 and y[3] == 0.0:
-            _, at_rest = come_to_rest(y, p, effects)
-            if at_rest != OK:
-                return at_rest, 0, 0, 0.0, y, 0, 0
+    ended, status = starts_at_rest(effects, y, p)
+    if ended:
+        return status, 0, 0, 0.0, y, 0, 0
     keep = record != RECORD_NONE
     for _ in range(MAX_RESTARTS):
         first = n_tr - 1 if n_tr > 0 else 0  # a restart's first state: the one at rest
@@ -206,24 +202,21 @@ def run_restarting(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, 
             tr_t[i] += t0
         n_ev += res[5]
         n_tr = first + res[6] if keep else 0
-        if status != RESTED:
-            return status, n_acc, n_rej, t, y, n_ev, n_tr
-        dt, at_rest = come_to_rest(y, p, effects)
-        t += dt
-        if n_ev > 0:  # the stop, at zero speed
-            ev_t[n_ev - 1] = t
-            copy_into(y, ev_y[n_ev - 1])
-        if n_tr > 0:
-            tr_t[n_tr - 1] = t
-            copy_into(y, tr_y[n_tr - 1])
-            if tr_rate.shape[0] > 0:
-                tr_rate[n_tr - 1, :] = 0.0
-        if at_rest == SLIPPED:
+        stopped = status == RESTED
+        ended, status, t = after_run(effects, status, y, p, t)
+        if stopped:  # the stop's event and last state, at zero speed
             if n_ev > 0:
-                ev_kind[n_ev - 1] = SLIP
-            return SLIPPED, n_acc, n_rej, t, y, n_ev, n_tr
-        if at_rest == RESTED:
-            return RESTED, n_acc, n_rej, t, y, n_ev, n_tr
+                ev_t[n_ev - 1] = t
+                copy_into(y, ev_y[n_ev - 1])
+                if status == SLIPPED:
+                    ev_kind[n_ev - 1] = SLIP
+            if n_tr > 0:
+                tr_t[n_tr - 1] = t
+                copy_into(y, tr_y[n_tr - 1])
+                if tr_rate.shape[0] > 0:
+                    tr_rate[n_tr - 1, :] = 0.0
+        if ended:
+            return status, n_acc, n_rej, t, y, n_ev, n_tr
         t0 = t
         if not keep:
             n_ev = 0
@@ -234,35 +227,14 @@ def run_restarting(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, 
 
 @kernel
 def fate_run(method, effects, p, y0, orbit, rtol, atol, t_horizon, max_steps):
-    """Integrate from y0 at t = 0 to the first terminal event or ``t_horizon`` [s].
-
-    Returns (fate, t [s], final state, steps taken). A stop by rolling resistance either ends
-    the run (the sphere stays at rest, or slips there) or restarts it from rest (module
-    docstring); a sphere that starts at rest where the resistance holds it stays at t = 0.
-    The lanes (:mod:`.lanes_fate`) follow the same steps with :func:`starts_at_rest` and
-    :func:`after_run`.
+    """Integrate from y0 at t = 0 to the first terminal event or ``t_horizon`` [s]:
+    :func:`run_restarting` without recording. Returns (fate, t [s], final state, steps taken).
     """
-    n = y0.shape[0]
-    y = y0.copy()
-    ev_t, ev_kind, ev_y = event_buffers(4, n)
-    t0 = 0.0
-    steps = 0
-    ended, fate = starts_at_rest(effects, y, p)
-    if ended:
-        return fate, 0.0, y, steps
-    for _ in range(MAX_RESTARTS):
-        res = run(method, effects, y, p, orbit, rtol, atol, t_horizon - t0, np.int64(-1),
-                  max_steps - steps, np.int64(RECORD_NONE), 0.0, ev_t, ev_kind, ev_y, ev_t,
-                  ev_y, ev_y)  # fmt: skip
-        steps += res[1] + res[2]
-        copy_into(res[4], y)
-        ended, fate, t = after_run(effects, res[0], y, p, t0 + res[3])
-        if ended:
-            return fate, t, y, steps
-        t0 = t
-        if steps >= max_steps:
-            break
-    return FAILED, t0, y, steps
+    ev_t, ev_kind, ev_y = event_buffers(4, y0.shape[0])
+    res = run_restarting(method, effects, y0, p, orbit, rtol, atol, t_horizon, np.int64(-1),
+                         max_steps, np.int64(RECORD_NONE), 0.0, ev_t, ev_kind, ev_y, ev_t, ev_y,
+                         ev_y)  # fmt: skip
+    return fate_of_status(res[0]), res[3], res[4], res[1] + res[2]
 
 
 @kernel

@@ -17,9 +17,8 @@ is the scalar rest, per lane and only where needed:
 
 Results are those of :func:`.orbit.integrate_points` bit for bit, whichever lane or thread
 computes a point (tests/kernels/test_lanes.py): this is how the RK methods run in a batch, not
-a method of its own. The worker's arrays are borrowed views (:func:`.lanes_step.borrow`): the
-per-orbit helpers bind about a hundred arrays, each an atomic reference count otherwise.
-"""
+a method of its own. The worker's arrays are borrowed views (:func:`lane_workspace`): the
+per-orbit helpers bind about a hundred arrays, each an atomic reference count otherwise."""
 
 from __future__ import annotations
 
@@ -313,6 +312,29 @@ def _lane_flagged(method, effects, l, max_steps, W, I, LEV, LEVK, p, K, K2, ys, 
     return status != OK, status
 
 
+@kernel(inline="always")
+def lane_workspace(method, effects, n_vec, n_int, n_float):
+    """A lanes worker's arrays, borrowed views (:func:`.lanes_step.borrow`) of one owner per
+    dtype: (owners, to keep alive while the views are used; W; LY0, each lane's start state;
+    LEV; p; K; K2; V, n_vec scratch states; brent; ev_t; ev_kind; ev_y; F, n_float floats per
+    lane; I, n_int ints per lane (-1); LEVK)."""
+    ly = lanes_layout(method, effects)
+    n, S = ly.n, ly.S
+    L = LANES
+    sizes = (ly.n_slots * L, n * L, EV_CAP * (n + 1) * L, N_PARAMS, 2 * S * n, n_vec * n, 8, EV_CAP,
+             EV_CAP * n, n_float * L)  # fmt: skip
+    own_f = np.zeros(sum(sizes))
+    own_i = np.full(n_int * L, -1, np.int64)
+    own_k = np.zeros((L + 1) * EV_CAP, np.int8)
+    parts = split_owned(own_f, sizes)
+    K, LE = parts[4], L * EV_CAP
+    return ((own_f, own_i, own_k), parts[0], parts[1].reshape((L, n)),
+            parts[2].reshape((L, EV_CAP * (n + 1))), parts[3], K[: S * n].reshape((S, n)),
+            K[S * n :].reshape((S, n)), parts[5].reshape((n_vec, n)), parts[6], parts[7],
+            borrow(own_k[LE:]), parts[8].reshape((EV_CAP, n)), parts[9].reshape((L, n_float)),
+            borrow(own_i.reshape((L, n_int))), borrow(own_k[:LE].reshape((L, EV_CAP))))  # fmt: skip
+
+
 @kernel
 def lanes_worker(method, effects, alpha, energy, hh, Lz, params, rtol, max_steps, queue, out_f,
                  out_n, out_status):  # fmt: skip
@@ -322,33 +344,13 @@ def lanes_worker(method, effects, alpha, energy, hh, Lz, params, rtol, max_steps
     point ends takes the next from ``queue`` (int64[1]: the next point's index, shared by the
     workers) until every point is taken."""
     ly = lanes_layout(method, effects)
-    n, S = ly.n, ly.S
     L = LANES
-    # One owner per dtype; the worker uses borrowed views of them.
-    sizes = (ly.n_slots * L, n * L, EV_CAP * (n + 1) * L, N_PARAMS, 2 * S * n, 3 * n, 8, EV_CAP,
-             EV_CAP * n)  # fmt: skip
-    own_f = np.zeros(sum(sizes))
-    own_i = np.full(3 * L, -1, np.int64)
-    own_k = np.zeros((L + 1) * EV_CAP, np.int8)
-    parts = split_owned(own_f, sizes)
-    W = parts[0]
-    LY0 = parts[1].reshape((L, n))
-    LEV = parts[2].reshape((L, EV_CAP * (n + 1)))
-    p = parts[3]
-    K = parts[4][: S * n].reshape((S, n))
-    K2 = parts[4][S * n :].reshape((S, n))
-    ys, yn, buf = parts[5][:n], parts[5][n : 2 * n], parts[5][2 * n :]
-    brent, ev_t, ev_y = parts[6], parts[7], parts[8].reshape((EV_CAP, n))
-    I = borrow(own_i.reshape((L, 3)))  # noqa: E741
-    LEVK = borrow(own_k[: L * EV_CAP].reshape((L, EV_CAP)))
-    ev_kind = borrow(own_k[L * EV_CAP :])
+    owners, W, LY0, LEV, p, K, K2, V, brent, ev_t, ev_kind, ev_y, _, I, LEVK = lane_workspace(
+        method, effects, 3, 3, 0)  # fmt: skip
+    ys, yn, buf = V[0], V[1], V[2]
     alpha, energy, hh, Lz = borrow(alpha), borrow(energy), borrow(hh), borrow(Lz)
-    params, out_f, out_n, out_status = (
-        borrow(params),
-        borrow(out_f),
-        borrow(out_n),
-        borrow(out_status),
-    )
+    params, out_f, out_n, out_status = (borrow(params), borrow(out_f), borrow(out_n),
+                                        borrow(out_status))  # fmt: skip
     n_points = alpha.shape[0]
     while True:
         running = 0
@@ -380,7 +382,7 @@ def lanes_worker(method, effects, alpha, energy, hh, Lz, params, rtol, max_steps
                 _lane_finish(method, effects, l, status, W, I, LY0, p, ev_t, ev_kind, ev_y, out_f,
                              out_n, out_status)  # fmt: skip
     # The owners live to here: the borrowed views above hold no reference of their own.
-    own_f[0] = own_i[0] + own_k[0]
+    owners[0][0] = owners[1][0] + owners[2][0]
 
 
 @parallel_kernel

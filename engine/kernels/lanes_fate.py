@@ -23,18 +23,19 @@ from .fate import (
     FAILED,
     MAX_RESTARTS,
     after_run,
+    fate_of_status,
     fate_result,
     fate_start,
     starts_at_rest,
     store_fate,
 )
 from .lanes import (
-    EV_CAP,
     ORBIT,
     lane_advance,
     lane_begin,
     lane_load_step,
     lane_params,
+    lane_workspace,
 )
 from .lanes_step import (
     LANES,
@@ -43,7 +44,6 @@ from .lanes_step import (
     lanes_attempt,
     lanes_control_fate,
     lanes_layout,
-    split_owned,
 )
 from .model import N_PARAMS, set_alpha
 from .protocol import BUFFER_FULL, OK, TERMINAL_EFFECTS, terminal_between
@@ -84,16 +84,16 @@ def _finish(method, effects, l, fate, t, y, steps, W, I, F, LY0, p, out_fate, ou
 def _run_ended(method, effects, l, status, t_run, y, rtol, max_steps, W, I, F, LY0, LEV, LEVK,
                p, K, buf, at, ev_t, ev_kind, ev_y, out_fate, out_f, out_n):  # fmt: skip
     """Lane l's run ended with ``status`` at state y (in place), t_run [s] into the run (p: its
-    parameters): :func:`.fate.fate_run`'s loop. Returns True when the lane runs again (a
+    parameters): :func:`.fate.run_restarting`'s loop. Returns True when the lane runs again (a
     restart from rest), False when its point is written."""
     ly = lanes_layout(method, effects)
     L = LANES
     while True:
         steps = np.int64(W[ly.N_ACC * L + l] + W[ly.N_REJ * L + l])
-        ended, fate, t = after_run(effects, status, y, p, F[l, F_T0] + t_run)
+        ended, status, t = after_run(effects, status, y, p, F[l, F_T0] + t_run)
         if ended:
-            _finish(method, effects, l, fate, t, y, steps, W, I, F, LY0, p, out_fate, out_f,
-                    out_n)  # fmt: skip
+            _finish(method, effects, l, fate_of_status(status), t, y, steps, W, I, F, LY0, p,
+                    out_fate, out_f, out_n)  # fmt: skip
             return False
         F[l, F_T0] = t
         I[l, RESTARTS] += 1
@@ -140,9 +140,25 @@ def _lane_start(method, effects, l, i, alpha, energy, hh, Lz, r_start, params, r
     F[l, F_TV] = t0
     F[l, F_WORK0] = work0
     F[l, F_HORIZON] = t_horizon - t0
-    ended, fate = starts_at_rest(effects, y, p)
+    ended, status = starts_at_rest(effects, y, p)
     if ended:
-        _finish(method, effects, l, fate, 0.0, y, 0, W, I, F, LY0, p, out_fate, out_f, out_n)
+        _finish(
+            method,
+            effects,
+            l,
+            fate_of_status(status),
+            0.0,
+            y,
+            0,
+            W,
+            I,
+            F,
+            LY0,
+            p,
+            out_fate,
+            out_f,
+            out_n,
+        )
         return False
     W[ly.T_END * L + l] = F[l, F_HORIZON] - 0.0
     status = lane_begin(method, effects, l, y, atol, p, rtol, max_steps, W, I, LEV, LEVK, K, buf,
@@ -204,27 +220,10 @@ def lanes_fate_worker(method, effects, alpha, energy, hh, Lz, r_start, params, r
     out_f (rows :data:`.fate.FATE_ROWS`) and out_n (steps); a lane whose point has its fate
     takes the next from ``queue`` (int64[1], shared by the workers)."""
     ly = lanes_layout(method, effects)
-    n, S = ly.n, ly.S
     L = LANES
-    sizes = (ly.n_slots * L, n * L, EV_CAP * (n + 1) * L, N_PARAMS, 2 * S * n, 5 * n, 8, EV_CAP,
-             EV_CAP * n, 4 * L)  # fmt: skip
-    own_f = np.zeros(sum(sizes))
-    own_i = np.full(4 * L, -1, np.int64)
-    own_k = np.zeros((L + 1) * EV_CAP, np.int8)
-    parts = split_owned(own_f, sizes)
-    W = parts[0]
-    LY0 = parts[1].reshape((L, n))
-    LEV = parts[2].reshape((L, EV_CAP * (n + 1)))
-    p = parts[3]
-    K = parts[4][: S * n].reshape((S, n))
-    K2 = parts[4][S * n :].reshape((S, n))
-    ys, yn, y, at, buf = (parts[5][:n], parts[5][n : 2 * n], parts[5][2 * n : 3 * n],
-                          parts[5][3 * n : 4 * n], parts[5][4 * n :])  # fmt: skip
-    brent, ev_t, ev_y = parts[6], parts[7], parts[8].reshape((EV_CAP, n))
-    F = parts[9].reshape((L, 4))
-    I = borrow(own_i.reshape((L, 4)))  # noqa: E741
-    LEVK = borrow(own_k[: L * EV_CAP].reshape((L, EV_CAP)))
-    ev_kind = borrow(own_k[L * EV_CAP :])
+    owners, W, LY0, LEV, p, K, K2, V, brent, ev_t, ev_kind, ev_y, F, I, LEVK = lane_workspace(
+        method, effects, 5, 4, 4)  # fmt: skip
+    ys, yn, y, at, buf = V[0], V[1], V[2], V[3], V[4]
     alpha, energy, hh, Lz, r_start = (borrow(alpha), borrow(energy), borrow(hh), borrow(Lz),
                                       borrow(r_start))  # fmt: skip
     params, out_fate, out_f, out_n = borrow(params), borrow(out_fate), borrow(out_f), borrow(out_n)
@@ -255,7 +254,7 @@ def lanes_fate_worker(method, effects, alpha, energy, hh, Lz, r_start, params, r
                            LEVK, p, K, buf, at, ev_t, ev_kind, ev_y, out_fate, out_f,
                            out_n)  # fmt: skip
     # The owners live to here: the borrowed views above hold no reference of their own.
-    own_f[0] = own_i[0] + own_k[0]
+    owners[0][0] = owners[1][0] + owners[2][0]
 
 
 @parallel_kernel

@@ -5,8 +5,9 @@ All lane state lives in one flat work array ``W``: slot s of lane l at ``W[s * L
 (:func:`layout`). The generated loops over the lanes address it with constant offsets from one
 base, so the compiler proves the lanes independent and turns each line into one vector
 instruction (AVX2: 4 doubles). A call into a library (a ``pow``) or a branch that cannot be
-turned into a select would make a loop scalar again (tests/kernels/test_lanes.py checks the
-step's divisions are vector instructions).
+turned into a select would make a loop scalar again: the choices are selects and the
+controller's powers arithmetic (:mod:`.branchless`; tests/kernels/test_lanes.py checks the
+step's divisions are vector instructions and the control has no branch and no pow).
 
 - :func:`lanes_attempt` one step of every lane: the same generator as the scalar step
   (:func:`.rk_codegen.unrolled_step_lines`), so the same arithmetic to the last bit; then the
@@ -29,6 +30,7 @@ from numba.core import cgutils, types
 from numba.extending import intrinsic, overload
 
 from .._jit import kernel
+from .branchless import keep, pick
 from .model import N_PARAMS, rates5, rates6, rates9, rates10, state_size_of
 from .protocol import OK, TERMINAL_EFFECTS, terminal_between
 from .rk import clip_step, step_allowed, step_decide, step_error
@@ -119,8 +121,7 @@ def attempt_source(method: int, n: int) -> str:
     lines += [f"        pt = ({pt})", f"        h = {_w(ly.H)}"]
     lines += unrolled_step_lines(method, n, load, store, "        ")
     lines.append(f"        {_w(ly.ERR)} = err")
-    # The controller's root in a loop of its own: where the tableau needs a pow (a library call)
-    # it keeps this loop scalar, not the step's.
+    # The controller's root in a loop of its own (arithmetic: .branchless.power).
     ctl = repr(RK_TABLEAUX[method].controller())
     lines += [f"    for l in range({LANES}):"]
     lines += [f"        e = step_error({_w(ly.ERR)}, {_w(ly.YN)}, {ctl})"]
@@ -135,9 +136,10 @@ def control_source(method: int, n: int, terminal: bool, fate: bool = False) -> s
     (:func:`.protocol.terminal_between` y and y_new) keeps its state and gets FLAG 1; an
     accepted step without one moves the lane to y_new; a lane that may not take another
     attempt (:func:`.rk.step_allowed`) gets FLAG 2; a lane that took a polishing step keeps
-    everything and gets FLAG 3. A ``fate`` run (:mod:`.lanes_fate`) looks for no apsides and
-    clips the next attempt to T_END as rk_run clips to t_end (setting LAST; an accepted LAST
-    step gets FLAG 1)."""
+    everything and gets FLAG 3. Every choice is a select (:func:`.branchless.pick`,
+    :func:`.branchless.keep`): one vector loop. A ``fate`` run (:mod:`.lanes_fate`) looks for
+    no apsides and clips the next attempt to T_END as rk_run clips to t_end (setting LAST; an
+    accepted LAST step gets FLAG 1)."""
     ly = layout(method, n)
     ctl = repr(RK_TABLEAUX[method].controller())
     w = _w
@@ -158,32 +160,32 @@ def control_source(method: int, n: int, terminal: bool, fate: bool = False) -> s
         f"        term = {term}",
         f"        last = {f'{w(ly.LAST)} != 0.0' if fate else 'False'}",
         "        simple = act & acc & (not aps) & (not term) & (not last)",
-        f"        n_acc = {w(ly.N_ACC)} + (1.0 if act & acc else 0.0)",
-        f"        n_rej = {w(ly.N_REJ)} + (1.0 if act & (not acc) else 0.0)",
-        "        t2 = t + h if simple else t",
-        "        h2 = h_next if simple else (h_new if act else h)",
+        f"        n_acc = {w(ly.N_ACC)} + pick(act & acc, 1.0, 0.0)",
+        f"        n_rej = {w(ly.N_REJ)} + pick(act & (not acc), 1.0, 0.0)",
+        "        t2 = pick(simple, t + h, t)",
+        "        h2 = pick(simple, h_next, pick(act, h_new, h))",
         "        ok = step_allowed(n_acc + n_rej, max_steps, h2, t2) == OK",
     ]
     for j in range(n):
-        lines.append(f"        {w(ly.Y, j)} = {w(ly.YN, j)} if simple else {w(ly.Y, j)}")
-        lines.append(f"        {w(ly.K, j)} = {w(ly.K + ly.ns * n, j)} if simple else {w(ly.K, j)}")
+        lines.append(f"        {w(ly.Y, j)} = keep(simple, {w(ly.YN, j)}, {w(ly.Y, j)})")
+        lines.append(f"        {w(ly.K, j)} = keep(simple, {w(ly.K + ly.ns * n, j)}, {w(ly.K, j)})")
     if fate:  # the next attempt clipped to T_END, as rk_run clips it to t_end
         lines += [
             "        nxt = act & ok & (simple | (not acc))",
             f"        h_clip, clip = clip_step(t2, h2, {w(ly.T_END)})",
-            "        h2 = h_clip if nxt else h2",
-            f"        {w(ly.LAST)} = (1.0 if clip else 0.0) if nxt else {w(ly.LAST)}",
+            "        h2 = pick(nxt, h_clip, h2)",
+            f"        {w(ly.LAST)} = keep(nxt, pick(clip, 1.0, 0.0), {w(ly.LAST)})",
         ]
     lines += [
         f"        {w(ly.T)} = t2",
         f"        {w(ly.H)} = h2",
-        f"        {w(ly.H_NEXT)} = h_next if act else {w(ly.H_NEXT)}",
-        f"        {w(ly.ERR_OLD)} = eold2 if act else eold",
-        f"        {w(ly.REJECTED)} = (1.0 if rej2 else 0.0) if act else {w(ly.REJECTED)}",
+        f"        {w(ly.H_NEXT)} = keep(act, h_next, {w(ly.H_NEXT)})",
+        f"        {w(ly.ERR_OLD)} = keep(act, eold2, eold)",
+        f"        {w(ly.REJECTED)} = keep(act, pick(rej2, 1.0, 0.0), {w(ly.REJECTED)})",
         f"        {w(ly.N_ACC)} = n_acc",
         f"        {w(ly.N_REJ)} = n_rej",
-        f"        {w(ly.FLAG)} = 3.0 if pol else (1.0 if act & acc & (not simple) else "
-        "(2.0 if act & (not ok) else 0.0))",
+        f"        {w(ly.FLAG)} = pick(pol, 3.0, pick(act & acc & (not simple), 1.0, "
+        "pick(act & (not ok), 2.0, 0.0)))",
     ]
     return "\n".join(lines) + "\n"
 
@@ -201,6 +203,8 @@ _NAMESPACE = {
     "apsis_crossed": apsis_crossed,
     "terminal_between": terminal_between,
     "OK": OK,
+    "pick": pick,
+    "keep": keep,
 }
 
 

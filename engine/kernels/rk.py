@@ -31,6 +31,7 @@ import numpy as np
 from numba import literally
 
 from .._jit import kernel
+from .branchless import pick, power
 from .model import ATTITUDE, param_tuple, rhs, state_size
 from .protocol import (
     BUFFER_FULL,
@@ -57,79 +58,78 @@ MIN_FACTOR = 0.2
 ERR_FLOOR = 1e-4
 
 
-@kernel
-def _root(x, k):
-    """x ** -k for x > 0; three square roots for k = 1/8 (DOP853: a library pow costs as much
-    as a fifth of a vectorised step)."""
-    if k == 0.125:
+@kernel(inline="always")
+def _root(x, k1, k_rej):
+    """x ** -k1 for x <= 1, else x ** -k_rej (x >= 0): three square roots for k1 = k_rej = 1/8
+    (DOP853), else :func:`.branchless.power` (arithmetic only: a library pow would keep the
+    lanes' loops scalar)."""
+    if k1 == 0.125 and k_rej == 0.125:
         return 1.0 / math.sqrt(math.sqrt(math.sqrt(x)))
-    return x ** (-k)
+    return power(x, -pick(x <= 1.0, k1, k_rej))
 
 
-@kernel
+@kernel(inline="always")
 def _shrink(err, root):
     """Step factor after a rejected step with error err (> 1, or not finite); root =
     err ** -k_rej."""
-    if math.isnan(err) or math.isinf(err):
-        return MIN_FACTOR
-    return max(MIN_FACTOR, SAFETY * root)
+    return pick(math.isfinite(err), max(MIN_FACTOR, SAFETY * root), MIN_FACTOR)
 
 
-@kernel
+@kernel(inline="always")
 def _grow(err, root, err_old, beta, rejected, fmax):
     """PI controller: factor of the next step after an accepted one with error err, root =
     err ** -k1 (at most fmax; never growing right after a rejection)."""
-    if err == 0.0:
-        fac = fmax
-    else:
-        fac = min(fmax, max(MIN_FACTOR, SAFETY * root * err_old**beta))
-    if rejected:
-        fac = min(fac, 1.0)
-    return fac
+    weight = 1.0 if beta == 0.0 else power(err_old, beta)
+    fac = min(fmax, max(MIN_FACTOR, SAFETY * root * weight))
+    fac = pick(err == 0.0, fmax, fac)
+    return pick(rejected, min(fac, 1.0), fac)
 
 
-@kernel
+@kernel(inline="always")
 def step_error(err, r_new, ctl):
     """(error the controller sees, its root: e ** -k1 if the step is accepted (e <= 1), else
     e ** -k_rej) after an attempt with scaled error err and new radius r_new; a step that
     leaves r > 0 has an infinite error. Pure arithmetic, so the lanes compute it for all lanes
     at once (:mod:`.lanes`)."""
     k1, k_rej, beta, fmax = ctl
-    e = err if r_new > 0.0 else math.inf
-    return e, _root(e, k1 if e <= 1.0 else k_rej)
+    e = pick(r_new > 0.0, err, math.inf)
+    return e, _root(e, k1, k_rej)
 
 
-@kernel
+@kernel(inline="always")
 def step_decide(e, h, err_old, rejected, ctl):
     """The step-size decision after an attempt of size h [s] (``e``: :func:`step_error`,
     ``ctl``: :func:`.rk_codegen.controller`): (accepted, h [s] to retry with or taken, h_next [s],
-    err_old, rejected)."""
+    err_old, rejected). Both outcomes are computed and one is selected: no branch, so the lanes'
+    control is one vector loop."""
     k1, k_rej, beta, fmax = ctl
     err, root = e
-    if not err <= 1.0:
-        return False, h * _shrink(err, root), h, err_old, True
+    acc = err <= 1.0
+    h_retry = h * _shrink(err, root)
     h_next = h * _grow(err, root, err_old, beta, rejected, fmax)
-    return True, h, h_next, max(err, ERR_FLOOR), False
+    return (
+        acc,
+        h if acc else h_retry,
+        h_next if acc else h,
+        max(err, ERR_FLOOR) if acc else err_old,
+        not acc,
+    )
 
 
-@kernel
+@kernel(inline="always")
 def step_allowed(n_steps, max_steps, h, t):
     """OK if another attempt of size h [s] at t [s] may be taken after n_steps attempts, else
-    MAX_STEPS or STEP_TOO_SMALL."""
-    if n_steps >= max_steps:
-        return MAX_STEPS
-    if not h >= 16.0 * EPS * abs(t) or not h > 0.0:
-        return STEP_TOO_SMALL
-    return OK
+    MAX_STEPS or STEP_TOO_SMALL (no branch: the lanes' control)."""
+    too_small = (not h >= 16.0 * EPS * abs(t)) | (not h > 0.0)
+    return pick(n_steps >= max_steps, MAX_STEPS, pick(too_small, STEP_TOO_SMALL, OK))
 
 
-@kernel
+@kernel(inline="always")
 def clip_step(t, h, t_end):
     """(h, last): the attempt of size h [s] from t [s], cut to end at t_end [s] where it would
     reach it (then the run's last step). One rule for :func:`rk_run` and the lanes."""
-    if t + h >= t_end:
-        return t_end - t, True
-    return h, False
+    last = t + h >= t_end
+    return pick(last, t_end - t, h), last
 
 
 @kernel
