@@ -278,6 +278,9 @@ def main() -> None:
         "symplectic, gravity only": (base, "symplectic"),
     }
 
+    if args.tiny:  # a smoke run: the comparisons on two configurations (each compiles its own)
+        scenes = {k: scenes[k] for k in ("gravity only", "+ rolling resistance")}
+
     def run_generic(scene, method):
         out_f = np.empty((5, n))
         out_n = np.empty(n, np.int64)
