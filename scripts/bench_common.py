@@ -21,6 +21,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numba
+import numpy as np
 
 
 def best(fn: Callable[[], object], repeats: int) -> float:
@@ -143,3 +144,16 @@ def serial_share(fn: Callable[[], object], module, name: str, rounds: int = 5) -
     finally:
         numba.set_num_threads(before)
     return best
+
+
+@numba.njit(parallel=True, nogil=True, cache=True)
+def spin(n_items: int, n_inner: int) -> float:
+    """A compute-only prange loop (no memory traffic): timed at 1 and 2 threads beside a
+    benchmark, its speedup is the machine's available parallelism in the same rounds."""
+    acc = np.zeros(n_items)
+    for i in numba.prange(n_items):
+        x = 0.0
+        for j in range(n_inner):
+            x += math.sin(x + j)
+        acc[i] = x
+    return acc.sum()

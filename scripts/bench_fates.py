@@ -22,7 +22,7 @@ import time
 
 import numba
 import numpy as np
-from bench_common import MACHINE, load, serial_share
+from bench_common import MACHINE, load, serial_share, spin
 
 import engine
 from engine.integrated import fate_points
@@ -61,18 +61,6 @@ class FateMap:
     def __call__(self) -> None:
         fate_points(*self.pts, self.params, METHODS[METHOD].kernel_id, SCENE.effects_mask, RTOL,
                     T_MAX, 10_000_000, *self.out, lanes=self.lanes)  # fmt: skip
-
-
-@numba.njit(parallel=True, nogil=True)
-def _spin(n_items, n_inner):
-    """A compute-only prange loop (no memory traffic): the machine's available parallelism."""
-    acc = np.zeros(n_items)
-    for i in numba.prange(n_items):
-        x = 0.0
-        for j in range(n_inner):
-            x += math.sin(x + j)
-        acc[i] = x
-    return acc.sum()
 
 
 class Timed:
@@ -171,8 +159,8 @@ def main(argv: list[str] | None = None) -> int:
     }
     before = load()
     timers = {k: Timed(fn, threads, args.min_time) for k, (fn, threads) in maps.items()}
-    timers["control 1"] = Timed(lambda: _spin(64, 20_000), 1, args.min_time)
-    timers["control 2"] = Timed(lambda: _spin(64, 20_000), 2, args.min_time)
+    timers["control 1"] = Timed(lambda: spin(64, 20_000), 1, args.min_time)
+    timers["control 2"] = Timed(lambda: spin(64, 20_000), 2, args.min_time)
     for _ in range(args.rounds):
         for t in timers.values():
             t.round()

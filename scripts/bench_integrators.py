@@ -44,7 +44,6 @@ from pathlib import Path
 
 import numba
 import numpy as np
-from numba import prange
 
 import engine
 from engine._jit import call_specialized
@@ -55,7 +54,7 @@ from engine.methods import METHODS
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import integrator_peers as peers  # noqa: E402
-from bench_common import MACHINE, fresh_interpreter, load, serial_share  # noqa: E402
+from bench_common import MACHINE, fresh_interpreter, load, serial_share, spin  # noqa: E402
 from readme_block import update_readme  # noqa: E402
 
 #: Where ``--doc`` writes the table (between ``<!-- bench_integrators: start/end -->``).
@@ -109,18 +108,6 @@ class EngineAPI:
             ds = engine.evaluate(*self.args, self.scene, method=self.method, rtol=self.rtol)
             return ds.apsidal_angle.values
         return evaluate_integrated(*self.args, self.scene, self.method, self.rtol)["apsidal_angle"]
-
-
-@numba.njit(parallel=True, nogil=True)
-def _spin(n_items, n_inner):
-    """A compute-only prange loop (no memory traffic): the machine's available parallelism."""
-    acc = np.zeros(n_items)
-    for i in prange(n_items):
-        x = 0.0
-        for j in range(n_inner):
-            x += math.sin(x + j)
-        acc[i] = x
-    return acc.sum()
 
 
 # ------------------------------------------------------------------------------- measuring
@@ -236,8 +223,8 @@ def two_threads(n: int, r853: float, rounds: int, min_time: float) -> dict[str, 
         "engine 2": Timed(EngineKernel(o, "dop853", r853, 2), min_time, 2),
         "api 1": Timed(EngineAPI(o, "dop853", r853), min_time, 1),
         "api 2": Timed(EngineAPI(o, "dop853", r853), min_time, 2),
-        "control 1": Timed(lambda: _spin(64, 20_000), min_time, 1),
-        "control 2": Timed(lambda: _spin(64, 20_000), min_time, 2),
+        "control 1": Timed(lambda: spin(64, 20_000), min_time, 1),
+        "control 2": Timed(lambda: spin(64, 20_000), min_time, 2),
     }
     for _ in range(rounds):
         for t in timers.values():

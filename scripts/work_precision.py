@@ -55,6 +55,7 @@ from pathlib import Path
 import numba
 import numpy as np
 import xarray as xr
+from bench_common import spin
 
 import engine
 from engine.evaluation import evaluate_flat
@@ -251,25 +252,13 @@ def time_per_orbit(orbits, groups, method, rtol, threads, repeats, target) -> di
     return {nt: t / (n * tile) for nt, t in best.items()}
 
 
-@numba.njit(parallel=True, cache=True)
-def _spin(n_items, n_inner):
-    """A compute-only prange loop: the machine's available parallelism."""
-    acc = np.zeros(n_items)
-    for i in numba.prange(n_items):
-        x = 0.0
-        for j in range(n_inner):
-            x += math.sin(x + j)
-        acc[i] = x
-    return acc.sum()
-
-
 def reference_speedup(threads: list[int]) -> float:
-    """Speedup of :func:`_spin` on the most threads (about 2 on two free cores)."""
+    """Speedup of :func:`bench_common.spin` on the most threads (about 2 on two free cores)."""
     t = {}
     for nt in threads:
         numba.set_num_threads(nt)
-        _spin(64, 20_000)
-        t[nt] = best_time(lambda: _spin(64, 20_000), 3)
+        spin(64, 20_000)
+        t[nt] = best_time(lambda: spin(64, 20_000), 3)
     numba.set_num_threads(threads[-1])
     return t[threads[0]] / t[threads[-1]]
 
