@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from .errortext import suggest
+from .errortext import PlanError, real_value, suggest
 from .grid import MAX_BLOCKS, Tiling, grid_too_large
 from .horizon import Horizon
 from .io.codecs import check_compression
@@ -51,40 +51,6 @@ __all__ = [
 #: ``precision``: how the float result variables are stored (the axes stay float64; the
 #: integer ones, class, status and fate, are exact either way).
 PRECISIONS = ("double", "single")
-_NO_VALUE = object()
-
-
-class PlanError(ValueError):
-    """An input no run can take. ``field``: the input's name (an API keyword: ``rtol``,
-    ``horizon_time``, ``block_points``, an axis name ...); ``problem``: what is wrong, without
-    the field and the value (a survey file shows it under its own key path); ``value``: the
-    value refused (absent where the problem is not one value's)."""
-
-    def __init__(
-        self, field: str, problem: str, value: Any = _NO_VALUE, *, whole: bool = False
-    ) -> None:
-        self.field = field
-        self.problem = problem
-        self.value = value
-        got = "" if value is _NO_VALUE else f"; got {value!r}"
-        # ``whole``: the problem names the field itself ("method 'exact' cannot honour ...")
-        super().__init__(problem if whole else f"{field} {problem}{got}")
-
-    @property
-    def has_value(self) -> bool:
-        return self.value is not _NO_VALUE
-
-
-def _real(name: str, value: Any) -> float:
-    """``value`` as a float if it is a real number (not a boolean, not text)."""
-    if isinstance(value, bool | np.bool_) or not isinstance(value, Real):
-        raise PlanError(name, "must be a number", value)
-    try:
-        return float(value)
-    except OverflowError:  # an integer beyond the doubles: out of every range
-        return math.inf if value > 0 else -math.inf
-
-
 # --- one validating function per input ------------------------------------------------------
 
 
@@ -114,7 +80,7 @@ def check_method(name: Any, scene: Scene) -> Method:
 
 def check_rtol(rtol: Any, method: Method) -> float:
     """A relative tolerance in (0, 1); for an integrator, in its range :data:`RTOL_RANGE`."""
-    r = _real("rtol", rtol)
+    r = real_value("rtol", rtol)
     if not 0.0 < r < 1.0:
         raise PlanError("rtol", "must lie in the open interval (0, 1)", rtol)
     lo, hi = RTOL_RANGE
@@ -126,7 +92,7 @@ def check_rtol(rtol: Any, method: Method) -> float:
 
 def check_circular_tol(circular_tol: Any) -> float:
     """The relative width of the circular class: finite and >= 0."""
-    t = _real("circular_tol", circular_tol)
+    t = real_value("circular_tol", circular_tol)
     if not (t >= 0.0 and math.isfinite(t)):
         raise PlanError("circular_tol", "must be finite and >= 0", circular_tol)
     return t
@@ -142,29 +108,20 @@ def check_horizon(
     """The horizon of a map of ``kind`` (:func:`engine.schema.map_kind`): required for a fate
     map; None for other maps (refused if given). ``hint``: how the entry point asks for one,
     in the names of its own keys (the API's keywords; a survey file's ``[horizon]`` table)."""
-    values = {}
-    for name, v in (("horizon_time", time), ("horizon_revolutions", revolutions)):
-        if v is not None:
-            values[name] = _real(name, v)
-            if not values[name] > 0.0:
-                raise PlanError(name, "must be > 0", v)
-            if not math.isfinite(values[name]):
-                raise PlanError(name, "must be finite (leave it out for no limit)", v)
-    if kind in FATE_KINDS and not values:
+    given = Horizon(time, revolutions)  # each value's rule: Horizon's own
+    if kind in FATE_KINDS and not given.given:
         raise PlanError(
             "horizon",
             "is required: a fate map follows each orbit to its first terminal event (spill, "
             f"slip, rest, vertex) or a horizon: {hint}",
         )
-    if kind not in FATE_KINDS and values:
+    if kind not in FATE_KINDS and given.given:
         raise PlanError(
             "horizon",
             "applies to fate maps only (an integrator on a scene with rolling resistance, a "
             f"rim or a friction limit); this is a {kind} map",
         )
-    if not values:
-        return None
-    return Horizon(values.get("horizon_time"), values.get("horizon_revolutions"))
+    return given if given.given else None
 
 
 def check_energy_relative(value: Any) -> bool:

@@ -3,7 +3,10 @@ TOML, type names, key paths and did-you-mean suggestions (used by :mod:`engine.s
 
 :class:`TomlChecker` holds the generic checks (a table, known keys, a number that is not a
 boolean or a string, a string, a choice); a reader subclasses it and says, in :meth:`fail`,
-which exception a problem becomes."""
+which exception a problem becomes.
+
+:class:`PlanError` is the error every input check raises (the API shows it as is, a survey
+file under its own key path); :func:`real_value` is the one rule of what counts as a number."""
 
 from __future__ import annotations
 
@@ -11,9 +14,56 @@ import datetime
 import difflib
 import math
 import sys
+from numbers import Real
 from typing import Any
 
-__all__ = ["TomlChecker", "install_hint", "toml_repr", "toml_type", "suggest", "join_key"]
+import numpy as np
+
+__all__ = [
+    "PlanError",
+    "TomlChecker",
+    "install_hint",
+    "join_key",
+    "real_value",
+    "suggest",
+    "toml_repr",
+    "toml_type",
+]
+
+
+_NO_VALUE = object()
+
+
+class PlanError(ValueError):
+    """An input no run can take. ``field``: the input's name (an API keyword: ``rtol``,
+    ``horizon_time``, ``block_points``, an axis name ...); ``problem``: what is wrong, without
+    the field and the value (a survey file shows it under its own key path); ``value``: the
+    value refused (absent where the problem is not one value's)."""
+
+    def __init__(
+        self, field: str, problem: str, value: Any = _NO_VALUE, *, whole: bool = False
+    ) -> None:
+        self.field = field
+        self.problem = problem
+        self.value = value
+        got = "" if value is _NO_VALUE else f"; got {value!r}"
+        # ``whole``: the problem names the field itself ("method 'exact' cannot honour ...")
+        super().__init__(problem if whole else f"{field} {problem}{got}")
+
+    @property
+    def has_value(self) -> bool:
+        return self.value is not _NO_VALUE
+
+
+def real_value(name: str, value: Any) -> float:
+    """``value`` as a float if it is a real number (not a boolean, not text); otherwise a
+    :class:`PlanError` naming ``name``."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, Real):
+        raise PlanError(name, "must be a number", value)
+    try:
+        return float(value)
+    except OverflowError:  # an integer beyond the doubles: out of every range
+        return math.inf if value > 0 else -math.inf
 
 
 def install_hint(extra: str) -> str:

@@ -8,19 +8,20 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
+from .errortext import PlanError, real_value
 
-__all__ = ["Horizon"]
+__all__ = ["Horizon", "horizon_value"]
 
 
-def _horizon_value(name: str, value: float | None) -> float:
+def horizon_value(name: str, value: object) -> float | None:
+    """The one rule for a horizon value: None (no limit of that kind) or a finite number > 0."""
     if value is None:
-        return math.inf
-    if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
-        raise ValueError(f"{name} must be a number; got {value!r}")
-    v = float(value)
+        return None
+    v = real_value(name, value)
     if not v > 0.0:
-        raise ValueError(f"{name} must be > 0; got {value!r}")
+        raise PlanError(name, "must be > 0", value)
+    if not math.isfinite(v):
+        raise PlanError(name, "must be finite (leave it out for no limit)", value)
     return v
 
 
@@ -33,16 +34,17 @@ class Horizon:
     revolutions: float | None = None
 
     def __post_init__(self) -> None:
-        _horizon_value("horizon_time", self.time)
-        _horizon_value("horizon_revolutions", self.revolutions)
+        object.__setattr__(self, "time", horizon_value("horizon_time", self.time))
+        revolutions = horizon_value("horizon_revolutions", self.revolutions)
+        object.__setattr__(self, "revolutions", revolutions)
 
     @property
     def t_max(self) -> float:
-        return _horizon_value("horizon_time", self.time)
+        return math.inf if self.time is None else self.time
 
     @property
     def theta_max(self) -> float:
-        return 2.0 * math.pi * _horizon_value("horizon_revolutions", self.revolutions)
+        return math.inf if self.revolutions is None else 2.0 * math.pi * self.revolutions
 
     @property
     def given(self) -> bool:

@@ -14,6 +14,7 @@ import runs
 
 import engine
 import engine.api
+import engine.checks
 import engine.fates
 import engine.runner
 import engine.story
@@ -413,3 +414,23 @@ def test_a_survey_file_checks_each_value_once(tmp_path):
     calls = _check_calls(lambda: (plan_from_survey(made), made.variables(), made.plan))
     assert (calls["check_rtol"], calls["check_axes"]) == (1, 1), calls
     assert made.plan.rtol == 1e-8
+
+
+@pytest.mark.parametrize("bad", [-1.0, 0.0, float("inf"), float("nan"), "3", True])
+def test_a_horizon_value_is_refused_in_the_same_words_everywhere(bad):
+    """One rule for a horizon value (a finite number > 0): a Horizon made by hand, the plan's
+    check and the launch fates (engine.story) refuse the same value with the same message.
+    An infinite horizon used to pass Horizon (and the launch fates) but not the plan."""
+    messages = set()
+    for refuse in (
+        lambda: Horizon(time=bad),
+        lambda: engine.checks.check_horizon("fate", bad, None),
+        lambda: engine.story.launch_fates(
+            0.8, 1.0, 1.0, 0.0, scene=engine.Scene(mu=0.3, mu_k=0.2), horizon_time=bad
+        ),
+    ):
+        with pytest.raises(PlanError) as err:
+            refuse()
+        messages.add(str(err.value))
+    assert len(messages) == 1, messages
+    assert messages.pop().startswith("horizon_time must be")
