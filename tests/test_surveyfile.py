@@ -212,6 +212,18 @@ def test_gravity_survey_has_log_relative_energies():
     assert s.alpha.size >= 2 and s.h.size >= 2 and s.Lz.size >= 2
 
 
+def test_the_slide_and_roll_survey_is_a_launch_map_of_throw_speed_against_slip():
+    """The shipped hybrid survey (README figure): its scene makes a slip a transition (mu_k),
+    with spin friction; the launch axes u0 and slip_u span a throw without spin (slip_u = u0)
+    with backspin above it and topspin below it."""
+    s = load_survey(SURVEYS / "slide_and_roll.toml")
+    assert s.launch and s.dims == ("alpha", "r0", "v0", "w0", "u0", "slip_u", "slip_v")
+    assert (s.scene.mu, s.scene.mu_k, s.scene.c_spin) == (0.4, 0.3, 0.005)
+    assert s.method == "dop853" and s.horizon.time == 5.0
+    assert s.shape == (1, 1, 1, 1, 60, 70, 1) and s.size == 4200
+    assert s.slip_u.min() < s.u0.min() and s.slip_u.max() > s.u0.max()
+
+
 # --- errors -----------------------------------------------------------------------------------
 
 PI_2 = math.pi / 2
