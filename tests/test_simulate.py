@@ -200,11 +200,16 @@ def test_bad_inputs_name_the_argument(kw, match):
         _call(**kw)
 
 
-def test_symplectic_refuses_attitude_and_rolling_resistance():
+def test_symplectic_refuses_attitude_rolling_resistance_and_sliding():
     with pytest.raises(ValueError, match="symplectic.*attitude"):
         _call(scene=engine.Scene(attitude=True), method="symplectic")
     with pytest.raises(ValueError, match="symplectic.*rolling_resistance"):
         _call(scene=engine.Scene(c_rr=0.01), method="symplectic")
+    # the sliding model (mu_k, c_spin): refused with the reason, naming the methods that can
+    sliding = engine.Scene(mu=0.5, mu_k=0.4, c_spin=0.01)
+    reason = dict(engine.methods.get_method("symplectic").lacks)["sliding contact"]
+    with pytest.raises(ValueError, match=rf"symplectic.*sliding.*{reason}.*can: rk45, dop853$"):
+        _call(scene=sliding, method="symplectic")
 
 
 def test_escaping_free_fall_orbit_runs_with_t_end_only():

@@ -53,3 +53,17 @@ def test_thrown_ball_slides_rolls_and_comes_to_rest_on_a_flat_cone(w0):
     assert out["lost_rolling_resistance"] == pytest.approx(u0**2 / 2 - lost_slide, rel=1e-4)
     assert out["lost_spin_friction"] == pytest.approx(K * w0**2 / 2, rel=1e-6, abs=1e-15)
     assert out["energy_lost"] == pytest.approx((u0**2 + K * w0**2) / 2, rel=1e-4)
+
+
+def test_still_sliding_at_the_horizon():
+    """The same throw stopped at 0.2 s, before the slip is gone (t1 = 0.45 s): fate sliding,
+    the centre's speed then u0 - mu_k g t, all of the time sliding, and no last rolling orbit
+    (final_energy, final_h, final_Lz NaN)."""
+    sc = Scene(k=K, M=1.0, mu=0.3, mu_k=MU_K, c_spin=C_SPIN, c_rr=C_RR, rim=5000.0)
+    u0, t = 2.0, 0.2
+    out = story(ALPHA, 1000.0, 0.0, 0.0, u0=u0, slip_u=u0, scene=sc, rtol=1e-10,
+                horizon_time=t)  # fmt: skip
+    assert out["fate"] == "sliding" and out["fate_time"] == t and out["slide_time"] == t
+    assert [e["kind"] for e in out["events"]] == [] and out["slip_episodes"] == 1
+    assert out["fate_speed"] == pytest.approx(u0 - MU_K * G * t, rel=1e-4)
+    assert all(math.isnan(out[n]) for n in ("final_energy", "final_h", "final_Lz"))
