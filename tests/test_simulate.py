@@ -310,6 +310,40 @@ def test_hybrid_trajectory_follows_the_story(name):
         assert float(ds.E_drift[-1]) < -1e-6 * E0
 
 
+def test_hybrid_trajectory_samples_match_the_rigid_body_model():
+    """The samples themselves, not only the story's events, against the independent model of
+    tests/hybrid_oracle.py (scipy DOP853 at rtol 1e-12), run from simulate's start to each
+    sample time: the backspin throw sliding (0.03 s; 0.05 s, 12 us before the roll, where the
+    steps meet the slip's kink at s = 0) and rolling again (0.1 s, 0.2 s). Place, speed and
+    slip speed to 1e-7 of their scale, as the story's events in tests/test_hybrid_oracle.py."""
+    from hybrid_oracle import Oracle, polar, start_state
+
+    from engine.launch import invariants
+
+    alpha, kw, r, v, w, u0, su, sv = HYBRID_CASES["backspin"]
+    sc = engine.Scene(M=1.0, a=0.01, k=0.4, rim=1.0, **kw)
+    inv = invariants(alpha, r, 0.0, v, w, sc)
+    ds = simulate(alpha, float(inv["energy"]), float(inv["h"]), float(inv["Lz"]), sc,
+                  t_end=0.2, method="dop853", rtol=1e-11, u0=u0, slip_u=su, slip_v=sv,
+                  dt_out=0.01)  # fmt: skip
+    oracle = Oracle(alpha, 1.0, sc.g, sc.a, sc.k, sc.mu, sc.mu_k,
+                    rim_centre=1.0 - sc.a / math.tan(alpha))  # fmt: skip
+    y0 = start_state(alpha, float(ds.r[0]), u0, float(ds.v[0]), float(ds.w[0]), su, sv, sc.a)
+    speed = max(abs(u0), abs(float(ds.v[0])), abs(float(ds.w[0])), abs(su), abs(sv))
+    for t in (0.03, 0.05, 0.1, 0.2):
+        i = int(np.argmin(np.abs(ds.time.values - t)))
+        assert ds.time.values[i] == pytest.approx(t, abs=1e-12)
+        _, y, mode = oracle.run(y0, "sliding", t, speed)
+        assert ds.mode.values[i] == (1 if mode == "sliding" else 0), t
+        r_o, th_o = polar(y, alpha)
+        assert float(ds.r[i]) == pytest.approx(r_o, rel=1e-7), t
+        assert abs((float(ds.theta[i]) - th_o + math.pi) % (2 * math.pi) - math.pi) < 1e-7, t
+        assert math.hypot(ds.u[i], ds.v[i]) == pytest.approx(np.linalg.norm(y[3:6]),
+                                                            abs=1e-7 * speed), t  # fmt: skip
+        slip = np.linalg.norm(oracle.slip(y[0:3], y[3:6], y[6:9]))
+        assert float(ds.slip_speed[i]) == pytest.approx(slip, abs=1e-7 * speed), t
+
+
 def test_hybrid_trajectory_samples_on_dt_out_agree_with_a_tighter_run():
     alpha, kw, r, v, w, u0, su, sv = HYBRID_CASES["spin stick"]
     sc = engine.Scene(M=1.0, a=0.01, k=0.4, rim=1.0, **kw)
