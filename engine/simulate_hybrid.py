@@ -18,7 +18,7 @@ from ._jit import call_specialized
 from ._version import __version__
 from .hybrid import HYBRID_STATE, hybrid_setup
 from .kernels.hybrid import HYBRID_FATE_NAMES, hybrid_story
-from .kernels.hybrid_step import ARMED_ROLL, ARMED_SPIN, HYBRID_EVENT_NAMES
+from .kernels.hybrid_step import ARMED_KEPT, HYBRID_EVENT_NAMES
 from .kernels.model import N_PARAMS, P_K, P_M, set_alpha
 from .kernels.protocol import (
     AT_VERTEX,
@@ -51,9 +51,6 @@ MODE_NAMES = ("rolling", "sliding")
 HYBRID_EVENT_KINDS = (*HYBRID_EVENT_NAMES, "failed")
 _FAILED = len(HYBRID_EVENT_NAMES)
 _EV = {name: i for i, name in enumerate(HYBRID_EVENT_NAMES)}
-#: The bits of ``armed`` a change keeps (as the story does): a slip or a return to rolling
-#: re-arms the return, a spin stop or release the spin's stop; a restart from rest keeps both.
-_KEEP = {"slip": ARMED_SPIN, "roll": ARMED_SPIN, "spin_stop": ARMED_ROLL, "spin_go": ARMED_ROLL}
 _WORK = {
     "W_rolling_resistance": "work done against rolling resistance since the start",
     "W_sliding_friction": "work done against sliding friction since the start (sticking "
@@ -118,7 +115,7 @@ def _stretches(y, mode, stuck, spin, hp, fate, ev_t, ev_kind, ev_y, t_last):
         t0s.append(t), t1s.append(ev_t[i]), ys.append(y), modes.append(mode)
         stucks.append(stuck), keeps.append(keep)
         kind = HYBRID_EVENT_NAMES[ev_kind[i]]
-        keep = _KEEP.get(kind, ARMED_ROLL | ARMED_SPIN)
+        keep = ARMED_KEPT[ev_kind[i]]
         t = ev_t[i]
         y = ev_y[i].copy()
         if kind == "slip":
