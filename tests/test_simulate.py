@@ -245,16 +245,19 @@ def test_step_budget_ends_the_trajectory_with_a_failed_event():
 # ------------------------------------------------------------------------------ sliding (mu_k)
 #: (alpha, scene keywords, r, v, w of a point on the rolling orbit, u0, slip_u, slip_v): a
 #: thrown ball that rolls and whose spin friction stops, releases and stops the spin again; a
-#: backspin throw that rolls again; a rolling ball that never slips.
+#: backspin throw that rolls again; a rolling ball that never slips; a rolling ball that slips,
+#: slides and rolls again.
 HYBRID_CASES = {
     "spin stick": (0.25, dict(mu=0.6, mu_k=0.5, c_spin=0.2), 0.3, 0.8, 0.3, 0.5, 0.5, 0.0),
     "backspin": (0.6, dict(mu=0.6, mu_k=0.5), 0.3, 0.6, 0.5, 1.0, 2.5, 0.0),
     "rolls on": (1.0, dict(mu=0.05, mu_k=0.04), 0.2, 0.9, -1.5, 0.0, 0.0, 0.0),
+    "slips": (0.6, dict(mu=0.05, mu_k=0.04), 0.2, 0.9, -1.5, 0.0, 0.0, 0.0),
 }
 HYBRID_KINDS = {
     "spin stick": ["roll", "spin_stop", "spin_go", "spin_stop", "horizon"],
     "backspin": ["roll", "horizon"],
     "rolls on": ["horizon"],
+    "slips": ["slip", "roll", "horizon"],
 }
 
 
@@ -291,10 +294,15 @@ def test_hybrid_trajectory_follows_the_story(name):
     # the start: the launch; time increasing; the end at the horizon
     assert ds.u[0] == u0 and float(ds.slip_speed[0]) == pytest.approx(math.hypot(su, sv))
     assert np.all(np.diff(ds.time) > 0) and ds.time[-1] == 0.5 == ds.event_time[-1]
-    # the mode: sliding until the roll, rolling after it (no slip speed while rolling)
+    # the mode: sliding from the throw or a slip to the roll, rolling otherwise (no slip speed
+    # while rolling); a sample at a mode change is the new stretch's start
     t_roll = ds.event_time.values[kinds.index("roll")] if "roll" in kinds else 0.0
     mode = ds.mode.values
-    np.testing.assert_array_equal(mode, np.where(ds.time < t_roll, 1, 0))
+    expected = np.full(mode.shape, 1 if (su, sv) != (0.0, 0.0) else 0)
+    for kind, t in zip(kinds, ds.event_time.values, strict=True):
+        if kind in ("slip", "roll"):
+            expected[ds.time.values >= t] = 1 if kind == "slip" else 0
+    np.testing.assert_array_equal(mode, expected)
     speed = float(np.hypot(ds.u, ds.v).max())
     assert float(ds.slip_speed.values[mode == 0].max()) <= 1e-12 * speed
     if t_roll:
