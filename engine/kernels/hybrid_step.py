@@ -82,8 +82,9 @@ N_EVENTS = 8
 HYBRID_EVENT_NAMES = ("spill", "vertex", "horizon", "slip", "roll", "spin_stop", "spin_go",
                       "rest")  # fmt: skip
 #: The bits of ``armed`` (:data:`.hybrid_rk.ARMED_ROLL`, ``ARMED_SPIN``) that each event kind
-#: keeps for the stretch after it: a slip or a return to rolling re-arms the return, a spin's
-#: stop or release the spin's stop, a restart from rest keeps both (the ends keep nothing).
+#: keeps for the stretch after it: a slip or a return to rolling disarms the return, a spin's
+#: stop or release the spin's stop (each is armed again by :func:`.hybrid_rk.arm`), a restart
+#: from rest keeps both (the ends keep nothing).
 ARMED_KEPT = (0, 0, 0, ARMED_SPIN, ARMED_SPIN, ARMED_ROLL, ARMED_ROLL, ARMED_ROLL | ARMED_SPIN)
 #: Largest number of function evaluations (re-steps) to locate one event.
 LOCATE_ITERATIONS = 60
