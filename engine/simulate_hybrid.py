@@ -18,7 +18,7 @@ from ._jit import call_specialized
 from ._version import __version__
 from .hybrid import HYBRID_STATE, hybrid_setup
 from .kernels.hybrid import HYBRID_FATE_NAMES, hybrid_story
-from .kernels.hybrid_step import HYBRID_EVENT_NAMES
+from .kernels.hybrid_step import ARMED_KEPT, HYBRID_EVENT_NAMES
 from .kernels.model import N_PARAMS, P_K, P_M, set_alpha
 from .kernels.protocol import (
     AT_VERTEX,
@@ -105,15 +105,17 @@ def _start(alpha, energy, h, Lz, r0, u0, slip_u, slip_v, scene):
 
 
 def _stretches(y, mode, stuck, spin, hp, fate, ev_t, ev_kind, ev_y, t_last):
-    """(t0, t1, start state, mode, stuck) of each stretch between the story's mode changes:
-    the state after each change follows the story's rules (docs/physics.md "Switching between
-    rolling and sliding", "Spin stick")."""
-    t0s, t1s, ys, modes, stucks = [], [], [], [], []
-    t = 0.0
+    """(t0, t1, start state, mode, stuck, the armed bits kept) of each stretch between the
+    story's mode changes: the state after each change follows the story's rules
+    (docs/physics.md "Switching between rolling and sliding", "Spin stick"), and so does the
+    arming of the stops (:func:`.kernels.hybrid.hybrid_fate_of`)."""
+    t0s, t1s, ys, modes, stucks, keeps = [], [], [], [], [], []
+    t, keep = 0.0, 0
     for i in range(len(ev_t)):
         t0s.append(t), t1s.append(ev_t[i]), ys.append(y), modes.append(mode)
-        stucks.append(stuck)
+        stucks.append(stuck), keeps.append(keep)
         kind = HYBRID_EVENT_NAMES[ev_kind[i]]
+        keep = ARMED_KEPT[ev_kind[i]]
         t = ev_t[i]
         y = ev_y[i].copy()
         if kind == "slip":
@@ -131,10 +133,10 @@ def _stretches(y, mode, stuck, spin, hp, fate, ev_t, ev_kind, ev_y, t_last):
         elif kind == "rest" and not (i == len(ev_t) - 1 and fate == "rest"):
             y[2:6] = 0.0  # it starts again from rest
         else:  # spill, vertex, horizon, a final rest: the end
-            return t0s, t1s, ys, modes, stucks
+            return t0s, t1s, ys, modes, stucks, keeps
     t0s.append(t), t1s.append(max(t, t_last)), ys.append(y), modes.append(mode)
-    stucks.append(stuck)
-    return t0s, t1s, ys, modes, stucks
+    stucks.append(stuck), keeps.append(keep)
+    return t0s, t1s, ys, modes, stucks, keeps
 
 
 def hybrid_trajectory(
@@ -180,7 +182,7 @@ def hybrid_trajectory(
     if fate == "vertex" and n_ev == 0:  # it starts in the vertex region, moving in
         ev_t, ev_kind, ev_y = np.zeros(1), np.array([_EV["vertex"]], np.int8), y0[None].copy()
     t_last = float(f[0]) if math.isfinite(f[0]) else 0.0
-    t0, t1, ys, modes, stucks = _stretches(y0, mode, stuck, spin, hp, fate, ev_t, ev_kind,
+    t0, t1, ys, modes, stucks, keeps = _stretches(y0, mode, stuck, spin, hp, fate, ev_t, ev_kind,
                                            ev_y, t_last)  # fmt: skip
     states = np.vstack([y0[None], ev_y])
     atol = rtol * np.maximum(np.abs(states).max(axis=0), 1e-300)
@@ -191,7 +193,8 @@ def hybrid_trajectory(
     atol[2:7] = rtol * vel
     atol[7:] = rtol * max(abs(E0), 0.5 * scene.M * vel * vel)
     args_head = (method_id, hp, np.array(t0), np.array(t1), np.array(ys),
-                 np.array(modes, np.int64), np.array(stucks, np.bool_), rtol, atol,
+                 np.array(modes, np.int64), np.array(stucks, np.bool_),
+                 np.array(keeps, np.int64), rtol, atol,
                  float(dt_out or 0.0), int(max_steps))  # fmt: skip
     n_cap = len(t0) + (int(t1[-1] / dt_out) + 2 if dt_out else 4096)
     while True:

@@ -200,11 +200,16 @@ def test_bad_inputs_name_the_argument(kw, match):
         _call(**kw)
 
 
-def test_symplectic_refuses_attitude_and_rolling_resistance():
+def test_symplectic_refuses_attitude_rolling_resistance_and_sliding():
     with pytest.raises(ValueError, match="symplectic.*attitude"):
         _call(scene=engine.Scene(attitude=True), method="symplectic")
     with pytest.raises(ValueError, match="symplectic.*rolling_resistance"):
         _call(scene=engine.Scene(c_rr=0.01), method="symplectic")
+    # the sliding model (mu_k, c_spin): refused with the reason, naming the methods that can
+    sliding = engine.Scene(mu=0.5, mu_k=0.4, c_spin=0.01)
+    reason = dict(engine.methods.get_method("symplectic").lacks)["sliding contact"]
+    with pytest.raises(ValueError, match=rf"symplectic.*sliding.*{reason}.*can: rk45, dop853$"):
+        _call(scene=sliding, method="symplectic")
 
 
 def test_escaping_free_fall_orbit_runs_with_t_end_only():
@@ -240,16 +245,19 @@ def test_step_budget_ends_the_trajectory_with_a_failed_event():
 # ------------------------------------------------------------------------------ sliding (mu_k)
 #: (alpha, scene keywords, r, v, w of a point on the rolling orbit, u0, slip_u, slip_v): a
 #: thrown ball that rolls and whose spin friction stops, releases and stops the spin again; a
-#: backspin throw that rolls again; a rolling ball that never slips.
+#: backspin throw that rolls again; a rolling ball that never slips; a rolling ball that slips,
+#: slides and rolls again.
 HYBRID_CASES = {
     "spin stick": (0.25, dict(mu=0.6, mu_k=0.5, c_spin=0.2), 0.3, 0.8, 0.3, 0.5, 0.5, 0.0),
     "backspin": (0.6, dict(mu=0.6, mu_k=0.5), 0.3, 0.6, 0.5, 1.0, 2.5, 0.0),
     "rolls on": (1.0, dict(mu=0.05, mu_k=0.04), 0.2, 0.9, -1.5, 0.0, 0.0, 0.0),
+    "slips": (0.6, dict(mu=0.05, mu_k=0.04), 0.2, 0.9, -1.5, 0.0, 0.0, 0.0),
 }
 HYBRID_KINDS = {
     "spin stick": ["roll", "spin_stop", "spin_go", "spin_stop", "horizon"],
     "backspin": ["roll", "horizon"],
     "rolls on": ["horizon"],
+    "slips": ["slip", "roll", "horizon"],
 }
 
 
@@ -286,10 +294,15 @@ def test_hybrid_trajectory_follows_the_story(name):
     # the start: the launch; time increasing; the end at the horizon
     assert ds.u[0] == u0 and float(ds.slip_speed[0]) == pytest.approx(math.hypot(su, sv))
     assert np.all(np.diff(ds.time) > 0) and ds.time[-1] == 0.5 == ds.event_time[-1]
-    # the mode: sliding until the roll, rolling after it (no slip speed while rolling)
+    # the mode: sliding from the throw or a slip to the roll, rolling otherwise (no slip speed
+    # while rolling); a sample at a mode change is the new stretch's start
     t_roll = ds.event_time.values[kinds.index("roll")] if "roll" in kinds else 0.0
     mode = ds.mode.values
-    np.testing.assert_array_equal(mode, np.where(ds.time < t_roll, 1, 0))
+    expected = np.full(mode.shape, 1 if (su, sv) != (0.0, 0.0) else 0)
+    for kind, t in zip(kinds, ds.event_time.values, strict=True):
+        if kind in ("slip", "roll"):
+            expected[ds.time.values >= t] = 1 if kind == "slip" else 0
+    np.testing.assert_array_equal(mode, expected)
     speed = float(np.hypot(ds.u, ds.v).max())
     assert float(ds.slip_speed.values[mode == 0].max()) <= 1e-12 * speed
     if t_roll:
@@ -303,6 +316,40 @@ def test_hybrid_trajectory_follows_the_story(name):
     assert np.all(np.diff(ds.energy) <= 1e-9 * E0)  # E never rises
     if t_roll or "spin_stop" in kinds:  # the roll and the spin's stop cost energy
         assert float(ds.E_drift[-1]) < -1e-6 * E0
+
+
+def test_hybrid_trajectory_samples_match_the_rigid_body_model():
+    """The samples themselves, not only the story's events, against the independent model of
+    tests/hybrid_oracle.py (scipy DOP853 at rtol 1e-12), run from simulate's start to each
+    sample time: the backspin throw sliding (0.03 s; 0.05 s, 12 us before the roll, where the
+    steps meet the slip's kink at s = 0) and rolling again (0.1 s, 0.2 s). Place, speed and
+    slip speed to 1e-7 of their scale, as the story's events in tests/test_hybrid_oracle.py."""
+    from hybrid_oracle import Oracle, polar, start_state
+
+    from engine.launch import invariants
+
+    alpha, kw, r, v, w, u0, su, sv = HYBRID_CASES["backspin"]
+    sc = engine.Scene(M=1.0, a=0.01, k=0.4, rim=1.0, **kw)
+    inv = invariants(alpha, r, 0.0, v, w, sc)
+    ds = simulate(alpha, float(inv["energy"]), float(inv["h"]), float(inv["Lz"]), sc,
+                  t_end=0.2, method="dop853", rtol=1e-11, u0=u0, slip_u=su, slip_v=sv,
+                  dt_out=0.01)  # fmt: skip
+    oracle = Oracle(alpha, 1.0, sc.g, sc.a, sc.k, sc.mu, sc.mu_k,
+                    rim_centre=1.0 - sc.a / math.tan(alpha))  # fmt: skip
+    y0 = start_state(alpha, float(ds.r[0]), u0, float(ds.v[0]), float(ds.w[0]), su, sv, sc.a)
+    speed = max(abs(u0), abs(float(ds.v[0])), abs(float(ds.w[0])), abs(su), abs(sv))
+    for t in (0.03, 0.05, 0.1, 0.2):
+        i = int(np.argmin(np.abs(ds.time.values - t)))
+        assert ds.time.values[i] == pytest.approx(t, abs=1e-12)
+        _, y, mode = oracle.run(y0, "sliding", t, speed)
+        assert ds.mode.values[i] == (1 if mode == "sliding" else 0), t
+        r_o, th_o = polar(y, alpha)
+        assert float(ds.r[i]) == pytest.approx(r_o, rel=1e-7), t
+        assert abs((float(ds.theta[i]) - th_o + math.pi) % (2 * math.pi) - math.pi) < 1e-7, t
+        assert math.hypot(ds.u[i], ds.v[i]) == pytest.approx(np.linalg.norm(y[3:6]),
+                                                            abs=1e-7 * speed), t  # fmt: skip
+        slip = np.linalg.norm(oracle.slip(y[0:3], y[3:6], y[6:9]))
+        assert float(ds.slip_speed[i]) == pytest.approx(slip, abs=1e-7 * speed), t
 
 
 def test_hybrid_trajectory_samples_on_dt_out_agree_with_a_tighter_run():

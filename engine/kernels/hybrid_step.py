@@ -1,15 +1,16 @@
-"""Adaptive Runge-Kutta steps of the hybrid state (:mod:`.sliding`) and its events.
+"""The hybrid state's events (:mod:`.sliding`) and one segment of one mode: the steps of
+:func:`.hybrid_rk.advance` up to the first event.
 
-The steps use the tableaux of :data:`.tableaux.RK_TABLEAUX` (the literal ``method`` id, as the
-rolling integrators) with the same error norm and step-size controller (:mod:`.rk`), written
-as loops over the components. An event is located by re-stepping from the start of the step
-that crossed it (Illinois' rule on the fraction of the step), so the state at an event is a
-Runge-Kutta step of the method's order: no dense output is needed.
+An event is located by re-stepping from the start of the step that crossed it (Illinois' rule
+on the fraction of the step), so the state at an event is a Runge-Kutta step of the method's
+order: no dense output is needed.
 
 Events (:data:`HYBRID_EVENT_NAMES`): a function g of the state that fires where it reaches 0
 from below (the slip and the spin's release: above 0) within a step. Which are on depends on
 the mode (rolling or sliding), the spin stick and the arming of the return to rolling
 (docs/physics.md "Switching between rolling and sliding").
+
+The step kernels of :mod:`.hybrid_rk` and its ``ARMED_*`` bits are also importable from here.
 """
 
 from __future__ import annotations
@@ -17,6 +18,21 @@ from __future__ import annotations
 import math
 
 from .._jit import kernel
+from .hybrid_rk import (
+    ADV_OK,
+    ADV_REACHED,
+    ARMED_ROLL,
+    ARMED_SPIN,
+    STALL_BAND,
+    advance,
+    arm,
+    decide,
+    first_step,
+    hybrid_attempt,
+    kink_step,
+    stalled,
+    step_controller,
+)
 from .model import (
     P_COS,
     P_CRR,
@@ -32,19 +48,27 @@ from .model import (
     invariants_of,
     radial_energy,
 )
-from .protocol import EPS
-from .rk import step_decide, step_error
-from .rk_codegen import controller, tableau
+from .rk_codegen import tableau
 from .sliding import (
     H_C_SPIN,
     MODE_ROLLING,
     MODE_SLIDING,
     N_HYBRID,
     hold_margin,
-    hybrid_rhs,
     slip_speed,
     spin_hold_margin,
 )
+
+__all__ = [
+    "ARMED_ROLL",
+    "ARMED_SPIN",
+    "STALL_BAND",
+    "decide",
+    "hybrid_attempt",
+    "kink_step",
+    "stalled",
+    "step_controller",
+]
 
 EV_RIM = 0
 EV_VERTEX = 1
@@ -57,45 +81,13 @@ EV_REST = 7
 N_EVENTS = 8
 HYBRID_EVENT_NAMES = ("spill", "vertex", "horizon", "slip", "roll", "spin_stop", "spin_go",
                       "rest")  # fmt: skip
-#: Bits of ``armed``: the return to rolling (the slip speed has exceeded twice the threshold
-#: since the last switch) and the spin's stop (|w| has, since the last stop or release).
-ARMED_ROLL = 1
-ARMED_SPIN = 2
-#: The slip within this many stop thresholds may be declared stopped when a step cannot make it
-#: smaller (:func:`stalled`).
-STALL_BAND = 1000.0
+#: The bits of ``armed`` (:data:`.hybrid_rk.ARMED_ROLL`, ``ARMED_SPIN``) that each event kind
+#: keeps for the stretch after it: a slip or a return to rolling disarms the return, a spin's
+#: stop or release the spin's stop (each is armed again by :func:`.hybrid_rk.arm`), a restart
+#: from rest keeps both (the ends keep nothing).
+ARMED_KEPT = (0, 0, 0, ARMED_SPIN, ARMED_SPIN, ARMED_ROLL, ARMED_ROLL, ARMED_ROLL | ARMED_SPIN)
 #: Largest number of function evaluations (re-steps) to locate one event.
 LOCATE_ITERATIONS = 60
-
-
-@kernel
-def hybrid_attempt(method, y, h, hp, mode, stuck, K, ytmp, ynew, rtol, atol):
-    """One step of size h [s] from y with K[0] = f(y) given: writes the stages K[1..ns],
-    ``ynew`` and K[ns] = f(ynew); returns the scaled error (accept when <= 1)."""
-    A, C, E, E3, P, ns, S, q, beta, bw, fmax = tableau(method)
-    n = y.shape[0]
-    for i in range(1, ns + 1):
-        for j in range(n):
-            acc = 0.0
-            for m in range(i):
-                acc += A[i, m] * K[m, j]
-            ytmp[j] = y[j] + h * acc
-        hybrid_rhs(ytmp, hp, mode, stuck, K[i])
-    e5 = 0.0
-    e3 = 0.0
-    for j in range(n):
-        ynew[j] = ytmp[j]
-        sc = atol[j] + rtol * max(abs(y[j]), abs(ynew[j]))
-        d = 0.0
-        d3 = 0.0
-        for m in range(ns + 1):
-            d += E[m] * K[m, j]
-            d3 += E3[m] * K[m, j]
-        e5 += (d / sc) ** 2
-        e3 += (d3 / sc) ** 2
-    if e3 > 0.0:
-        return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * n) if e5 != 0.0 else 0.0
-    return abs(h) * math.sqrt(e5 / n)
 
 
 @kernel
@@ -177,18 +169,6 @@ def locate(method, kind, y0, h, hp, mode, stuck, armed, ref, K, ytmp, yout, rtol
 
 
 @kernel
-def step_controller(method):
-    """The controller constants of ``method`` (:func:`.rk_codegen.controller`)."""
-    return controller(method)
-
-
-@kernel
-def decide(e_err, r_new, h, err_old, rejected, ctl):
-    """The rolling integrators' step decision (:func:`.rk.step_decide`) for the hybrid steps."""
-    return step_decide(step_error(e_err, r_new, ctl), h, err_old, rejected, ctl)
-
-
-@kernel
 def first_event(method, y0, y1, h, hp, mode, stuck, armed, K, ytmp, yout, rtol, atol):
     """The earliest event of the accepted step y0 -> y1 of size h [s]: (kind or -1, theta);
     its state is left in ``yout`` (K[0] = f(y0) is kept)."""
@@ -215,78 +195,6 @@ def first_event(method, y0, y1, h, hp, mode, stuck, armed, K, ytmp, yout, rtol, 
     return best, best_th
 
 
-@kernel
-def kink_step(method, y, h, hp, mode, stuck, armed, K):
-    """The step [s] to retry with when the attempt of size h [s] from y (stages in K) went
-    through a kink of the right-hand side that an armed event must stop at, else h.
-
-    The kinks: the slip s = 0 while sliding with the return to rolling armed, where kinetic
-    friction turns (reverses) with the slip; the spin w = 0 with spin friction on, the spin not
-    stuck and its stop armed, where the spin couple jumps. A stage went through one when its
-    slip has a component <= 0 along the slip at y (its spin: the sign of w at y flipped). Such
-    a step cannot be trusted (the error estimate of a step across a kink can pass, and a run
-    of them keeps |s| a few times the stop threshold forever: docs/physics.md "Reaching the
-    switch"), so it is retried with min(h/2, the time the slip (spin) takes at its rate at y
-    to fall to half the stop threshold)."""
-    A = tableau(method)[0]
-    ns = tableau(method)[5]
-    v_rest = hp[P_V_REST]
-    s1 = y[2] - y[5]
-    s2 = y[3] + y[4]
-    sl = math.sqrt(s1 * s1 + s2 * s2)
-    slip_on = mode == MODE_SLIDING and armed & ARMED_ROLL and sl > v_rest
-    w0 = y[6]
-    spin_on = not stuck and hp[H_C_SPIN] > 0.0 and armed & ARMED_SPIN and abs(w0) > v_rest
-    if not slip_on and not spin_on:
-        return h
-    slip_x = False
-    spin_x = False
-    for i in range(1, ns + 1):
-        a2 = 0.0
-        a3 = 0.0
-        a4 = 0.0
-        a5 = 0.0
-        a6 = 0.0
-        for m in range(i):
-            a2 += A[i, m] * K[m, 2]
-            a3 += A[i, m] * K[m, 3]
-            a4 += A[i, m] * K[m, 4]
-            a5 += A[i, m] * K[m, 5]
-            a6 += A[i, m] * K[m, 6]
-        if slip_on and (s1 + h * (a2 - a5)) * s1 + (s2 + h * (a3 + a4)) * s2 <= 0.0:
-            slip_x = True
-        if spin_on and (w0 + h * a6) * w0 <= 0.0:
-            spin_x = True
-    if not slip_x and not spin_x:
-        return h
-    h_new = 0.5 * h
-    if slip_x:
-        rate = -((K[0, 2] - K[0, 5]) * s1 + (K[0, 3] + K[0, 4]) * s2) / sl
-        if rate > 0.0:
-            h_new = min(h_new, (sl - 0.5 * v_rest) / rate)
-    if spin_x:
-        rate = -math.copysign(1.0, w0) * K[0, 6]
-        if rate > 0.0:
-            h_new = min(h_new, (abs(w0) - 0.5 * v_rest) / rate)
-    return h_new
-
-
-@kernel
-def stalled(y, ynew, K, hp):
-    """Whether the accepted sliding step y -> ynew (K[0] = f(y)) left the slip no smaller along
-    its direction at y although friction is slowing it there (its rate along that direction is
-    < 0), with the slip within :data:`STALL_BAND` times the stop threshold: the slip is then
-    as near zero as the integration resolves it (docs/physics.md "Reaching the switch")."""
-    s1 = y[2] - y[5]
-    s2 = y[3] + y[4]
-    sl = math.sqrt(s1 * s1 + s2 * s2)
-    if not 0.0 < sl <= STALL_BAND * hp[P_V_REST]:
-        return False
-    rate = (K[0, 2] - K[0, 5]) * s1 + (K[0, 3] + K[0, 4]) * s2
-    along = (ynew[2] - ynew[5]) * s1 + (ynew[3] + ynew[4]) * s2
-    return rate < 0.0 and along >= sl * sl
-
-
 #: Segment ends of :func:`segment` beyond the event kinds of :mod:`.hybrid_step`.
 SEG_TIME = 100
 SEG_FAILED = 101
@@ -299,41 +207,23 @@ def segment(method, y, hp, mode, stuck, armed, t, t_end, rtol, atol, max_steps, 
 
     Returns (end: an event kind, :data:`SEG_TIME` or :data:`SEG_FAILED`; t [s]; attempts;
     time spent [s]; armed). y is updated in place (to the event's state)."""
-    A, C, E, E3, P, ns, S, q, beta, bw, fmax = tableau(method)
+    ns = tableau(method)[5]
     ctl = step_controller(method)
     n = y.shape[0]
-    hybrid_rhs(y, hp, mode, stuck, K[0])
-    d0 = 0.0
-    d1 = 0.0
-    for j in range(n):
-        sc = atol[j] + rtol * abs(y[j])
-        d0 += (y[j] / sc) ** 2
-        d1 += (K[0, j] / sc) ** 2
-    h = 0.01 * math.sqrt(d0 / d1) if d1 > 1e-10 and d0 > 1e-10 else 1e-6
+    h = first_step(y, hp, mode, stuck, K, rtol, atol)
     err_old = 1e-4
     rejected = False
     steps = 0
     t0 = t
     while True:
-        if steps >= max_steps:
-            return SEG_FAILED, t, steps, t - t0, armed
-        h_try = min(h, t_end - t)
-        if not h_try > 16.0 * EPS * abs(t) and h_try < h:
+        st, h_try, h, err_old, rejected, steps = advance(method, y, t, t_end, h, hp, mode, stuck,
+                                                         armed, K, ytmp, ynew, rtol, atol, ctl,
+                                                         err_old, rejected, steps,
+                                                         max_steps)  # fmt: skip
+        if st == ADV_REACHED:
             return SEG_TIME, t, steps, t - t0, armed
-        if not h_try > 16.0 * EPS * abs(t):
+        if st != ADV_OK:
             return SEG_FAILED, t, steps, t - t0, armed
-        err = hybrid_attempt(method, y, h_try, hp, mode, stuck, K, ytmp, ynew, rtol, atol)
-        steps += 1
-        h_kink = kink_step(method, y, h_try, hp, mode, stuck, armed, K)
-        if h_kink < h_try:  # a stage went through s = 0 or w = 0: retry short of it
-            h = h_kink
-            rejected = True
-            continue
-        accepted, h_used, h_next, err_old, rejected = decide(err, ynew[0], h_try, err_old,
-                                                             rejected, ctl)  # fmt: skip
-        if not accepted:
-            h = h_used
-            continue
         kind, th = first_event(method, y, ynew, h_try, hp, mode, stuck, armed, K, ytmp, yev,
                                rtol, atol)  # fmt: skip
         if kind < 0 and mode == MODE_SLIDING and armed & ARMED_ROLL and stalled(y, ynew, K, hp):
@@ -352,13 +242,9 @@ def segment(method, y, hp, mode, stuck, armed, t, t_end, rtol, atol, max_steps, 
             if not math.isfinite(y[j]):
                 return SEG_FAILED, t, steps, t - t0, armed
         t += h_try
-        if mode == MODE_SLIDING and slip_speed(y) > 2.0 * hp[P_V_REST]:
-            armed |= ARMED_ROLL
-        if not stuck and abs(y[6]) > 2.0 * hp[P_V_REST]:
-            armed |= ARMED_SPIN
+        armed = arm(y, hp, mode, stuck, armed)
         if t >= t_end:
             return SEG_TIME, t, steps, t - t0, armed
-        h = h_next
 
 
 @kernel
