@@ -24,6 +24,7 @@ import logging
 import os
 import time
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -120,17 +121,36 @@ def _inproc_listening(rest: str) -> bool:
 
 
 class LocalBackend:
-    """The pending blocks computed one after the other in this process."""
+    """The pending blocks computed one after the other in this process, one block ahead: block
+    ``k + 1`` is computed (the numba kernels on every core, on a thread of its own: the kernels
+    release the GIL) while the caller stores and writes block ``k``, so the cores are not idle
+    while a block is committed. One block waits at most (memory: two blocks)."""
 
     def blocks(
         self, plan: RunPlan, tiling: Tiling, pending: list[int], writer: Any = None
     ) -> Blocks:
-        for i in pending:
-            yield (
-                compute_block(plan, tiling, i)
-                if writer is None
-                else write_block(plan, tiling, i, writer)
-            )
+        def work(i: int) -> tuple[int, dict[str, Any]]:
+            if writer is None:
+                return compute_block(plan, tiling, i)
+            return write_block(plan, tiling, i, writer)
+
+        if len(pending) < 2:
+            yield from map(work, pending)
+            return
+        pool = ThreadPoolExecutor(1, thread_name_prefix="conesurvey-compute")
+        ahead = None
+        try:
+            ahead = pool.submit(work, pending[0])
+            for i in pending[1:]:
+                done = ahead.result()
+                ahead = pool.submit(work, i)
+                yield done
+            done, ahead = ahead.result(), None
+            yield done
+        finally:  # leaving early (an error, KeyboardInterrupt): the block computing finishes
+            if ahead is not None:
+                ahead.cancel()
+            pool.shutdown(wait=True)
 
     def close(self) -> None:
         """Nothing to release."""
