@@ -24,6 +24,7 @@ import logging
 import os
 import time
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -120,20 +121,45 @@ def _inproc_listening(rest: str) -> bool:
 
 
 class LocalBackend:
-    """The pending blocks computed one after the other in this process."""
+    """The pending blocks computed one after the other in this process, one block ahead: block
+    ``k + 1`` is computed (the numba kernels on every core, on a thread of its own: the kernels
+    release the GIL) while the caller stores and writes block ``k`` (with a ``writer``, the
+    Zarr store's, its chunks are encoded and written here meanwhile), so the cores are not
+    idle while a block is written. One block waits at most (memory: two blocks)."""
 
     def blocks(
         self, plan: RunPlan, tiling: Tiling, pending: list[int], writer: Any = None
     ) -> Blocks:
-        for i in pending:
+        for i, results in _ahead(plan, tiling, pending):
             yield (
-                compute_block(plan, tiling, i)
-                if writer is None
-                else write_block(plan, tiling, i, writer)
+                (i, results) if writer is None else (i, writer.write(i, tiling.slices(i), results))
             )
 
     def close(self) -> None:
         """Nothing to release."""
+
+
+def _ahead(plan: RunPlan, tiling: Tiling, pending: list[int]) -> Blocks:
+    """:func:`compute_block` of each pending block, the next one computed on a thread while
+    the caller has this one. Leaving early (an error, KeyboardInterrupt): the block being
+    computed finishes first."""
+    if len(pending) < 2:
+        yield from (compute_block(plan, tiling, i) for i in pending)
+        return
+    pool = ThreadPoolExecutor(1, thread_name_prefix="conesurvey-compute")
+    ahead = None
+    try:
+        ahead = pool.submit(compute_block, plan, tiling, pending[0])
+        for i in pending[1:]:
+            done = ahead.result()
+            ahead = pool.submit(compute_block, plan, tiling, i)
+            yield done
+        done, ahead = ahead.result(), None
+        yield done
+    finally:
+        if ahead is not None:
+            ahead.cancel()
+        pool.shutdown(wait=True)
 
 
 def open_backend(scheduler: str | None = None, workers: int | None = None) -> Any:

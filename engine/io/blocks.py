@@ -53,6 +53,7 @@ from .atomic import (
     write_atomic,
 )
 from .manifest import MANIFEST, Manifest, read_manifest, survey_variables, write_manifest
+from .npz import write_npz
 
 if TYPE_CHECKING:
     from ..plan import RunPlan
@@ -204,7 +205,7 @@ class BlockStore:
         """Store block ``index``: write its file atomically, then journal its size and hash.
         Returns the arrays as stored (the store's variables, C-contiguous, its dtypes)."""
         clean = {n: np.ascontiguousarray(arrays[n], dtype=dt) for n, dt in self.names.items()}
-        size, digest = write_atomic(self.path(index), lambda f: np.savez(f, **clean), mode=0o600)
+        size, digest = write_atomic(self.path(index), lambda f: write_npz(f, clean), mode=0o600)
         fd = os.open(self.root / JOURNAL, os.O_WRONLY | os.O_APPEND | O_NOFOLLOW | O_CLOEXEC)
         try:
             os.write(fd, _line(index, size, digest))

@@ -22,7 +22,7 @@ import concurrent.futures
 import itertools
 import os
 import zlib
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -108,6 +108,12 @@ class DirectChunks:
     def write(self, name: str, slab: tuple[slice, ...], values: np.ndarray) -> None:
         """Write the block ``values`` of variable ``name`` at ``slab`` (whole chunks; those at
         the end of an axis may hang over it, as HDF5's own do)."""
+        self.submit(name, slab, values)()
+
+    def submit(self, name: str, slab: tuple[slice, ...], values: np.ndarray) -> Callable[[], None]:
+        """Start compressing the chunks of :meth:`write` on the pool; returns the call that
+        writes them, in order, as they finish (the caller may hash meanwhile, and submit
+        every variable of a block first so that the pool never waits for the writer)."""
         dset, level, shuffled = self._vars[name]
         chunk = dset.chunks
         jobs = []
@@ -120,8 +126,16 @@ class DirectChunks:
                 full[tuple(slice(0, n) for n in part.shape)] = part
                 part = full
             jobs.append((start, self._pool.submit(compress_chunk, part, level, shuffled)))
-        for start, job in jobs:
-            dset.id.write_direct_chunk(start, job.result())
+
+        def finish() -> None:
+            try:
+                for start, job in jobs:
+                    dset.id.write_direct_chunk(start, job.result())
+            finally:  # a failed write: the chunks not written yet are not compressed either
+                for _, job in jobs:
+                    job.cancel()
+
+        return finish
 
 
 def _cores() -> int:

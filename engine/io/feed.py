@@ -12,7 +12,8 @@ Where each block comes from:
   :meth:`engine.io.blocks.BlockStore.commit` stored it; the values written are those just
   stored. At most ``held`` blocks wait in memory: when they are all waiting, ``put`` waits for
   the writer (so memory stays bounded); a block that arrives before an earlier one (dask
-  yields blocks in any order) is not held but read back from the store when its turn comes;
+  yields blocks in any order) is held too while ``held - 1`` or fewer wait (it never waits),
+  else read back from the store when its turn comes;
 - every other block (stored by an earlier run, or not held) is read from the store and checked
   against its journaled checksum as it is read (:meth:`engine.io.blocks.BlockStore.take`), by
   the writer, or, once the compute is over, by the caller (:meth:`BlockFeed.finish`), which
@@ -50,7 +51,7 @@ class BlockFeed:
     manager; call :meth:`finish` once every block is committed.
     """
 
-    def __init__(self, store: BlockStore, write: Write, stored: set[int], held: int = 2) -> None:
+    def __init__(self, store: BlockStore, write: Write, stored: set[int], held: int = 3) -> None:
         self.store = store
         self._write = write
         self._n = store.tiling.nblocks
@@ -86,12 +87,16 @@ class BlockFeed:
         """Hand over block ``index``, just committed to the store. Waits while ``held`` blocks
         wait for the writer; never waits once the writer has failed."""
         with self._cond:
-            # Held only if every block before it is stored (the writer gets to it in turn).
-            # It is marked stored only once it is held: else the writer could read it back
-            # meanwhile and the held copy would never be taken.
+            # Held if every block before it is stored (the writer gets to it in turn: waits for
+            # room), or if it came ahead (dask) while there is room for one more beside it: a
+            # block ahead never takes the last place, which the block in turn may need (else
+            # it would wait for a writer that waits for it). It is marked stored only once it
+            # is held: else the writer could read it back and the held copy would stay.
             hold = index == self._frontier
             if hold:
                 self._cond.wait_for(self._room)
+            else:
+                hold = len(self._held) < self._max_held - 1
             if hold and self._error is None and not self._stopping:
                 self._held[index] = arrays
             self._stored.add(index)
@@ -180,7 +185,7 @@ def feed(
     write: Write,
     pending: Collection[int],
     incoming: Iterable[tuple[int, Arrays]],
-    held: int = 2,
+    held: int = 3,
 ) -> None:
     """Call ``write`` on a writer thread for every block of ``store`` in index order, while
     iterating ``incoming`` (on this thread) computes the blocks still ``pending`` and yields

@@ -285,7 +285,7 @@ def _write_file(
         chunks = _direct(nc, tmp, store, warn) if direct else None
         if chunks is not None:
             with chunks:
-                summary = _fill(store, chunks.write, codecs, hasher, pending, blocks)
+                summary = _fill(store, chunks.submit, codecs, hasher, pending, blocks)
             nc = netCDF4.Dataset(tmp, "a")
         else:
             if direct:  # h5py could not open it: netCDF4 writes the values
@@ -350,45 +350,51 @@ def _define(
         )
         v.setncatts(typed_flags(variable_attrs(name, kind), dt))
         variables[name] = v
-    # Blocks fill whole chunks: no chunk is read back, so none needs caching. Without a cache
-    # each chunk is compressed and written as its block is, not all at the close. The cache
-    # is set once the variables exist in HDF5 (the sync), else it does not apply.
+    # Blocks fill whole chunks: none is read back, so none is cached (each is compressed and
+    # written as its block is); set once the variables exist in HDF5 (the sync) to apply.
     nc.sync()
     for v in variables.values():
         v.set_var_chunk_cache(size=0)
     return variables
 
 
-def _netcdf4_writer(variables: dict[str, Any]) -> Callable[[str, tuple, np.ndarray], None]:
-    def put(name: str, slab: tuple, values: np.ndarray) -> None:
+def _netcdf4_writer(variables: dict[str, Any]) -> Callable[..., Callable[[], None]]:
+    def put(name: str, slab: tuple, values: np.ndarray) -> Callable[[], None]:
         variables[name][slab] = values
+        return lambda: None  # written already
 
     return put
 
 
 def _fill(
     store: BlockStore,
-    put: Callable[[str, tuple, np.ndarray], None],
+    put: Callable[[str, tuple, np.ndarray], Callable[[], None]],
     codecs: dict[str, dict[str, Any]],
     hasher: ContentHasher,
     pending: Collection[int],
     incoming: Iterable[tuple[int, dict[str, np.ndarray]]],
 ) -> Summary:
-    """Write every block (``put(name, slab, values)``) on a writer thread while ``incoming``
-    computes the ``pending`` ones (:func:`engine.io.feed.feed`); hash and count them on the way."""
+    """Write every block on a writer thread while ``incoming`` computes the ``pending`` ones
+    (:func:`engine.io.feed.feed`): ``put(name, slab, values)`` starts a variable (direct
+    chunks: compressed on the pool) and returns the call that completes it; a block is hashed
+    and counted while its variables are compressed."""
     summary = Summary()
 
     def write(index: int, block: dict[str, np.ndarray]) -> None:
         slab = store.tiling.slices(index)
+        finishing = []
         for name, arr in block.items():
             try:
-                put(name, slab, arr)
+                finishing.append(put(name, slab, arr))
             except RuntimeError as exc:
                 if is_blosc(codecs[name]):
                     raise _Refused(name) from exc
                 raise
+        for name, arr in block.items():
             hasher.add(name, arr)
         summary.add(block)
+        for done in finishing:
+            done()
 
     feed(store, write, pending, incoming)
     return summary

@@ -1,0 +1,199 @@
+"""The write path of a streamed run against its two limits: the compute alone and the disk.
+
+Usage: python scripts/bench_storage.py [SURVEY.toml] [--alpha A] [--dir DIR] [--zarr]
+                                       [--workers N [N ...]]
+       python scripts/bench_storage.py --tiny   (a 10,240-point survey, seconds)
+
+Default survey: ``surveys/large_1e8.toml``; ``--alpha 0.8`` runs its 10^7-point slice (the
+alpha axis replaced by that one value). In one process, one after the other:
+
+1. **compute alone**: every block of the survey evaluated as a run evaluates it
+   (:func:`engine.backends.compute_block`), nothing stored: wall and CPU time, points/s;
+2. **the run**: ``run_survey`` into ``DIR/bench.nc`` (and ``DIR/bench.zarr`` with ``--zarr``;
+   ``--workers``: on a dask LocalCluster of N workers, one run per N): wall and CPU time of this
+   process (dask workers' CPU is not in it), bytes written (Linux: ``/proc/self/io``), the
+   output's size, points/s;
+3. **the disk**: a plain write of as many bytes (at most 2 GiB) in 64 MiB pieces, fsynced:
+   MB/s, what the file system here takes at best.
+
+Then the ratios that make the goal reproducible on any machine: the run's points/s over the
+compute's (1.0: writing costs the run nothing), its CPU over the compute's, and the bytes it
+wrote per second of wall time over the disk's MB/s (1.0: the disk is the limit). The load
+average is printed before and after (timings on a shared machine are mostly other people's
+work: compare the ratios). docs/output.md quotes it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import resource
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "scripts"))
+
+from bench_common import load  # noqa: E402
+
+TINY = """title = "bench_storage --tiny"
+method = "exact"
+
+[scene]
+g = 9.81
+k = 0.4
+
+[axes.alpha]
+values = [0.8]
+
+[axes.energy]
+start = 1e-6
+stop = 10.0
+num = 40
+scale = "log"
+relative_to = "V_min"
+
+[axes.h]
+start = -3.0
+stop = 3.0
+num = 16
+
+[axes.Lz]
+start = 0.05
+stop = 2.0
+num = 16
+"""
+
+
+def _cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
+def _written() -> int:
+    """Bytes this process has sent to storage (Linux), else 0."""
+    try:
+        text = Path("/proc/self/io").read_text()
+    except OSError:
+        return 0
+    m = re.search(r"^write_bytes: (\d+)$", text, re.M)
+    return int(m.group(1)) if m else 0
+
+
+def _size(path: Path) -> int:
+    if path.is_dir():
+        return sum(p.stat().st_size for p in path.rglob("*") if p.is_file())
+    return path.stat().st_size
+
+
+def _survey_text(path: Path, alpha: float | None) -> str:
+    text = path.read_text()
+    if alpha is None:
+        return text
+    head, sep, rest = text.partition("[axes.alpha]")
+    if not sep:
+        sys.exit(f"{path} has no [axes.alpha] table to replace")
+    tail = rest[rest.find("\n[") :] if "\n[" in rest else "\n"
+    return f"{head}[axes.alpha]\nvalues = [{alpha!r}]\n{tail}"
+
+
+def compute_alone(survey) -> tuple[float, float, int]:
+    """(wall s, CPU s, points) of evaluating every block of ``survey``, nothing kept."""
+    from engine.backends import compute_block
+    from engine.grid import Tiling
+    from engine.plan import plan_from_survey
+
+    plan = plan_from_survey(survey, "unused.nc")
+    tiling = Tiling.for_grid(plan.shape, plan.output.block_points)
+    compute_block(plan, tiling, 0)  # compile or load the kernels first
+    w0, c0 = time.perf_counter(), _cpu()
+    for i in range(tiling.nblocks):
+        compute_block(plan, tiling, i)
+    return time.perf_counter() - w0, _cpu() - c0, tiling.size
+
+
+def run(survey, out: Path, workers: int | None) -> tuple[float, float, int, int]:
+    """(wall s, CPU s of this process, bytes written, output bytes) of a run into ``out``."""
+    from engine.runner import run_survey
+
+    shutil.rmtree(out, ignore_errors=True)
+    out.unlink(missing_ok=True)
+    b0, w0, c0 = _written(), time.perf_counter(), _cpu()
+    run_survey(survey, out, workers=workers, warn=lambda msg: None)
+    wall, cpu, wrote = time.perf_counter() - w0, _cpu() - c0, _written() - b0
+    return wall, cpu, wrote, _size(out)
+
+
+def disk(where: Path, nbytes: int) -> float:
+    """MB/s of a plain write of ``nbytes`` (64 MiB pieces, fsynced) into a file in ``where``."""
+    piece = os.urandom(1 << 20) * 64
+    todo = max(len(piece), nbytes)
+    path = where / "bench_storage_disk.tmp"
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    try:
+        t0 = time.perf_counter()
+        done = 0
+        while done < todo:
+            done += os.write(fd, piece[: min(len(piece), todo - done)])
+        os.fsync(fd)
+        return done / 1e6 / (time.perf_counter() - t0)
+    finally:
+        os.close(fd)
+        path.unlink()
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("survey", nargs="?", type=Path, default=ROOT / "surveys" / "large_1e8.toml")
+    ap.add_argument("--alpha", type=float, help="run the slice at this one alpha")
+    ap.add_argument("--dir", type=Path, help="where to write (default: a temporary folder)")
+    ap.add_argument("--zarr", action="store_true", help="also run into a Zarr store")
+    ap.add_argument("--workers", type=int, nargs="*", default=[], help="dask LocalCluster sizes")
+    ap.add_argument("--tiny", action="store_true", help="a 10,240-point survey (a smoke test)")
+    args = ap.parse_args()
+
+    from engine.surveyfile import parse_survey
+
+    text = TINY if args.tiny else _survey_text(args.survey, args.alpha)
+    survey = parse_survey(text)
+    where = Path(tempfile.mkdtemp(prefix="bench_storage_", dir=args.dir))
+    print(f"load average before: {load()}; {os.cpu_count()} cores; writing in {where}")
+    try:
+        wall, cpu, points = compute_alone(survey)
+        rate = points / wall
+        print(f"compute alone: {points:,} points, {wall:.2f} s wall, {cpu:.2f} s CPU, "
+              f"{rate:,.0f} points/s")  # fmt: skip
+        runs = [("netCDF (default)", where / "bench.nc", None)]
+        if args.zarr or args.tiny:
+            runs.append(("Zarr", where / "bench.zarr", None))
+        runs += [(f"netCDF, --workers {n}", where / f"bench_w{n}.nc", n) for n in args.workers]
+        most = 0
+        results = []
+        for label, out, workers in runs:
+            r_wall, r_cpu, wrote, size = run(survey, out, workers)
+            most = max(most, wrote)
+            results.append((label, r_wall, r_cpu, wrote, size))
+            shutil.rmtree(out, ignore_errors=True)
+            out.unlink(missing_ok=True)
+        mbs = disk(where, min(most, 2 << 30))
+        print(f"disk: a plain write of {min(max(most, 1 << 26), 2 << 30) / 1e6:,.0f} MB, "
+              f"fsynced: {mbs:,.0f} MB/s")  # fmt: skip
+        for label, r_wall, r_cpu, wrote, size in results:
+            times = wrote / size if size else 0.0
+            print(f"run, {label}: {r_wall:.2f} s wall, {r_cpu:.2f} s CPU (this process), "
+                  f"{points / r_wall:,.0f} points/s; wrote {wrote / 1e6:,.0f} MB "
+                  f"({times:.2f}x the output's {size / 1e6:,.1f} MB)")  # fmt: skip
+            print(f"  run / compute alone: {points / r_wall / rate:.2f} of the points/s, "
+                  f"{r_cpu / cpu:.2f}x the CPU; bytes written per second / disk: "
+                  f"{wrote / 1e6 / r_wall / mbs:.2f}")  # fmt: skip
+    finally:
+        shutil.rmtree(where, ignore_errors=True)
+    print(f"load average after: {load()}")
+
+
+if __name__ == "__main__":
+    main()
