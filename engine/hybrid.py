@@ -72,9 +72,11 @@ def hybrid_fates(
 
     Returns ``fate`` (int8, :data:`engine.kernels.hybrid.HYBRID_FATE_NAMES`), the float rows of
     :data:`engine.kernels.hybrid.HYBRID_ROWS` (``slip_episodes`` as int32) and ``n_steps``.
-    The launches run several at once on the SIMD lanes
-    (:mod:`engine.kernels.lanes_hybrid`, the same results bit for bit; ``lanes=False`` runs
-    one launch per thread, for comparison).
+    Without spin friction the launches run several at once on the SIMD lanes
+    (:mod:`engine.kernels.lanes_hybrid`: their rolling stretches on the vector step; the same
+    results bit for bit; ``lanes=False`` runs one launch per thread, for comparison). With
+    spin friction every stretch is on the hybrid steps, which the lanes would run in scalar
+    code anyway (measured no faster): one launch per thread.
     """
     m = check_method(method, scene, integrator=True)
     params, effects, spin = hybrid_setup(scene, theta_max)
@@ -89,7 +91,7 @@ def hybrid_fates(
     if n:
         args = (*cols, *extra, params, float(scene.mu_k), float(scene.c_spin), m.kernel_id,
                 effects, spin, float(rtol), float(t_max), int(max_steps))  # fmt: skip
-        if lanes and m.family == "runge-kutta":
+        if lanes and m.family == "runge-kutta" and spin == 0:
             args += (numba.get_num_threads(), out_fate, out_f, out_n)
             call_specialized(hybrid_fate_points_lanes, args, (11, 12, 13))
         else:

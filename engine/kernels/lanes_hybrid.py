@@ -18,13 +18,18 @@ stretch:
 A lane whose story has ended takes the next launch from the queue the threads share
 (tests/kernels/test_lanes_hybrid.py checks every output against the scalar kernel's).
 
-Where the time goes (``scripts/bench_slide.py``'s launches, rk45, rtol 1e-9): without spin
-friction half the scalar map's time is in the rolling stretches (266k steps of ~1,070 cycles)
-and half in sliding (79k hybrid steps of ~3,700 cycles); the lanes take the first half about
-3.5 times faster. With spin friction every stretch is on the hybrid steps (97 % of the time),
-which stay scalar per lane: such a map runs as fast as the one-orbit-per-thread kernel. The
-hybrid step is the next to vectorise: one mode per lane group (:func:`.sliding.hybrid_rhs`
-branches on the mode), its event search and step rules (:func:`.hybrid_step.segment`) per lane.
+Where the time goes (``scripts/bench_slide.py``'s 400 launches, rk45, rtol 1e-9, 5 s; counted
+in the scalar kernel): without spin friction about half of it is in the rolling stretches (266k
+steps of ~1,000 cycles) and half in sliding (79k hybrid steps of ~3,000 to 3,700 cycles: the
+step's stages 57 %, its event search 25 %, the kink and step rules 12 %); the lanes take the
+first half about 3.5 times faster, so the map runs ~1.5 times faster per core. With spin
+friction every stretch is on the hybrid steps (96 % of the time: 281k steps rolling with the
+spin couple), which stay scalar per lane: on the lanes such a map ran no faster than one
+launch per thread (0.87 to 1.01 times its throughput), so :mod:`engine.hybrid` runs it there.
+The hybrid step is the next to vectorise: its right-hand side branches on the mode, the slip
+and the spin (:func:`.sliding.hybrid_rhs`), so a vector step needs it written with selects and
+the lanes grouped by mode; its event search (:func:`.hybrid_step.first_event`) and step rules
+would stay per lane.
 """
 
 from __future__ import annotations

@@ -49,12 +49,16 @@ def launches(n, seed):
 PTS = launches(64, 19)
 
 
-@pytest.mark.parametrize(("method", "c_spin"), [("dop853", 0.0), ("dop853", 0.01), ("rk45", 0.0)])
-def test_lanes_hybrid_maps_equal_the_scalar_kernel_bit_for_bit(method, c_spin):
+@pytest.mark.parametrize("method", ["dop853", "rk45"])
+def test_lanes_hybrid_maps_equal_the_scalar_kernel_bit_for_bit(method):
     """Fate, every float row (as bits: -0.0 and NaN too) and n_steps equal, on the whole step
     budget and on one that some stories exhaust (in a rolling stretch or a sliding one); the
-    fates cover every fate a hybrid map has (a slip is a transition: never ``slipped``)."""
-    sc = Scene(c_spin=c_spin, **BENCH)
+    fates cover every fate a hybrid map has (a slip is a transition: never ``slipped``). Without
+    spin friction: with it, engine.hybrid runs one launch per thread (every stretch is on the
+    hybrid steps, scalar on the lanes too); the lanes kernel with spin friction passes this
+    test as well (on scripts/bench_slide.py's launches too), a compile more than the suite's
+    budget allows."""
+    sc = Scene(**BENCH)
     *pts, u0, su, sv = PTS
     seen = set()
     episodes = 0
