@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from ._jit import call_specialized
@@ -18,6 +19,7 @@ from .kernels.hybrid import (
     HYBRID_ROWS,
     hybrid_fate_points,
 )
+from .kernels.lanes_hybrid import hybrid_fate_points_lanes
 from .kernels.model import P_THETA_MAX
 from .methods import check_method
 from .scene import Scene
@@ -62,6 +64,7 @@ def hybrid_fates(
     slip_u: np.ndarray | None = None,
     slip_v: np.ndarray | None = None,
     max_steps: int = MAX_STEPS,
+    lanes: bool = True,
 ) -> dict[str, np.ndarray]:
     """The whole story of each launch (1-D arrays): at ``r_start`` [m] on the rolling orbit
     (calE [J], h [m/s], L_z) with radial speed ``u0`` [m/s] and slip velocity (``slip_u``,
@@ -69,6 +72,11 @@ def hybrid_fates(
 
     Returns ``fate`` (int8, :data:`engine.kernels.hybrid.HYBRID_FATE_NAMES`), the float rows of
     :data:`engine.kernels.hybrid.HYBRID_ROWS` (``slip_episodes`` as int32) and ``n_steps``.
+    Without spin friction the launches run several at once on the SIMD lanes
+    (:mod:`engine.kernels.lanes_hybrid`: their rolling stretches on the vector step; the same
+    results bit for bit; ``lanes=False`` runs one launch per thread, for comparison). With
+    spin friction every stretch is on the hybrid steps, which the lanes would run in scalar
+    code anyway (measured no faster): one launch per thread.
     """
     m = check_method(method, scene, integrator=True)
     params, effects, spin = hybrid_setup(scene, theta_max)
@@ -82,9 +90,12 @@ def hybrid_fates(
     out_n = np.zeros(n, np.int64)
     if n:
         args = (*cols, *extra, params, float(scene.mu_k), float(scene.c_spin), m.kernel_id,
-                effects, spin, float(rtol), float(t_max), int(max_steps), out_fate, out_f,
-                out_n)  # fmt: skip
-        call_specialized(hybrid_fate_points, args, (11, 12, 13))
+                effects, spin, float(rtol), float(t_max), int(max_steps))  # fmt: skip
+        if lanes and m.family == "runge-kutta" and spin == 0:
+            args += (numba.get_num_threads(), out_fate, out_f, out_n)
+            call_specialized(hybrid_fate_points_lanes, args, (11, 12, 13))
+        else:
+            call_specialized(hybrid_fate_points, args + (out_fate, out_f, out_n), (11, 12, 13))
     res: dict[str, np.ndarray] = {"fate": out_fate}
     for i, name in enumerate(HYBRID_ROWS):
         res[name] = out_f[i]

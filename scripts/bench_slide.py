@@ -6,11 +6,14 @@ w0 in [-2, 2] m/s; M = 1, g = 9.81, k = 0.4, a = 1 cm) followed by rk45 at rtol 
 cone with rolling resistance c_rr = 0.02, mu = 0.3 and a rim at 1 m, to their fate or 5 s:
 
 - rolling: today's fate map (a slip ends the run: ``slipped``);
-- hybrid: the same scene with mu_k = 0.25 (a slip is a transition);
-- hybrid + spin: and c_spin = 0.01.
+- hybrid: the same scene with mu_k = 0.25 (a slip is a transition), on the SIMD lanes (the
+  rolling stretches several launches at once) and one launch per thread (``lanes=False``);
+- hybrid + spin: and c_spin = 0.01, one launch per thread (every stretch is on the hybrid
+  steps, which the lanes would run in scalar code too: ``engine.hybrid`` does not send it
+  there).
 
-Timed side by side in one process, best of ``--repeats``, on 1 and 2 numba threads; the
-machine load is printed.
+Timed side by side in one process (interleaved rounds, the best of ``--repeats``), on 1 and 2
+numba threads; the machine load is printed.
 
     python scripts/bench_slide.py [--points 400] [--repeats 3]
 """
@@ -18,11 +21,10 @@ machine load is printed.
 from __future__ import annotations
 
 import argparse
-import os
 
 import numba
 import numpy as np
-from bench_common import best
+from bench_common import interleaved, load
 
 from engine import launch
 from engine.fates import Horizon, fates
@@ -56,37 +58,42 @@ def main() -> None:
     method = args.method
     pts = sample(args.points)
     base = dict(mu=0.3, c_rr=0.02, rim=1.0)
+    sliding = Scene(mu_k=0.25, **base)
+    spinning = Scene(mu_k=0.25, c_spin=0.01, **base)
+
+    def hybrid(scene: Scene, lanes: bool):
+        return lambda: hybrid_fates(*pts, scene, method, 1e-9, T_MAX, float("inf"), lanes=lanes)
+
     runs = {
         "rolling": lambda: fates(*pts, Scene(**base), method, 1e-9, Horizon(time=T_MAX)),
-        "hybrid": lambda: hybrid_fates(
-            *pts, Scene(mu_k=0.25, **base), method, 1e-9, T_MAX, float("inf")
-        ),  # fmt: skip
-        "hybrid + spin": lambda: hybrid_fates(
-            *pts, Scene(mu_k=0.25, c_spin=0.01, **base), method, 1e-9, T_MAX, float("inf")
-        ),  # fmt: skip
+        "hybrid lanes": hybrid(sliding, True),
+        "hybrid 1/thread": hybrid(sliding, False),
+        "spin 1/thread": hybrid(spinning, False),
     }
-    print(f"{args.points} launches, best of {args.repeats}")
+    print(f"{args.points} launches, {method}, best of {args.repeats}; load average {load()}")
     for name, fn in runs.items():
         res = fn()  # compile
         names = FATE_NAMES if name == "rolling" else HYBRID_FATE_NAMES
         counts = np.bincount(res["fate"], minlength=len(names))
         fates_text = ", ".join(f"{n} {c}" for n, c in zip(names, counts, strict=True) if c)
-        print(f"{name:14s} fates: {fates_text}; steps {int(res['n_steps'].sum())}")
-    one = {}
-    for name, fn in runs.items():
-        t = {}
-        for threads in (1, 2):
-            numba.set_num_threads(threads)
-            t[threads] = best(fn, args.repeats)
-        one[name] = t[1]
-        print(f"{name:14s} {args.points / t[1]:9.1f} orbits/s on 1 thread, "
-              f"{args.points / t[2]:9.1f} on 2; 2-thread speedup {t[1] / t[2]:.2f}; "
-              f"load average {os.getloadavg()[0]:.2f} (2 cores)")  # fmt: skip
-    for name in ("hybrid", "hybrid + spin"):
-        print(
-            f"{name:14s} per core: {one[name] / one['rolling']:.2f} x the rolling fate "
-            "map's time per orbit (same launches, same run)"
-        )
+        print(f"{name:16s} fates: {fates_text}; steps {int(res['n_steps'].sum())}")
+    t = {}
+    for threads in (1, 2):
+        numba.set_num_threads(threads)
+        t[threads] = {k: v[0] for k, v in interleaved(runs, args.repeats).items()}
+    for name in runs:
+        print(f"{name:16s} {args.points / t[1][name]:9.1f} orbits/s on 1 thread, "
+              f"{args.points / t[2][name]:9.1f} on 2; 2-thread speedup "
+              f"{t[1][name] / t[2][name]:.2f}")  # fmt: skip
+    lanes, one, spin = t[1]["hybrid lanes"], t[1]["hybrid 1/thread"], t[1]["spin 1/thread"]
+    print(f"hybrid per core: lanes {one / lanes:.2f} x the one-launch-per-thread map's "
+          f"throughput; time per orbit {lanes / t[1]['rolling']:.2f} x the rolling fate map's on "
+          f"the lanes ({one / t[1]['rolling']:.2f} x one per thread)")  # fmt: skip
+    print(
+        f"spin   per core: time per orbit {spin / t[1]['rolling']:.2f} x the rolling fate "
+        "map's (one launch per thread)"
+    )
+    print(f"load average {load()} (2 cores)")
 
 
 if __name__ == "__main__":

@@ -269,3 +269,19 @@ def fate_points_lanes(alpha, energy, h, Lz, r_start, params, method, effects, rt
     for _ in prange(max(1, min(n_workers, alpha.shape[0]))):
         lanes_fate_worker(method, effects, alpha, energy, h, Lz, r_start, params, rtol, t_horizon,
                           max_steps, queue, out_fate, out_f, out_n)  # fmt: skip
+
+
+@kernel(inline="always")
+def lane_clip(method, effects, l, W):
+    """Clip lane l's next attempt to its T_END (:func:`_clip`), for other fate-run lanes
+    (:mod:`.lanes_hybrid`)."""
+    _clip(method, effects, l, W)
+
+
+@kernel(inline="always")
+def lane_flagged_run(method, effects, l, max_steps, W, p, K, K2, ys, yn, y, buf, brent, ev_t,
+                     ev_kind, ev_y):  # fmt: skip
+    """Finish lane l's flagged attempt of a fate run (:func:`_lane_flagged`, the same
+    arguments and results), for other fate-run lanes (:mod:`.lanes_hybrid`)."""
+    return _lane_flagged(method, effects, l, max_steps, W, p, K, K2, ys, yn, y, buf, brent, ev_t,
+                         ev_kind, ev_y)  # fmt: skip

@@ -1,0 +1,279 @@
+"""Hybrid fate maps on the SIMD lanes: :func:`.hybrid.hybrid_fate_points` for the Runge-Kutta
+methods, its results bit for bit.
+
+Each lane follows one launch's story the way :func:`.hybrid.hybrid_fate_of` does, with the
+same pieces (:mod:`.story_parts`): its start (:func:`.story_parts.story_begin`), the switches
+and what follows each stretch, its result. What a lane does between them depends on the
+stretch:
+
+- a rolling stretch without spin friction is a fate run (:func:`.fate.fate_run`), so it runs
+  on the vector step of the fate lanes (:mod:`.lanes_fate`): begun as
+  :func:`.fate.run_restarting` begins a run (a start at rest, :func:`.lanes.lane_begin`), its
+  steps taken LANES at a time with those of the other lanes, its end (the slip is one of the
+  terminal events) and restarts from rest in scalar code, as :func:`.fate.run_restarting`
+  takes them; its step count goes on from the story's, so the step budget is the scalar's;
+- a stretch on the hybrid steps (sliding; rolling with spin friction) runs in scalar code in
+  its lane, to its end (:func:`.story_parts.hybrid_stretch`), while the other lanes wait.
+
+A lane whose story has ended takes the next launch from the queue the threads share
+(tests/kernels/test_lanes_hybrid.py checks every output against the scalar kernel's).
+
+Where the time goes (``scripts/bench_slide.py``'s 400 launches, rk45, rtol 1e-9, 5 s; counted
+in the scalar kernel): without spin friction about half of it is in the rolling stretches (266k
+steps of ~1,000 cycles) and half in sliding (79k hybrid steps of ~3,000 to 3,700 cycles: the
+step's stages 57 %, its event search 25 %, the kink and step rules 12 %); the lanes take the
+first half about 3.5 times faster, so the map runs ~1.5 times faster per core. With spin
+friction every stretch is on the hybrid steps (96 % of the time: 281k steps rolling with the
+spin couple), which stay scalar per lane: on the lanes such a map ran no faster than one
+launch per thread (0.87 to 1.01 times its throughput), so :mod:`engine.hybrid` runs it there.
+The hybrid step is the next to vectorise: its right-hand side branches on the mode, the slip
+and the spin (:func:`.sliding.hybrid_rhs`), so a vector step needs it written with selects and
+the lanes grouped by mode; its event search (:func:`.hybrid_step.first_event`) and step rules
+would stay per lane.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import literally, prange
+
+from .._jit import kernel, parallel_kernel
+from .fate import FAILED, MAX_RESTARTS, after_run, fate_of_status, starts_at_rest
+from .lanes import ORBIT, lane_begin, lane_params, lane_workspace
+from .lanes_fate import lane_clip, lane_flagged_run
+from .lanes_step import LANES, borrow, fetch_add, lanes_attempt, lanes_control_fate, lanes_layout
+from .model import N_PARAMS, set_alpha
+from .protocol import OK
+from .rk_codegen import tableau
+from .sliding import MODE_ROLLING, N_HYBRID, N_HYBRID_PARAMS
+from .story_parts import (
+    HI_FATE,
+    HI_MODE,
+    HI_STEPS,
+    HS_T,
+    HYBRID_ROWS,
+    N_HI,
+    N_HS,
+    hybrid_stretch,
+    rolled,
+    rolling_stretch,
+    story_begin,
+    story_result,
+    story_runs_out,
+)
+
+#: Columns of a lane's floats: the time its rolling stretch's run started at (restarts), the
+#: stretch's horizon (from its start) and the story's steps before the stretch.
+F_T0, F_HORIZON, F_STEPS0 = 0, 1, 2
+#: Column of the int array after :data:`.lanes.ORBIT` ... :data:`.lanes.N_EV`: the stretch's
+#: restarts from rest.
+RESTARTS = 3
+
+
+@kernel
+def _store(out_fate, out_f, out_n, i, fate, row, steps):
+    out_fate[i] = fate
+    for j in range(row.shape[0]):
+        out_f[j, i] = row[j]
+    out_n[i] = steps
+
+
+@kernel
+def _stretch_ended(method, effects, l, status, t_run, yv, rtol, max_steps, W, I, F, LP, LYH, LHS,
+                   LHI, LEV, LEVK, K, buf, at, ev_t, ev_kind, ev_y, hev_t, hev_kind,
+                   hev_y):  # fmt: skip
+    """Lane l's run of a rolling stretch ended with ``status`` at state yv, t_run [s] into the
+    run: :func:`.fate.run_restarting`'s loop. Returns True when the lane runs again (a restart
+    from rest), False when the stretch is over (its end taken by :func:`.story_parts.rolled`)."""
+    ly = lanes_layout(method, effects)
+    L = LANES
+    p = LP[l]
+    while True:
+        steps = np.int64(W[ly.N_ACC * L + l] + W[ly.N_REJ * L + l])
+        ended, status, t = after_run(effects, status, yv, p, F[l, F_T0] + t_run)
+        fate = fate_of_status(status)
+        if not ended:
+            F[l, F_T0] = t
+            I[l, RESTARTS] += 1
+            if steps >= max_steps or I[l, RESTARTS] >= MAX_RESTARTS:
+                ended = True
+                fate = FAILED
+        if ended:
+            W[ly.ACTIVE * L + l] = 0.0
+            W[ly.H * L + l] = 0.0
+            rolled(effects, fate, t, yv, steps - np.int64(F[l, F_STEPS0]), LYH[l], LHS[l], LHI[l],
+                   hev_t, hev_kind, hev_y)  # fmt: skip
+            return False
+        W[ly.T_END * L + l] = F[l, F_HORIZON] - t
+        for j in range(ly.n):
+            at[j] = W[(ly.ATOL + j) * L + l]
+        status = lane_begin(method, effects, l, yv, at, p, rtol, max_steps, W, I, LEV, LEVK, K,
+                            buf, ev_t, ev_kind, ev_y)  # fmt: skip
+        if status == OK:
+            lane_clip(method, effects, l, W)
+            return True
+        t_run = 0.0
+
+
+@kernel
+def _lane_story(method, effects, spin, l, rtol, t_horizon, max_steps, W, I, F, LP, LY0, LAT, LHP,
+                LYH, LHAT, LHS, LHI, LEV, LEVK, K, HK, hw, yr, ra, buf, at, ev_t, ev_kind, ev_y,
+                hev_t, hev_kind, hev_y, row, out_fate, out_f, out_n):  # fmt: skip
+    """Go on with lane l's story in scalar code (:func:`.hybrid.hybrid_fate_of`'s loop) until a
+    rolling stretch runs on the lanes (returns True) or the story ends (its point written, the
+    lane idle: False). hw: the hybrid steps' scratch states."""
+    ly = lanes_layout(method, effects)
+    L = LANES
+    p = LP[l]
+    y = LYH[l]
+    hs = LHS[l]
+    hi = LHI[l]
+    while hi[HI_FATE] < 0:
+        if story_runs_out(max_steps, hi):
+            break
+        if hi[HI_MODE] == MODE_ROLLING and spin == 0:
+            rolling_stretch(effects, p, y, LY0[l], LAT[l], rtol, hs, hi, yr, ra)
+            ended, status = starts_at_rest(effects, yr, p)  # as fate_run starts
+            if ended:
+                rolled(effects, fate_of_status(status), 0.0, yr, 0, y, hs, hi, hev_t, hev_kind,
+                       hev_y)  # fmt: skip
+                continue
+            F[l, F_T0] = 0.0
+            F[l, F_HORIZON] = t_horizon - hs[HS_T]
+            F[l, F_STEPS0] = hi[HI_STEPS]
+            I[l, RESTARTS] = 0
+            W[ly.N_ACC * L + l] = hi[HI_STEPS]  # the budget is the story's
+            W[ly.N_REJ * L + l] = 0.0
+            W[ly.ACTIVE * L + l] = 0.0
+            W[ly.T_END * L + l] = F[l, F_HORIZON] - 0.0
+            status = lane_begin(method, effects, l, yr, ra, p, rtol, max_steps, W, I, LEV, LEVK,
+                                K, buf, ev_t, ev_kind, ev_y)  # fmt: skip
+            if status == OK:
+                lane_clip(method, effects, l, W)
+                return True
+            if _stretch_ended(method, effects, l, status, 0.0, yr, rtol, max_steps, W, I, F, LP,
+                              LYH, LHS, LHI, LEV, LEVK, K, buf, at, ev_t, ev_kind, ev_y, hev_t,
+                              hev_kind, hev_y):  # fmt: skip
+                return True
+            continue
+        hybrid_stretch(method, p, y, LHP[l], rtol, LHAT[l], t_horizon, max_steps, HK, hw[0], hw[1],
+                       hw[2], hs, hi, hev_t, hev_kind, hev_y)  # fmt: skip
+    fate = story_result(spin, p, y, LY0[l], LHP[l], hs, hi, row)
+    _store(out_fate, out_f, out_n, I[l, ORBIT], fate, row, hi[HI_STEPS])
+    I[l, ORBIT] = -1
+    W[ly.ACTIVE * L + l] = 0.0
+    W[ly.H * L + l] = 0.0
+    return False
+
+
+@kernel
+def _lane_start(effects, spin, l, i, alpha, energy, hh, Lz, r_start, u0, slip_u, slip_v, params,
+                mu_k, c_spin, rtol, I, LP, LY0, LAT, LHP, LYH, LHAT, LHS, LHI, row, out_fate,
+                out_f, out_n):  # fmt: skip
+    """Begin launch i's story in lane l (:func:`.story_parts.story_begin`). Returns True when it
+    goes on; False when its point is written (it ended at its start)."""
+    p = LP[l]
+    for k in range(N_PARAMS):
+        p[k] = params[k]
+    set_alpha(p, alpha[i])
+    for j in range(row.shape[0]):
+        row[j] = math.nan
+    fate = story_begin(effects, spin, p, mu_k, c_spin, energy[i], hh[i], Lz[i], r_start[i], u0[i],
+                       slip_u[i], slip_v[i], rtol, row, LY0[l], LAT[l], LHP[l], LYH[l], LHAT[l],
+                       LHS[l], LHI[l])  # fmt: skip
+    if fate >= 0:
+        _store(out_fate, out_f, out_n, i, fate, row, 0)
+        return False
+    I[l, ORBIT] = i
+    return True
+
+
+@kernel
+def lanes_hybrid_worker(method, effects, spin, alpha, energy, hh, Lz, r_start, u0, slip_u, slip_v,
+                        params, mu_k, c_spin, rtol, t_horizon, max_steps, queue, out_fate, out_f,
+                        out_n):  # fmt: skip
+    """Follow launches LANES at a time through their stories (:func:`.hybrid.hybrid_fate_of`),
+    into out_fate, out_f (rows :data:`.story_parts.HYBRID_ROWS`) and out_n (steps); a lane
+    whose story has ended takes the next launch from ``queue`` (int64[1], shared by the
+    workers)."""
+    ly = lanes_layout(method, effects)
+    L = LANES
+    n = ly.n
+    owners, W, LY0, LEV, pw, K, K2, V, brent, ev_t, ev_kind, ev_y, F, I, LEVK = lane_workspace(
+        method, effects, 7, 4, 3)  # fmt: skip
+    ys, yn, yv, at, buf, yr, ra = V[0], V[1], V[2], V[3], V[4], V[5], V[6]
+    LP = np.zeros((L, N_PARAMS))
+    LAT = np.zeros((L, n))
+    LHP = np.zeros((L, N_HYBRID_PARAMS))
+    LYH = np.zeros((L, N_HYBRID))
+    LHAT = np.zeros((L, N_HYBRID))
+    LHS = np.zeros((L, N_HS))
+    LHI = np.zeros((L, N_HI), np.int64)
+    HK = np.empty((tableau(method)[6], N_HYBRID))
+    hw = np.empty((3, N_HYBRID))
+    row = np.empty(len(HYBRID_ROWS))
+    hev_t = np.empty(0)
+    hev_kind = np.empty(0, np.int8)
+    hev_y = np.empty((0, N_HYBRID))
+    alpha, energy, hh, Lz, r_start = (borrow(alpha), borrow(energy), borrow(hh), borrow(Lz),
+                                      borrow(r_start))  # fmt: skip
+    u0, slip_u, slip_v, params = borrow(u0), borrow(slip_u), borrow(slip_v), borrow(params)
+    out_fate, out_f, out_n = borrow(out_fate), borrow(out_f), borrow(out_n)
+    n_points = alpha.shape[0]
+    while True:
+        running = 0
+        for l in range(L):  # refill idle lanes; stories that end in scalar code are written
+            while I[l, ORBIT] < 0:
+                i = fetch_add(queue, 1)
+                if i >= n_points:
+                    break
+                if _lane_start(effects, spin, l, i, alpha, energy, hh, Lz, r_start, u0, slip_u,
+                               slip_v, params, mu_k, c_spin, rtol, I, LP, LY0, LAT, LHP, LYH,
+                               LHAT, LHS, LHI, row, out_fate, out_f, out_n):  # fmt: skip
+                    _lane_story(method, effects, spin, l, rtol, t_horizon, max_steps, W, I, F, LP,
+                                LY0, LAT, LHP, LYH, LHAT, LHS, LHI, LEV, LEVK, K, HK, hw, yr, ra,
+                                buf, at, ev_t, ev_kind, ev_y, hev_t, hev_kind, hev_y, row,
+                                out_fate, out_f, out_n)  # fmt: skip
+            running += I[l, ORBIT] >= 0
+        if running == 0:
+            break
+        lanes_attempt(method, effects, W, rtol)
+        lanes_control_fate(method, effects, W, max_steps)
+        for l in range(L):
+            if W[ly.FLAG * L + l] == 0.0:
+                continue
+            ended, status, t = lane_flagged_run(method, effects, l, max_steps, W, pw, K, K2, ys,
+                                                yn, yv, buf, brent, ev_t, ev_kind,
+                                                ev_y)  # fmt: skip
+            if not ended:
+                continue
+            lane_params(method, effects, l, W, pw)
+            if _stretch_ended(method, effects, l, status, t, yv, rtol, max_steps, W, I, F, LP,
+                              LYH, LHS, LHI, LEV, LEVK, K, buf, at, ev_t, ev_kind, ev_y, hev_t,
+                              hev_kind, hev_y):  # fmt: skip
+                continue
+            _lane_story(method, effects, spin, l, rtol, t_horizon, max_steps, W, I, F, LP, LY0,
+                        LAT, LHP, LYH, LHAT, LHS, LHI, LEV, LEVK, K, HK, hw, yr, ra, buf, at,
+                        ev_t, ev_kind, ev_y, hev_t, hev_kind, hev_y, row, out_fate, out_f,
+                        out_n)  # fmt: skip
+    # The owners live to here: the borrowed views above hold no reference of their own.
+    owners[0][0] = owners[1][0] + owners[2][0]
+
+
+@parallel_kernel
+def hybrid_fate_points_lanes(alpha, energy, h, Lz, r_start, u0, slip_u, slip_v, params, mu_k,
+                             c_spin, method, effects, spin, rtol, t_horizon, max_steps, n_workers,
+                             out_fate, out_f, out_n):  # fmt: skip
+    """:func:`.hybrid.hybrid_fate_points` for a Runge-Kutta ``method`` (literal, like
+    ``effects`` and ``spin``), its results bit for bit: ``n_workers``
+    :func:`lanes_hybrid_worker` (one per thread) taking launches from one queue."""
+    literally(method)
+    literally(effects)
+    literally(spin)
+    queue = np.zeros(1, np.int64)
+    for _ in prange(max(1, min(n_workers, alpha.shape[0]))):
+        lanes_hybrid_worker(method, effects, spin, alpha, energy, h, Lz, r_start, u0, slip_u,
+                            slip_v, params, mu_k, c_spin, rtol, t_horizon, max_steps, queue,
+                            out_fate, out_f, out_n)  # fmt: skip

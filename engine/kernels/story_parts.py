@@ -1,0 +1,375 @@
+"""The pieces of a launch's whole story (:mod:`.hybrid`), one rule for the scalar kernel
+(:func:`.hybrid.hybrid_fate_of`) and the lanes (:mod:`.lanes_hybrid`).
+
+A story is a loop: a rolling stretch without spin friction is a fate run
+(:func:`rolling_stretch` gives its start, :func:`.fate.fate_run` runs it, :func:`rolled` takes
+its end: a slip starts sliding); anything else runs on the hybrid steps, one segment to its
+first event (:func:`hybrid_stretch`, the switches and their rules). :func:`story_begin` sets
+it up and :func:`story_result` gives its rows. Its state between the pieces is a float array
+``hs`` (:data:`HS_T` ...) and an int array ``hi`` (:data:`HI_MODE` ...), so a lane can hold
+it while other lanes step.
+
+``spin`` (a literal: 0 or 1) compiles spin friction in; ``effects`` is the rolling scene's
+literal effect set (with :data:`.model.SLIP_CHECK`: the static friction limit).
+"""
+
+from __future__ import annotations
+
+import math
+
+from .._jit import kernel
+from .fate import (
+    FAILED,
+    FATE_REST,
+    FATE_SLIPPED,
+    FATE_SPILLED,
+    FATE_VERTEX,
+    MAX_RESTARTS,
+    NO_ORBIT,
+    REST_SPEED,
+    ROLLING,
+    holds_at_rest,
+)
+from .hybrid_step import (
+    ARMED_ROLL,
+    ARMED_SPIN,
+    EV_REST,
+    EV_RIM,
+    EV_SLIP,
+    EV_SPIN_GO,
+    EV_SPIN_STOP,
+    EV_STICK,
+    EV_THETA,
+    EV_VERTEX,
+    SEG_FAILED,
+    SEG_TIME,
+    ev_y_stick,
+    push_event,
+    release_spin,
+    rolling_invariants,
+    segment,
+)
+from .model import (
+    P_COS,
+    P_G,
+    P_K,
+    P_M,
+    P_R_VERTEX,
+    P_RIM,
+    P_SIN,
+    P_V_REST,
+    ROLLING_RESISTANCE,
+    invariants,
+    invariants_of,
+    kinetic_energy,
+    motion_rates,
+    radial_energy,
+)
+from .orbit import initial_state, orbit_start, tolerance_scales
+from .sliding import (
+    MODE_ROLLING,
+    MODE_SLIDING,
+    N_HYBRID,
+    hold_margin,
+    hybrid_energy,
+    hybrid_params,
+    spin_hold_margin,
+    stick,
+)
+
+#: Fate codes beyond :data:`.fate.FATE_NAMES`: still sliding at the horizon.
+SLIDING = 7
+HYBRID_FATE_NAMES = ("no_orbit", "rolling", "spilled", "slipped", "rest", "vertex", "failed",
+                     "sliding")  # fmt: skip
+#: Rows of the float output of :func:`hybrid_fate_points`.
+HYBRID_ROWS = ("fate_time", "fate_r", "fate_theta", "revolutions", "energy_lost",
+               "invariant_drift", "slide_time", "slip_episodes", "fate_speed", "final_energy",
+               "final_h", "final_Lz", "lost_rolling_resistance", "lost_sliding_friction",
+               "lost_spin_friction")  # fmt: skip
+
+
+@kernel
+def _energy(y, hp, mode):
+    """E [J] of the hybrid state: the rolling formula while rolling (as a fate map computes
+    it), the sliding one otherwise."""
+    if mode == MODE_ROLLING:
+        return invariants_of(y[0], y[2], y[3], y[6], hp[P_SIN], hp[P_COS], hp[P_M], hp[P_G],
+                             hp[P_K])[0]  # fmt: skip
+    return hybrid_energy(y[0], y[2], y[3], y[4], y[5], y[6], hp)
+
+
+#: Floats of a story's state (``hs``): its time [s], the time spent sliding [s], the energy at
+#: the start [J] and its scale, the invariants of the last rolling orbit, the launch's orbit.
+HS_T, HS_SLIDE, HS_E0, HS_SCALE, HS_FE, HS_FH, HS_FL, HS_ENERGY, HS_H, HS_LZ = range(10)
+N_HS = 10
+#: Ints of a story's state (``hi``): the mode, slip episodes, the spin stick (0/1), the arming
+#: bits, steps so far, restarts from rest, the fate (-1 while it runs), events recorded.
+HI_MODE, HI_EPISODES, HI_STUCK, HI_ARMED, HI_STEPS, HI_RESTARTS, HI_FATE, HI_NEV = range(8)
+N_HI = 8
+
+
+@kernel
+def story_begin(effects, spin, p, mu_k, c_spin, energy, h, Lz, r_start, u0, slip_u, slip_v, rtol,
+                out, y0, atol, hp, y, hatol, hs, hi):  # fmt: skip
+    """Set up the story of a launch (:func:`hybrid_fate_of`'s arguments): the rest threshold in
+    p, the rolling start state y0 and its tolerances atol (length ``state_size(effects)``), the
+    hybrid parameters hp, state y and tolerances hatol, and the story's state hs, hi. Returns
+    the fate where the launch ends at its start (``out`` then holds its floats), else -1."""
+    if not (r_start >= 0.0 and math.isfinite(energy) and math.isfinite(Lz)):
+        return NO_ORBIT
+    if r_start > p[P_RIM]:  # beyond the rim, as a fate map says
+        return NO_ORBIT
+    M = p[P_M]
+    e_true = energy + 0.5 * M * u0 * u0
+    ok, r1, r2, rc = orbit_start(p, e_true, h, Lz)
+    if not ok:
+        r1 = r_start
+        r2 = math.inf
+    yi = initial_state(p, effects, r_start, e_true, h, Lz)
+    yi[2] = u0
+    if r_start <= p[P_R_VERTEX]:  # in the vertex region: it ends there unless it leaves it
+        leaves = u0 > 0.0 or (u0 == 0.0 and motion_rates(yi[0], 0.0, yi[3], yi[4], p,
+                                                         effects)[2] > 0.0)  # fmt: skip
+        if r_start == 0.0 or not leaves:
+            out[0] = 0.0
+            out[1] = r_start
+            for j in range(2, 6):
+                out[j] = 0.0
+            return FATE_VERTEX
+    for j in range(yi.shape[0]):
+        y0[j] = yi[j]
+    sc = tolerance_scales(p, effects, y0, e_true, h, Lz, min(r1, r_start), r2, rc)
+    p[P_V_REST] = REST_SPEED * rtol * max(max(sc[2], abs(y0[3])), max(abs(slip_u), abs(slip_v)))
+    for j in range(y0.shape[0]):
+        atol[j] = sc[j] * rtol
+    hq = hybrid_params(p, mu_k, c_spin)
+    for j in range(hq.shape[0]):
+        hp[j] = hq[j]
+    for j in range(N_HYBRID):
+        y[j] = 0.0
+    y[0] = y0[0]
+    y[2] = y0[2]
+    y[3] = y0[3]
+    y[4] = slip_v - y0[3]
+    y[5] = y0[2] - slip_u
+    y[6] = y0[4]
+    vel = max(max(sc[2], sc[3]), max(sc[4], max(abs(slip_u), abs(slip_v))))
+    hatol[0] = atol[0]
+    hatol[1] = rtol
+    hatol[2] = atol[2]
+    hatol[3] = atol[3]
+    hatol[4] = rtol * vel
+    hatol[5] = rtol * vel
+    hatol[6] = atol[4]
+    e_scale = max(abs(e_true), 0.5 * M * vel * vel)
+    hatol[7] = rtol * e_scale
+    hatol[8] = rtol * e_scale
+    hatol[9] = rtol * e_scale
+    mode = MODE_SLIDING if (slip_u != 0.0 or slip_v != 0.0) else MODE_ROLLING
+    if mode == MODE_ROLLING:
+        E0 = invariants(y0, p)[0]
+        scale = max(abs(E0), kinetic_energy(y0, p))
+    else:
+        E0 = hybrid_energy(y[0], y[2], y[3], y[4], y[5], y[6], hp)
+        scale = max(abs(E0), E0 - hybrid_energy(y[0], 0.0, 0.0, 0.0, 0.0, 0.0, hp))
+    stuck = spin == 1 and y[6] == 0.0 and spin_hold_margin(y, hp) <= 0.0
+    hi[HI_MODE] = mode
+    hi[HI_EPISODES] = 1 if mode == MODE_SLIDING else 0
+    hi[HI_STUCK] = 1 if stuck else 0
+    hi[HI_ARMED] = 0
+    hi[HI_STEPS] = 0
+    hi[HI_RESTARTS] = 0
+    hi[HI_FATE] = -1
+    hi[HI_NEV] = 0
+    hs[HS_T] = 0.0
+    hs[HS_SLIDE] = 0.0
+    hs[HS_E0] = E0
+    hs[HS_SCALE] = scale
+    hs[HS_FE] = math.nan
+    hs[HS_FH] = math.nan
+    hs[HS_FL] = math.nan
+    if mode == MODE_ROLLING:
+        hs[HS_FE] = energy
+        hs[HS_FH] = h
+        hs[HS_FL] = Lz
+    hs[HS_ENERGY] = energy
+    hs[HS_H] = h
+    hs[HS_LZ] = Lz
+    return -1
+
+
+@kernel
+def story_runs_out(max_steps, hi):
+    """Whether the story has used its step budget or restarts (then its fate is FAILED)."""
+    if hi[HI_STEPS] >= max_steps or hi[HI_RESTARTS] > MAX_RESTARTS:
+        hi[HI_FATE] = FAILED
+        return True
+    return False
+
+
+@kernel
+def rolling_stretch(effects, p, y, y0, atol, rtol, hs, hi, yr, ra):
+    """The start of the story's next rolling stretch without spin friction, a fate run
+    (:func:`.fate.fate_run`): its state into yr, its tolerances into ra (the launch's own where
+    it has not slipped yet). Returns the stretch's orbit (calE, h, L_z)."""
+    nr = yr.shape[0]
+    if hi[HI_EPISODES] == 0:
+        for j in range(nr):
+            yr[j] = y0[j]
+            ra[j] = atol[j]
+        return hs[HS_ENERGY], hs[HS_H], hs[HS_LZ]
+    for j in range(nr):
+        yr[j] = 0.0
+    yr[0] = y[0]
+    yr[1] = y[1]
+    yr[2] = y[2]
+    yr[3] = y[3]
+    yr[4] = y[6]
+    if effects & ROLLING_RESISTANCE:
+        yr[nr - 1] = y[7]
+    E1, Lz1, h1 = invariants(yr, p)
+    e1 = radial_energy(E1, h1, p[P_M], p[P_K])
+    ok1, q1, q2, qc = orbit_start(p, e1, h1, Lz1)
+    if not ok1:
+        q1 = yr[0]
+        q2 = math.inf
+    sc = tolerance_scales(p, effects, yr, e1, h1, Lz1, min(q1, yr[0]), q2, qc)
+    for j in range(nr):
+        ra[j] = sc[j] * rtol
+    return e1, h1, Lz1
+
+
+@kernel
+def rolled(effects, f, dt, yr, st, y, hs, hi, ev_t, ev_kind, ev_y):
+    """The story after a rolling stretch that ended with fate f, dt [s] and st steps after its
+    start in the state yr: a slip starts sliding; any other end is the story's."""
+    nr = yr.shape[0]
+    hs[HS_T] += dt
+    hi[HI_STEPS] += st
+    y[0] = yr[0]
+    y[1] = yr[1]
+    y[2] = yr[2]
+    y[3] = yr[3]
+    y[4] = -yr[3]
+    y[5] = yr[2]
+    y[6] = yr[4]
+    if effects & ROLLING_RESISTANCE:
+        y[7] = yr[nr - 1]
+    t = hs[HS_T]
+    if f != FATE_SLIPPED:
+        hi[HI_FATE] = f
+        if f == FATE_SPILLED:
+            hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_RIM, y)
+        elif f == FATE_VERTEX:
+            hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_VERTEX, y)
+        elif f == FATE_REST:
+            hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_REST, y)
+        return
+    hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_SLIP, y)
+    hi[HI_MODE] = MODE_SLIDING
+    hi[HI_EPISODES] += 1
+    hi[HI_ARMED] &= ARMED_SPIN
+
+
+@kernel
+def hybrid_stretch(method, p, y, hp, rtol, hatol, t_horizon, max_steps, K, ytmp, ynew, yev, hs,
+                   hi, ev_t, ev_kind, ev_y):  # fmt: skip
+    """One segment of the story on the hybrid steps (sliding, or rolling with spin friction:
+    :func:`.hybrid_step.segment`) and the switch at its end; the story's fate where it ends."""
+    mode = hi[HI_MODE]
+    stuck = hi[HI_STUCK] != 0
+    end, t, st, dt, armed = segment(method, y, hp, mode, stuck, hi[HI_ARMED], hs[HS_T], t_horizon,
+                                    rtol, hatol, max_steps - hi[HI_STEPS], K, ytmp, ynew,
+                                    yev)  # fmt: skip
+    hs[HS_T] = t
+    hi[HI_ARMED] = armed
+    hi[HI_STEPS] += st
+    if mode == MODE_SLIDING:
+        hs[HS_SLIDE] += dt
+    if end == SEG_FAILED:
+        hi[HI_FATE] = FAILED
+        return
+    if end == SEG_TIME or end == EV_THETA:
+        hi[HI_FATE] = SLIDING if mode == MODE_SLIDING else ROLLING
+        if end == EV_THETA:
+            hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, end, y)
+        return
+    hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, end, y)
+    if end == EV_RIM:
+        hi[HI_FATE] = FATE_SPILLED
+    elif end == EV_VERTEX:
+        hi[HI_FATE] = FATE_VERTEX
+    elif end == EV_SLIP:
+        hi[HI_MODE] = MODE_SLIDING
+        hi[HI_EPISODES] += 1
+        hi[HI_ARMED] &= ARMED_SPIN
+    elif end == EV_STICK:
+        yt = y.copy()
+        stick(yt, hp)
+        if hold_margin(yt, hp) <= 0.0:
+            stick(y, hp)
+            ev_y_stick(ev_y, hi[HI_NEV] - 1, y)
+            hi[HI_MODE] = MODE_ROLLING
+            fe, fh, fl = rolling_invariants(y, hp)
+            hs[HS_FE] = fe
+            hs[HS_FH] = fh
+            hs[HS_FL] = fl
+        hi[HI_ARMED] &= ARMED_SPIN
+    elif end == EV_SPIN_STOP:  # |w| down to the threshold: the rest of it to spin friction
+        y[9] += 0.5 * hp[P_K] * hp[P_M] * y[6] * y[6]
+        y[6] = 0.0
+        hi[HI_STUCK] = 1 if spin_hold_margin(y, hp) <= 0.0 else 0
+        hi[HI_ARMED] &= ARMED_ROLL
+    elif end == EV_SPIN_GO:
+        hi[HI_STUCK] = 0
+        release_spin(y, hp)
+        hi[HI_ARMED] &= ARMED_ROLL
+    elif end == EV_REST:
+        if holds_at_rest(p):
+            hi[HI_FATE] = FATE_REST
+            return
+        y[2] = 0.0
+        y[3] = 0.0
+        y[4] = 0.0
+        y[5] = 0.0
+        hi[HI_RESTARTS] += 1
+
+
+@kernel
+def story_result(spin, p, y, y0, hp, hs, hi, out):
+    """The rows :data:`HYBRID_ROWS` of the ended story into ``out``; returns its fate."""
+    mode = hi[HI_MODE]
+    episodes = hi[HI_EPISODES]
+    fe = hs[HS_FE]
+    fh = hs[HS_FH]
+    fl = hs[HS_FL]
+    if mode == MODE_SLIDING:
+        fe = math.nan
+        fh = math.nan
+        fl = math.nan
+    E1 = _energy(y, hp, mode)
+    if mode == MODE_ROLLING and episodes == 0 and spin == 0:
+        yr = y0.copy()
+        yr[0] = y[0]
+        yr[2] = y[2]
+        yr[3] = y[3]
+        yr[4] = y[6]
+        E1 = invariants(yr, p)[0]
+    E0 = hs[HS_E0]
+    work = y[7] + y[8] + y[9]
+    out[0] = hs[HS_T]
+    out[1] = y[0]
+    out[2] = y[1]
+    out[3] = abs(y[1]) / (2.0 * math.pi)
+    out[4] = E0 - E1
+    out[5] = abs(E1 + work - E0) / hs[HS_SCALE]
+    out[6] = hs[HS_SLIDE]
+    out[7] = episodes
+    out[8] = math.sqrt(y[2] * y[2] + y[3] * y[3])
+    out[9] = fe
+    out[10] = fh
+    out[11] = fl
+    out[12] = y[7]
+    out[13] = y[8]
+    out[14] = y[9]
+    return hi[HI_FATE]

@@ -1,0 +1,77 @@
+"""Hybrid fate maps on the SIMD lanes (engine.kernels.lanes_hybrid): every output of the scalar
+kernel (engine.kernels.hybrid.hybrid_fate_points, one launch per thread), bit for bit, on
+launches whose stories end in every fate, slip and roll again several times, and outnumber
+the lanes (each lane takes launch after launch, the stories of uneven lengths)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from engine import launch
+from engine.hybrid import hybrid_fates
+from engine.kernels.hybrid import HYBRID_FATE_NAMES
+from engine.scene import Scene
+
+#: The scene of tests/test_hybrid.py's step-budget test and scripts/bench_slide.py (so the
+#: lanes kernels for dop853 are the ones the suite compiles already).
+BENCH = dict(mu=0.3, mu_k=0.25, c_rr=0.02, rim=1.0)
+
+
+def launches(n, seed):
+    """(alpha, calE at rest radially, h, L_z, r0, u0, slip_u, slip_v) of n launches: rolling
+    and thrown, on narrow, wide and nearly flat cones (where rolling resistance holds a ball
+    at rest), from the rim's neighbourhood down to the vertex, plus the edges: a start beyond
+    the rim, one inside the vertex region."""
+    rng = np.random.default_rng(seed)
+    alpha = rng.choice([0.35, 0.6, 0.9, 1.2, 1.56], n)
+    r0 = rng.uniform(0.05, 0.9, n)
+    v0 = rng.uniform(-1.5, 1.5, n) * (rng.uniform(size=n) > 0.15)
+    w0 = rng.uniform(-2.0, 2.0, n)
+    u0 = rng.uniform(-1.0, 1.0, n) * (rng.uniform(size=n) > 0.5)
+    thrown = rng.uniform(size=n) < 0.4
+    slip_u = np.where(thrown, rng.uniform(-2.0, 2.0, n), 0.0)
+    slip_v = np.where(thrown, rng.uniform(-1.0, 1.0, n), 0.0)
+    r0[:2] = (1.2, 1e-5)  # beyond the rim, inside the vertex region
+    v0[:2] = 0.0
+    u0[:2] = 0.0
+    alpha[2:4] = 1.56  # slow on a nearly flat cone: rolling resistance stops it and holds it
+    v0[2:4] = (0.2, 0.0)
+    w0[2:4] = (0.0, 0.3)
+    u0[2:4] = (0.0, 0.3)
+    slip_u[2:4] = (0.0, 0.4)
+    sc = Scene(**BENCH)
+    inv = launch.invariants(alpha, r0, u0, v0, w0, sc)
+    e_rest = inv["energy"] - 0.5 * sc.M * u0 * u0  # as a launch map computes it
+    return alpha, e_rest, inv["h"], inv["Lz"], r0, u0, slip_u, slip_v
+
+
+PTS = launches(64, 19)
+
+
+@pytest.mark.parametrize("method", ["dop853", "rk45"])
+def test_lanes_hybrid_maps_equal_the_scalar_kernel_bit_for_bit(method):
+    """Fate, every float row (as bits: -0.0 and NaN too) and n_steps equal, on the whole step
+    budget and on one that some stories exhaust (in a rolling stretch or a sliding one); the
+    fates cover every fate a hybrid map has (a slip is a transition: never ``slipped``). Without
+    spin friction: with it, engine.hybrid runs one launch per thread (every stretch is on the
+    hybrid steps, scalar on the lanes too); the lanes kernel with spin friction passes this
+    test as well (on scripts/bench_slide.py's launches too), a compile more than the suite's
+    budget allows."""
+    sc = Scene(**BENCH)
+    *pts, u0, su, sv = PTS
+    seen = set()
+    episodes = 0
+    for max_steps in (10**6, 400):
+        kw = dict(u0=u0, slip_u=su, slip_v=sv, max_steps=max_steps)
+        want = hybrid_fates(*pts, sc, method, 1e-9, 2.0, math.inf, lanes=False, **kw)
+        got = hybrid_fates(*pts, sc, method, 1e-9, 2.0, math.inf, lanes=True, **kw)
+        for name, w in want.items():
+            g = got[name]
+            if w.dtype == np.float64:
+                g, w = g.view(np.int64), w.view(np.int64)
+            np.testing.assert_array_equal(g, w, err_msg=name)
+        seen |= {HYBRID_FATE_NAMES[f] for f in want["fate"]}
+        episodes = max(episodes, int(want["slip_episodes"].max()))
+    assert seen == set(HYBRID_FATE_NAMES) - {"slipped"}, set(HYBRID_FATE_NAMES) - seen
+    assert episodes >= 3  # stories that slip, roll again and slip again
