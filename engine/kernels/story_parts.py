@@ -326,6 +326,14 @@ def hybrid_stretch(method, p, y, hp, rtol, hatol, t_horizon, max_steps, K, ytmp,
         hi[HI_ARMED] &= ARMED_ROLL
     elif end == EV_REST:
         if holds_at_rest(p):
+            # at rest, as a fate map carries its stop on to zero speed: the motion left at the
+            # threshold (energy ~ the threshold squared) goes to the resistance that stops it
+            e_moving = _energy(y, hp, mode)
+            y[2] = 0.0
+            y[3] = 0.0
+            y[4] = 0.0
+            y[5] = 0.0
+            y[7] += e_moving - _energy(y, hp, mode)
             hi[HI_FATE] = FATE_REST
             return
         y[2] = 0.0
