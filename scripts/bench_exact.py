@@ -18,8 +18,10 @@ Prints, with the machine load before and after:
 (d) a compute-bound reference kernel on 1 and 2 threads: the 2-thread speedup the machine
     offers at the moment (the other engineers' load takes from it);
 (e) the goals: exact >= 4x the peer per core, 2 threads >= 1.8x one, serial share <= 3 % (the
-    wall time outside the parallel region at 1 thread, ``bench_common.serial_share``, of
-    ``engine.evaluate``, ``evaluate_flat`` and ``evaluate_block``); met or not;
+    wall time outside the parallel regions at 1 thread, ``bench_common.serial_share``, of
+    ``engine.evaluate``, ``evaluate_flat`` and ``evaluate_block``: the regions are the calls
+    of ``engine.evaluation.run_queued``, the closed form's kernel and the copy and check of
+    ``evaluate``'s inputs); met or not;
 (f) where the time goes: the lanes' stages, ns per point, measured (``profile_batch``);
 (g) the exact-path table of docs/performance.md, in markdown (``--doc`` writes it there);
 (h) first-call time of the kernels in a fresh interpreter: cold (empty cache) and warm.
@@ -384,7 +386,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
           f"(target >= {TARGET_SPEEDUP:g}: {verdict(min(sp_flat, sp_grid), TARGET_SPEEDUP)}); "
           f"the reference kernel got {ceiling:.2f} at the same time")  # fmt: skip
 
-    region = (engine.evaluation, "run_units")
+    region = (engine.evaluation, "run_queued")  # every parallel region of the exact path
     serial = {
         "exact path (`evaluate`)": serial_share(lambda: engine.evaluate(a, e, h, lz, SCENE),
                                                 *region),

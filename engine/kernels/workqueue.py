@@ -7,6 +7,10 @@ none is left. One call per thread, so the threads start at once and none waits o
 interpreter for its next piece, and the split is as fine as a unit: the threads finish within
 a unit of each other whatever the points cost (forbidden and circular points are cheap, bounded
 ones are not). The results do not depend on which thread computes a unit.
+
+:func:`copy_checked_queued` is the same for the copies of the inputs of
+:func:`engine.evaluate`: each thread copies and checks chunks of :data:`COPY_UNIT` points, so
+the copies are first touched by the threads and the check is one pass over each input.
 """
 
 from __future__ import annotations
@@ -14,6 +18,9 @@ from __future__ import annotations
 from .._jit import kernel
 from .batch import orbit_units
 from .lanes_step import fetch_add
+
+#: Points per unit of :func:`copy_checked_queued` (a chunk of each input array).
+COPY_UNIT = 1 << 15
 
 
 @kernel
@@ -30,3 +37,29 @@ def orbit_units_queued(queue, n_units, alpha, energy, h, Lz, grid, relative, p, 
         orbit_units(u, u + 1, alpha, energy, h, Lz, grid, relative, p, circ_tol, out_cls, out_f,
                     out_energy)  # fmt: skip
         done += 1
+
+
+@kernel
+def copy_checked_queued(queue, n_units, srcs, lo, hi, dst, bad):
+    """Copy ``srcs`` (a tuple of k C-contiguous float64[n]) into the rows of ``dst``
+    float64[k, n], and set ``bad[j, u]`` (int8[k, units]) to 1 where unit ``u`` of array ``j``
+    holds a value not strictly between ``lo[j]`` and ``hi[j]`` (NaN never is; with infinite
+    bounds: a value that is not finite). Units of :data:`COPY_UNIT` points of one array,
+    ``n_units`` = k ceil(n / COPY_UNIT), taken from ``queue`` (int64[1], shared by the
+    threads) until none is left."""
+    n = dst.shape[1]
+    per = (n + COPY_UNIT - 1) // COPY_UNIT
+    while True:
+        u = fetch_add(queue, 1)
+        if u >= n_units:
+            return
+        j, c = u // per, u % per
+        i0 = c * COPY_UNIT
+        i1 = min(n, i0 + COPY_UNIT)
+        src, row, a, b = srcs[j], dst[j], lo[j], hi[j]
+        n_bad = 0
+        for i in range(i0, i1):
+            v = src[i]
+            row[i] = v
+            n_bad += 1 - ((a < v) & (v < b))
+        bad[j, c] = n_bad > 0
