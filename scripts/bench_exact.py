@@ -424,6 +424,9 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
           f"survey grid {sp_grid:.2f} (target >= {TARGET_SPEEDUP:g}: "
           f"{verdict(min(sp_flat, sp_api, sp_grid), TARGET_SPEEDUP)}); "
           f"the control loop got {ceiling:.2f} at the same time, load {load_after}")  # fmt: skip
+    print(f"share of the control loop's speedup reached (1.00: all the second core gave): "
+          f"evaluate {sp_api / ceiling:.2f}, evaluate_flat {sp_flat / ceiling:.2f}, survey grid "
+          f"{sp_grid / ceiling:.2f}")  # fmt: skip
 
     region = (engine.evaluation, "run_queued")  # every parallel region of the exact path
     serial = {
