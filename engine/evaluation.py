@@ -88,10 +88,15 @@ def _integrate_bounded(a, e, hh, lz, plan: MapPlan, cls) -> dict[str, np.ndarray
     no steps and the status "not_bounded" (nothing to integrate over a period)."""
     n = a.shape[0]
     sel = np.flatnonzero(cls == BOUNDED)
-    res = integrate_period(a[sel], e[sel], hh[sel], lz[sel], plan.scene, plan.method, plan.rtol)
+    every = sel.size == n  # every point bounded: no copies in, the kernel's outputs out
+    pts = (a, e, hh, lz) if every else (a[sel], e[sel], hh[sel], lz[sel])
+    res = integrate_period(*pts, plan.scene, plan.method, plan.rtol)
     upd: dict[str, np.ndarray] = {}
     for name in (*REPLACED_BY_INTEGRATION, *INTEGRATED):
         dtype = np.dtype(RESULTS[name].dtype)
+        if every and res[name].dtype == dtype:
+            upd[name] = res[name]
+            continue
         fill = NOT_BOUNDED if name == "status" else (np.nan if dtype.kind == "f" else 0)
         col = np.full(n, fill, dtype)
         col[sel] = res[name]

@@ -140,3 +140,24 @@ def test_inputs_are_copied_and_checked_on_the_threads():
                 engine.evaluate(a, y, h, lz)
     finally:
         numba.set_num_threads(before)
+
+
+def test_one_period_map_of_bounded_points_only_equals_the_mixed_map():
+    """A one-period map whose points are all bounded takes the integrator's outputs as they
+    are (no copies, no fill): the same numbers and dtypes, bit for bit, as the same points
+    beside a forbidden one (where the bounded ones are picked out and put back)."""
+    rng = np.random.default_rng(12)
+    n = 40
+    a, h, lz = rng.uniform(0.3, 1.2, n), rng.uniform(-1, 1, n), rng.uniform(0.3, 1.5, n)
+    vmin = minimum_energy_flat(a, h, lz, engine.Scene())
+    e = vmin + rng.uniform(0.2, 2.0, n) * np.abs(vmin)
+    plan = map_plan(engine.Scene(), "dop853", rtol=1e-10)
+    every = evaluate_flat(a, e, h, lz, plan)
+    assert (every["orbit_class"] == 1).all() and (every["status"] == 0).all()
+    mixed = evaluate_flat(*(np.append(x, v) for x, v in ((a, 0.5), (e, -1e3), (h, 0.0),
+                                                         (lz, 1.0))), plan)  # fmt: skip
+    assert mixed["orbit_class"][-1] == 0 and mixed["status"][-1] != 0
+    assert set(every) == set(mixed)
+    for name, col in every.items():
+        assert col.dtype == mixed[name].dtype, name
+        assert np.array_equal(col, mixed[name][:n], equal_nan=True), name
