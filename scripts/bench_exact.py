@@ -16,9 +16,10 @@ Prints, with the machine load before and after:
 (c) the peer, on one core: numpy turning points (the trigonometric cubic formula) and T_r, psi
     from Carlson's R_F, R_D, R_J with ``scipy.special.elliprf/elliprd/elliprj``; and the same
     given the engine's turning points (Carlson only: the stricter peer);
-(d) the compute-only control loop (``bench_common.spin``) on 1 and 2 threads in the same
-    rounds: the 2-thread speedup the machine offers at the moment (2.0 on two free cores; other
-    jobs' load takes from it), and the load average before and after those rounds;
+(d) the compute-only control loop (``bench_common.spin``, as long as the engine's call) on 1
+    and 2 threads in the same rounds: the 2-thread speedup the machine offers at the moment
+    (2.0 on two free cores; other jobs' load takes from it), and the load average before and
+    after those rounds;
 (e) the goals: exact >= 4x the peer per core, 2 threads >= 1.8x one, serial share <= 3 % (the
     wall time outside the parallel regions at 1 thread, ``bench_common.serial_share``, of
     ``engine.evaluate``, ``evaluate_flat`` and ``evaluate_block``: the regions are the calls
@@ -269,10 +270,11 @@ def scaling(counts: str, a, e, h, lz, grid_path, rounds: int) -> str:
     most = numba.config.NUMBA_NUM_THREADS
     nts = sorted({1, *(int(x) for x in counts.split(",") if x.strip())} & set(range(1, most + 1)))
     fns = {}
+    inner = control_inner(threaded(1, lambda: engine.evaluate(a, e, h, lz, SCENE)))
     for nt in nts:
         fns[f"evaluate {nt}"] = threaded(nt, lambda: engine.evaluate(a, e, h, lz, SCENE))
         fns[f"grid {nt}"] = threaded(nt, grid_path)
-        fns[f"control {nt}"] = threaded(nt, lambda: spin(64, 20_000))
+        fns[f"control {nt}"] = threaded(nt, lambda: spin(64, inner))
     for fn in fns.values():
         fn()
     before = load()
@@ -293,6 +295,22 @@ def scaling(counts: str, a, e, h, lz, grid_path, rounds: int) -> str:
         row.append(f"| {best['control 1'][0] / best[f'control {nt}'][0]:.2f} |")
         lines.append("".join(row))
     return "\n".join(lines)
+
+
+def control_inner(fn: Callable[[], object]) -> int:
+    """The inner length of ``bench_common.spin(64, inner)`` that takes as long at 1 thread as
+    ``fn`` (one call of each, after a warm-up call of spin)."""
+    numba.set_num_threads(1)
+    try:
+        spin(64, 1000)
+        t0 = time.perf_counter()
+        spin(64, 20_000)
+        t_spin = time.perf_counter() - t0
+    finally:
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    t0 = time.perf_counter()
+    fn()
+    return max(1000, int(20_000 * (time.perf_counter() - t0) / t_spin))
 
 
 def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top to bottom)
@@ -363,11 +381,14 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
         "grid 2": threaded(2, grid_path),
         "peer": lambda: peer(a, e, h, lz),
         "carlson": lambda: carlson_numpy(a, lz, pts["r1"], pts["r2"]),
-        "ref 1": threaded(1, lambda: spin(64, 20_000)),
-        "ref 2": threaded(2, lambda: spin(64, 20_000)),
     }
     for fn in fns.values():  # compile, warm the thread pool
         fn()
+    # The control loop lasts as long as the engine's call: a short one would find the second
+    # core free more often on a loaded machine, and its best round would promise too much.
+    inner = control_inner(threaded(1, flat_path))
+    fns["ref 1"] = threaded(1, lambda: spin(64, inner))
+    fns["ref 2"] = threaded(2, lambda: spin(64, inner))
     load_before = load()
     best = measure(fns, args.rounds)
     load_after = load()
