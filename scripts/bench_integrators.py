@@ -236,9 +236,9 @@ def two_threads(n: int, r853: float, r45: float, rounds: int, min_time: float) -
             t.round()
     out.update({k: t.wall / n for k, t in timers.items()})
     lanes = (engine.integrated, "call_specialized")
-    out["serial"] = serial_share(EngineAPI(o, "dop853", r853), *lanes, rounds=max(rounds, 5))
-    out["serial rk45"] = serial_share(EngineAPI(o, "rk45", r45), *lanes, rounds=max(rounds, 5))
-    regions = {"rounds": max(rounds, 5), "also": [(engine.evaluation, "run_queued")]}
+    out["serial"] = serial_share(EngineAPI(o, "dop853", r853), *lanes, rounds=max(rounds, 15))
+    out["serial rk45"] = serial_share(EngineAPI(o, "rk45", r45), *lanes, rounds=max(rounds, 15))
+    regions = {"rounds": max(rounds, 15), "also": [(engine.evaluation, "run_queued")]}
     out["serial evaluate"] = serial_share(EngineAPI(o, "dop853", r853, True), *lanes, **regions)
     # its fixed cost per call (~1-2 ms: the plan, the Dataset) on 10x the orbits
     big = peers.typical_orbits(10 * n, seed=8)
