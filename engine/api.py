@@ -9,7 +9,7 @@ import numpy as np
 import xarray as xr
 
 from .checks import check_numbers, check_values
-from .evaluation import checked_copies, evaluate_block, evaluate_flat
+from .evaluation import bad_inputs, evaluate_block, evaluate_flat
 from .families import family_values, minimum_energy_flat
 from .grid import BLOCK_POINTS, Tiling
 from .kernels.geometry import CIRCULAR_TOL
@@ -119,19 +119,19 @@ _BOUNDS = {"alpha": (0.0, np.pi / 2)}
 
 
 def _checked_points(names: list[str], arrays: list[np.ndarray]) -> list[np.ndarray]:
-    """Copies of the inputs, broadcast to one shape, each checked (:func:`check_values`: a
-    PlanError names the first bad value of the first input that holds one). Inputs of one shape
-    (C-contiguous, writable) are copied and checked in one pass on the threads
-    (:func:`engine.evaluation.checked_copies`: no serial pass over the points); others are
-    broadcast and copied here (copies, not broadcast views: numba warns on those)."""
+    """The inputs, broadcast to one shape, each checked (:func:`check_values`: a PlanError
+    names the first bad value of the first input that holds one). float64 inputs of one shape
+    (C-contiguous, writable) are used as they are, checked in one pass on the threads
+    (:func:`engine.evaluation.bad_inputs`): the result's coordinates wrap them, as xarray
+    wraps the arrays it is given; others are broadcast and copied here (copies, not broadcast
+    views: numba warns on those)."""
     shape = np.broadcast_shapes(*(a.shape for a in arrays))
     if all(a.shape == shape and a.flags.c_contiguous and a.flags.writeable for a in arrays):
         lo, hi = zip(*(_BOUNDS.get(n, (-np.inf, np.inf)) for n in names), strict=True)
-        rows, bad = checked_copies(tuple(arrays), lo, hi)
-        for name, arr, b in zip(names, arrays, bad, strict=True):
-            if b:
+        for name, arr, bad in zip(names, arrays, bad_inputs(tuple(arrays), lo, hi), strict=True):
+            if bad:
                 check_values(name, arr)  # raises, naming the first bad value
-        return [row.reshape(shape) for row in rows]
+        return arrays
     copies = [np.array(np.broadcast_to(a, shape)) for a in arrays]
     validate_inputs(*copies)
     return copies

@@ -21,7 +21,7 @@ from .integrated import integrate_period
 from .kernels.batch import BATCH_ROWS, empty_outputs, work_units
 from .kernels.geometry import BOUNDED, OUT_OF_RANGE, ideal_cone
 from .kernels.protocol import NOT_BOUNDED
-from .kernels.workqueue import COPY_UNIT, copy_checked_queued, orbit_units_queued
+from .kernels.workqueue import CHECK_UNIT, checked_queued, orbit_units_queued
 from .launch import invariants
 from .schema import (
     DIMS,
@@ -36,7 +36,7 @@ from .schema import (
 if TYPE_CHECKING:
     from .plan import MapPlan, RunPlan
 
-__all__ = ["evaluate_flat", "evaluate_block", "checked_copies"]
+__all__ = ["evaluate_flat", "evaluate_block", "bad_inputs"]
 
 
 def evaluate_flat(
@@ -139,23 +139,19 @@ def run_units(*args) -> None:
     run_queued(orbit_units_queued, units, *args)
 
 
-def checked_copies(
+def bad_inputs(
     arrays: tuple[np.ndarray, ...], lo: tuple[float, ...], hi: tuple[float, ...]
-) -> tuple[np.ndarray, np.ndarray]:
-    """Copies of k C-contiguous float64 arrays of n values each (any shape), made and checked
-    in one pass on the threads (:func:`run_queued`, :func:`.kernels.workqueue.copy_checked_queued`):
-    (float64[k, n], the rows the copies; bool[k], whether array j holds a value not strictly
-    between ``lo[j]`` and ``hi[j]``, NaN included). The copies are first touched by the
-    threads: no serial pass over the points."""
+) -> np.ndarray:
+    """Whether each of k C-contiguous float64 arrays of n values (any shape) holds a value not
+    strictly between ``lo[j]`` and ``hi[j]`` (NaN included): bool[k], checked in one pass on
+    the threads (:func:`run_queued`, :func:`.kernels.workqueue.checked_queued`)."""
     k, n = len(arrays), arrays[0].size
-    srcs = tuple(a.reshape(-1) for a in arrays)
-    dst = np.empty((k, n))
-    per = -(-n // COPY_UNIT)
+    per = -(-n // CHECK_UNIT)
     bad = np.zeros((k, per), np.int8)
     if n:
-        run_queued(copy_checked_queued, k * per, srcs, np.array(lo, np.float64),
-                   np.array(hi, np.float64), dst, bad)  # fmt: skip
-    return dst, bad.any(axis=1)
+        run_queued(checked_queued, k * per, tuple(a.reshape(-1) for a in arrays),
+                   np.array(lo, np.float64), np.array(hi, np.float64), bad)  # fmt: skip
+    return bad.any(axis=1)
 
 
 def orbit_batch(alpha: np.ndarray, energy: np.ndarray, h: np.ndarray, Lz: np.ndarray,

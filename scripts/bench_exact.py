@@ -23,7 +23,7 @@ Prints, with the machine load before and after:
 (e) the goals: exact >= 4x the peer per core, 2 threads >= 1.8x one, serial share <= 3 % (the
     wall time outside the parallel regions at 1 thread, ``bench_common.serial_share``, of
     ``engine.evaluate``, ``evaluate_flat`` and ``evaluate_block``: the regions are the calls
-    of ``engine.evaluation.run_queued``, the closed form's kernel and the copy and check of
+    of ``engine.evaluation.run_queued``, the closed form's kernel and the check of
     ``evaluate``'s inputs); met or not;
 (f) where the time goes: the lanes' stages, ns per point, measured (``profile_batch``);
 (g) the exact-path table of docs/performance.md, in markdown (``--doc`` writes it there);

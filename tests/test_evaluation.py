@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 import engine
-from engine.evaluation import checked_copies, evaluate_block, evaluate_flat
+from engine.evaluation import bad_inputs, evaluate_block, evaluate_flat
 from engine.families import family_values, minimum_energy_flat
 from engine.kernels.geometry import OUT_OF_RANGE
-from engine.kernels.workqueue import COPY_UNIT
+from engine.kernels.workqueue import CHECK_UNIT
 from engine.plan import map_plan, survey_plan
 from engine.schema import DIMS
 
@@ -101,12 +101,12 @@ def test_threads_share_the_units_and_give_the_same_numbers():
     assert len(np.unique(one[0]["orbit_class"])) >= 2
 
 
-def test_inputs_are_copied_and_checked_on_the_threads():
-    """checked_copies: every value copied bit for bit and each bad value (NaN, +-inf, out of
-    the open interval) flagged in its own array, wherever it lies among the threads' units
-    (the first and last point, both sides of a unit's edge); engine.evaluate on inputs of one
-    shape names the first bad value of the first bad input, as for a scalar input."""
-    n = 2 * COPY_UNIT + 5  # three units per array, the last one short
+def test_inputs_are_checked_on_the_threads():
+    """bad_inputs: each bad value (NaN, +-inf, out of the open interval) flagged in its own
+    array, wherever it lies among the threads' units (the first and last point, both sides of
+    a unit's edge); engine.evaluate on inputs of one shape names the first bad value of the
+    first bad input, as for a scalar input, and its coordinates hold the inputs."""
+    n = 2 * CHECK_UNIT + 5  # three units per array, the last one short
     rng = np.random.default_rng(9)
     a, e, h, lz = (rng.uniform(0.2, 1.4, n) for _ in range(4))
     lo, hi = (0.0, -np.inf, -np.inf, -np.inf), (np.pi / 2, np.inf, np.inf, np.inf)
@@ -114,30 +114,30 @@ def test_inputs_are_copied_and_checked_on_the_threads():
     try:
         for nt in sorted({1, numba.config.NUMBA_NUM_THREADS}):
             numba.set_num_threads(nt)
-            rows, bad = checked_copies((a, e, h, lz), lo, hi)
-            assert not bad.any()
-            for row, src in zip(rows, (a, e, h, lz), strict=True):
-                assert np.array_equal(row, src) and not np.shares_memory(row, src)
-            for i, value in ((0, np.nan), (COPY_UNIT - 1, np.inf), (COPY_UNIT, -np.inf),
+            assert not bad_inputs((a, e, h, lz), lo, hi).any()
+            for i, value in ((0, np.nan), (CHECK_UNIT - 1, np.inf), (CHECK_UNIT, -np.inf),
                              (n - 1, np.nan)):  # fmt: skip
                 for j, arr in enumerate((e, h, lz)):
                     x = arr.copy()
                     x[i] = value
                     arrays = [a, e, h, lz]
                     arrays[j + 1] = x
-                    assert checked_copies(tuple(arrays), lo, hi)[1].tolist() == [
+                    assert bad_inputs(tuple(arrays), lo, hi).tolist() == [
                         k == j + 1 for k in range(4)
                     ]
             for value in (0.0, np.pi / 2, -0.1, np.nan):
                 x = a.copy()
-                x[COPY_UNIT + 1] = value
-                assert checked_copies((x, e, h, lz), lo, hi)[1].tolist() == [1, 0, 0, 0]
+                x[CHECK_UNIT + 1] = value
+                assert bad_inputs((x, e, h, lz), lo, hi).tolist() == [1, 0, 0, 0]
             x, y = a.copy(), e.copy()
-            x[n - 1], x[COPY_UNIT + 3], y[0] = np.pi / 2, -0.5, np.nan
+            x[n - 1], x[CHECK_UNIT + 3], y[0] = np.pi / 2, -0.5, np.nan
             with pytest.raises(ValueError, match=r"^alpha must .*; got -0\.5$"):
                 engine.evaluate(x, y, h, lz)  # alpha before energy; its first bad value
             with pytest.raises(ValueError, match=r"^energy must .*; got nan$"):
                 engine.evaluate(a, y, h, lz)
+        ds = engine.evaluate(a[:100], e[:100], h[:100], lz[:100])
+        for name, arr in zip(("alpha", "energy", "h", "Lz"), (a, e, h, lz), strict=True):
+            assert np.array_equal(ds[name].values, arr[:100])
     finally:
         numba.set_num_threads(before)
 
