@@ -9,7 +9,7 @@ import numpy as np
 import xarray as xr
 
 from .checks import check_numbers, check_values
-from .evaluation import evaluate_block, evaluate_flat
+from .evaluation import bad_inputs, evaluate_block, evaluate_flat
 from .families import family_values, minimum_energy_flat
 from .grid import BLOCK_POINTS, Tiling
 from .kernels.geometry import CIRCULAR_TOL
@@ -83,11 +83,11 @@ def evaluate(
         dims = das[0].dims
         arrays = [np.asarray(d.transpose(*dims).values, np.float64) for d in das]
     else:
-        # Copies, not broadcast views: numba warns (FutureWarning) when handed a broadcast view.
-        views = np.broadcast_arrays(*[np.asarray(v, np.float64) for v in inputs.values()])
-        arrays = [np.array(a) for a in views]
-        dims = tuple(f"dim_{i}" for i in range(arrays[0].ndim))
-    validate_inputs(*arrays)
+        arrays = [np.asarray(v, np.float64) for v in inputs.values()]
+        dims = tuple(
+            f"dim_{i}" for i in range(len(np.broadcast_shapes(*(a.shape for a in arrays))))
+        )
+    arrays = _checked_points(list(inputs), arrays)
     shape = arrays[0].shape
     flat = [np.ascontiguousarray(a).reshape(-1) for a in arrays]
     res = evaluate_flat(*flat, plan)
@@ -112,6 +112,29 @@ def evaluate(
             plan.scene, plan.method.name, plan.circular_tol, plan.rtol, plan.horizon
         ),
     )
+
+
+#: The open interval each input of :func:`evaluate` must lie in (as :func:`check_values`).
+_BOUNDS = {"alpha": (0.0, np.pi / 2)}
+
+
+def _checked_points(names: list[str], arrays: list[np.ndarray]) -> list[np.ndarray]:
+    """The inputs, broadcast to one shape, each checked (:func:`check_values`: a PlanError
+    names the first bad value of the first input that holds one). float64 inputs of one shape
+    (C-contiguous, writable) are used as they are, checked in one pass on the threads
+    (:func:`engine.evaluation.bad_inputs`): the result's coordinates wrap them, as xarray
+    wraps the arrays it is given; others are broadcast and copied here (copies, not broadcast
+    views: numba warns on those)."""
+    shape = np.broadcast_shapes(*(a.shape for a in arrays))
+    if all(a.shape == shape and a.flags.c_contiguous and a.flags.writeable for a in arrays):
+        lo, hi = zip(*(_BOUNDS.get(n, (-np.inf, np.inf)) for n in names), strict=True)
+        for name, arr, bad in zip(names, arrays, bad_inputs(tuple(arrays), lo, hi), strict=True):
+            if bad:
+                check_values(name, arr)  # raises, naming the first bad value
+        return arrays
+    copies = [np.array(np.broadcast_to(a, shape)) for a in arrays]
+    validate_inputs(*copies)
+    return copies
 
 
 def minimum_energy(alpha: Any, h: Any, Lz: Any, scene: Scene | None = None) -> np.ndarray:

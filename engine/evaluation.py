@@ -21,7 +21,7 @@ from .integrated import integrate_period
 from .kernels.batch import BATCH_ROWS, empty_outputs, work_units
 from .kernels.geometry import BOUNDED, OUT_OF_RANGE, ideal_cone
 from .kernels.protocol import NOT_BOUNDED
-from .kernels.workqueue import orbit_units_queued
+from .kernels.workqueue import CHECK_UNIT, checked_queued, orbit_units_queued
 from .launch import invariants
 from .schema import (
     DIMS,
@@ -36,7 +36,7 @@ from .schema import (
 if TYPE_CHECKING:
     from .plan import MapPlan, RunPlan
 
-__all__ = ["evaluate_flat", "evaluate_block"]
+__all__ = ["evaluate_flat", "evaluate_block", "bad_inputs"]
 
 
 def evaluate_flat(
@@ -88,10 +88,15 @@ def _integrate_bounded(a, e, hh, lz, plan: MapPlan, cls) -> dict[str, np.ndarray
     no steps and the status "not_bounded" (nothing to integrate over a period)."""
     n = a.shape[0]
     sel = np.flatnonzero(cls == BOUNDED)
-    res = integrate_period(a[sel], e[sel], hh[sel], lz[sel], plan.scene, plan.method, plan.rtol)
+    every = sel.size == n  # every point bounded: no copies in, the kernel's outputs out
+    pts = (a, e, hh, lz) if every else (a[sel], e[sel], hh[sel], lz[sel])
+    res = integrate_period(*pts, plan.scene, plan.method, plan.rtol)
     upd: dict[str, np.ndarray] = {}
     for name in (*REPLACED_BY_INTEGRATION, *INTEGRATED):
         dtype = np.dtype(RESULTS[name].dtype)
+        if every and res[name].dtype == dtype:
+            upd[name] = res[name]
+            continue
         fill = NOT_BOUNDED if name == "status" else (np.nan if dtype.kind == "f" else 0)
         col = np.full(n, fill, dtype)
         col[sel] = res[name]
@@ -103,28 +108,50 @@ _POOL: dict[int, ThreadPoolExecutor] = {}
 _NO_ENERGY = np.empty(0)
 
 
-def run_units(*args) -> None:
-    """The parallel region of the closed form: :func:`.kernels.batch.orbit_units` over all its
-    units of work (``args``: its arguments after the unit range), on ``numba.get_num_threads()``
-    threads. Each thread makes one call of :func:`.kernels.workqueue.orbit_units_queued`,
-    which takes units from a shared counter one at a time (the finest even split, balanced
-    while it runs); the calling thread is one of them. The outputs are first touched there,
-    by the thread that computes them. Not a ``prange`` kernel: numba compiles a parallel
-    kernel's whole call tree once more (~9 s on a cold cache); a thread pool costs nothing (the
-    kernel releases the GIL). The results do not depend on the number of threads."""
-    alpha, energy, h, Lz, grid = args[:5]
-    units = work_units(alpha.size, energy.size, h.size * Lz.size, grid)
+def run_queued(kernel, units: int, *args) -> None:
+    """A parallel region: ``kernel(queue, units, *args)`` (a GIL-free kernel of
+    :mod:`.kernels.workqueue` that takes units of work from the shared counter ``queue`` until
+    ``units`` are taken) on ``numba.get_num_threads()`` threads, the calling thread one of
+    them. Not a ``prange`` kernel: numba compiles a parallel kernel's whole call tree once more
+    (~9 s on a cold cache); a thread pool costs nothing (the kernels release the GIL)."""
     nt = max(1, min(numba.get_num_threads(), units))
     queue = np.zeros(1, np.int64)
     if nt == 1:
-        orbit_units_queued(queue, units, *args)
+        kernel(queue, units, *args)
         return
     if nt not in _POOL:
         _POOL[nt] = ThreadPoolExecutor(max_workers=nt - 1, thread_name_prefix="conesurvey-lanes")
-    jobs = [_POOL[nt].submit(orbit_units_queued, queue, units, *args) for _ in range(nt - 1)]
-    orbit_units_queued(queue, units, *args)
+    jobs = [_POOL[nt].submit(kernel, queue, units, *args) for _ in range(nt - 1)]
+    kernel(queue, units, *args)
     for job in jobs:
         job.result()
+
+
+def run_units(*args) -> None:
+    """The parallel region of the closed form: :func:`.kernels.batch.orbit_units` over all its
+    units of work (``args``: its arguments after the unit range), by :func:`run_queued`: each
+    thread makes one call of :func:`.kernels.workqueue.orbit_units_queued`, which takes units
+    from a shared counter one at a time (the finest even split, balanced while it runs). The
+    outputs are first touched there, by the thread that computes them. The results do not
+    depend on the number of threads."""
+    alpha, energy, h, Lz, grid = args[:5]
+    units = work_units(alpha.size, energy.size, h.size * Lz.size, grid)
+    run_queued(orbit_units_queued, units, *args)
+
+
+def bad_inputs(
+    arrays: tuple[np.ndarray, ...], lo: tuple[float, ...], hi: tuple[float, ...]
+) -> np.ndarray:
+    """Whether each of k C-contiguous float64 arrays of n values (any shape) holds a value not
+    strictly between ``lo[j]`` and ``hi[j]`` (NaN included): bool[k], checked in one pass on
+    the threads (:func:`run_queued`, :func:`.kernels.workqueue.checked_queued`)."""
+    k, n = len(arrays), arrays[0].size
+    per = -(-n // CHECK_UNIT)
+    bad = np.zeros((k, per), np.int8)
+    if n:
+        run_queued(checked_queued, k * per, tuple(a.reshape(-1) for a in arrays),
+                   np.array(lo, np.float64), np.array(hi, np.float64), bad)  # fmt: skip
+    return bad.any(axis=1)
 
 
 def orbit_batch(alpha: np.ndarray, energy: np.ndarray, h: np.ndarray, Lz: np.ndarray,

@@ -127,20 +127,28 @@ class InRegion:
         setattr(self.module, self.name, self.original)
 
 
-def serial_share(fn: Callable[[], object], module, name: str, rounds: int = 5) -> float:
+def serial_share(fn: Callable[[], object], module, name: str, rounds: int = 5,
+                 also: Sequence[tuple[object, str]] = ()) -> float:  # fmt: skip
     """Lowest share, over ``rounds`` calls at 1 thread, of ``fn``'s wall time spent outside its
-    parallel region ``module.name``. Restores the number of threads."""
+    parallel region ``module.name`` (and the regions ``also``: (module, name) pairs, none
+    called inside another). Restores the number of threads."""
     before = numba.get_num_threads()
     numba.set_num_threads(1)
     try:
         fn()
         best = math.inf
         for _ in range(rounds):
-            with InRegion(module, name) as region:
+            regions = [InRegion(m, n) for m, n in ((module, name), *also)]
+            for region in regions:
+                region.__enter__()
+            try:
                 t0 = time.perf_counter()
                 fn()
                 total = time.perf_counter() - t0
-            best = min(best, 1.0 - region.inside / total)
+            finally:
+                for region in reversed(regions):
+                    region.__exit__()
+            best = min(best, 1.0 - sum(r.inside for r in regions) / total)
     finally:
         numba.set_num_threads(before)
     return best

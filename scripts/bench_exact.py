@@ -3,6 +3,7 @@
     python scripts/bench_exact.py                 # 1e6 points, 3 interleaved rounds (~2 minutes)
     python scripts/bench_exact.py -n 200000 -r 5  # quicker
     python scripts/bench_exact.py --doc           # also rewrite docs/performance.md's table
+    python scripts/bench_exact.py --threads 1,2,4,8,16  # also a table over thread counts
 
 Prints, with the machine load before and after:
 
@@ -15,14 +16,20 @@ Prints, with the machine load before and after:
 (c) the peer, on one core: numpy turning points (the trigonometric cubic formula) and T_r, psi
     from Carlson's R_F, R_D, R_J with ``scipy.special.elliprf/elliprd/elliprj``; and the same
     given the engine's turning points (Carlson only: the stricter peer);
-(d) a compute-bound reference kernel on 1 and 2 threads: the 2-thread speedup the machine
-    offers at the moment (the other engineers' load takes from it);
+(d) the compute-only control loop (``bench_common.spin``, as long as the engine's call) on 1
+    and 2 threads in the same rounds: the 2-thread speedup the machine offers at the moment
+    (2.0 on two free cores; other jobs' load takes from it), and the load average before and
+    after those rounds;
 (e) the goals: exact >= 4x the peer per core, 2 threads >= 1.8x one, serial share <= 3 % (the
-    wall time outside the parallel region at 1 thread, ``bench_common.serial_share``, of
-    ``engine.evaluate``, ``evaluate_flat`` and ``evaluate_block``); met or not;
+    wall time outside the parallel regions at 1 thread, ``bench_common.serial_share``, of
+    ``engine.evaluate``, ``evaluate_flat`` and ``evaluate_block``: the regions are the calls
+    of ``engine.evaluation.run_queued``, the closed form's kernel and the check of
+    ``evaluate``'s inputs); met or not;
 (f) where the time goes: the lanes' stages, ns per point, measured (``profile_batch``);
 (g) the exact-path table of docs/performance.md, in markdown (``--doc`` writes it there);
-(h) first-call time of the kernels in a fresh interpreter: cold (empty cache) and warm.
+(h) first-call time of the kernels in a fresh interpreter: cold (empty cache) and warm;
+(i) with ``--threads``: wall time and speedup of ``engine.evaluate`` (random points) and of
+    the survey block at each thread count, the control loop beside them.
 
 Per core means CPU time (``time.process_time``, best of the rounds): on a machine shared with
 other jobs a process's wall time includes the time it waits for a core, its CPU time does not.
@@ -43,7 +50,6 @@ from pathlib import Path
 
 import numba
 import numpy as np
-from numba import njit, prange
 
 import engine
 from engine.evaluation import evaluate_block, evaluate_flat
@@ -61,6 +67,7 @@ from bench_common import (  # noqa: E402
     interleaved,
     load,
     serial_share,
+    spin,
     verdict,
 )
 from readme_block import update_readme  # noqa: E402
@@ -153,16 +160,6 @@ def peer(alpha, energy, h, Lz) -> tuple[np.ndarray, np.ndarray]:
     return carlson_numpy(alpha, Lz, r1, r2, coef)
 
 
-@njit(parallel=True, cache=False)
-def _reference_kernel(x, out):
-    """Compute-bound and embarrassingly parallel: a chain of square roots per element."""
-    for i in prange(x.size):
-        v = x[i]
-        for _ in range(200):
-            v = math.sqrt(v + 1.0)
-        out[i] = v
-
-
 def measure(fns: dict[str, Callable[[], object]], rounds: int) -> dict[str, tuple[float, float]]:
     """Best (wall, CPU) seconds of each call over interleaved rounds."""
     return interleaved(fns, rounds, (time.perf_counter, time.process_time))
@@ -233,11 +230,11 @@ def first_call(cache_dir: str | None) -> dict[str, float]:
     return fresh_interpreter(_PROBE, cache_dir)
 
 
-def doc_table(n, n_grid, rounds, goals, ceiling, stages, peer_rate, serial) -> str:
+def doc_table(n, n_grid, rounds, goals, ceiling, stages, peer_rate, serial, loads) -> str:
     """The exact-path table of docs/performance.md (from this run's numbers)."""
     lines = [
         f"Exact path (`python scripts/bench_exact.py -n {n}`, {time.strftime('%Y-%m-%d')}, "
-        f"{MACHINE}, load average {load()}; per core = CPU time of one thread, best of "
+        f"{MACHINE}, load average {loads}; per core = CPU time of one thread, best of "
         f"{rounds} interleaved rounds; {n:.0e} random bounded orbits of the issue's task, and "
         f"a {n_grid}-point block of `{SURVEY.name}`; peer: numpy turning points + scipy "
         "Carlson R_F/R_D/R_J):",
@@ -266,6 +263,56 @@ def doc_table(n, n_grid, rounds, goals, ceiling, stages, peer_rate, serial) -> s
     return "\n".join(lines)
 
 
+def scaling(counts: str, a, e, h, lz, grid_path, rounds: int) -> str:
+    """A markdown table: wall time and speedup over 1 thread of ``engine.evaluate`` on the
+    random points, of the survey block and of the control loop, at each thread count of
+    ``counts`` ("1,2,4"), in the same interleaved rounds."""
+    most = numba.config.NUMBA_NUM_THREADS
+    nts = sorted({1, *(int(x) for x in counts.split(",") if x.strip())} & set(range(1, most + 1)))
+    fns = {}
+    inner = control_inner(threaded(1, lambda: engine.evaluate(a, e, h, lz, SCENE)))
+    for nt in nts:
+        fns[f"evaluate {nt}"] = threaded(nt, lambda: engine.evaluate(a, e, h, lz, SCENE))
+        fns[f"grid {nt}"] = threaded(nt, grid_path)
+        fns[f"control {nt}"] = threaded(nt, lambda: spin(64, inner))
+    for fn in fns.values():
+        fn()
+    before = load()
+    best = measure(fns, rounds)
+    lines = [
+        f"{MACHINE}; load average {before} before, {load()} after; wall time, best of {rounds} "
+        f"interleaved rounds (`python scripts/bench_exact.py -n {a.size} --threads "
+        f"{','.join(map(str, nts))}`); speedup over 1 thread:",
+        "",
+        "| threads | `evaluate` [s] | speedup | survey block [s] | speedup | control loop |",
+        "|---|---|---|---|---|---|",
+    ]
+    for nt in nts:
+        row = [f"| {nt} "]
+        for key in ("evaluate", "grid"):
+            t = best[f"{key} {nt}"][0]
+            row.append(f"| {t:.3f} | {best[f'{key} 1'][0] / t:.2f} ")
+        row.append(f"| {best['control 1'][0] / best[f'control {nt}'][0]:.2f} |")
+        lines.append("".join(row))
+    return "\n".join(lines)
+
+
+def control_inner(fn: Callable[[], object]) -> int:
+    """The inner length of ``bench_common.spin(64, inner)`` that takes as long at 1 thread as
+    ``fn`` (one call of each, after a warm-up call of spin)."""
+    numba.set_num_threads(1)
+    try:
+        spin(64, 1000)
+        t0 = time.perf_counter()
+        spin(64, 20_000)
+        t_spin = time.perf_counter() - t0
+    finally:
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    t0 = time.perf_counter()
+    fn()
+    return max(1000, int(20_000 * (time.perf_counter() - t0) / t_spin))
+
+
 def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top to bottom)
     """Run the benchmark and print the report."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -273,6 +320,8 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
     parser.add_argument("-r", "--rounds", type=int, default=3, help="interleaved rounds (3)")
     parser.add_argument("--no-compile", action="store_true", help="skip the compile-time probe")
     parser.add_argument("--doc", action="store_true", help="rewrite docs/performance.md's table")
+    parser.add_argument("--threads", default="", help="thread counts for a scaling table, "
+                        "comma-separated (e.g. 1,2,4,8,16; at most NUMBA_NUM_THREADS)")  # fmt: skip
     parser.add_argument(
         "--tiny", action="store_true", help="a seconds-long smoke run (tests/test_scripts.py)"
     )
@@ -294,8 +343,6 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
     pts = random_bounded_points(n)
     a, e, h, lz = pts["alpha"], pts["energy"], pts["h"], pts["Lz"]
     spec, slices, n_grid = survey_block()
-    x_ref = np.random.default_rng(1).uniform(0.0, 1.0, 200_000)
-    y_ref = np.empty_like(x_ref)
 
     # Agreement first: the peers compute the same numbers; the grid path equals the flat one.
     T_peer, psi_peer = peer(a, e, h, lz)
@@ -316,6 +363,9 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
         np.array_equal(flat[k], block[k].reshape(-1), equal_nan=True) for k in flat if k in block
     )
 
+    def api_path():
+        engine.evaluate(a, e, h, lz, SCENE)
+
     def flat_path():
         evaluate_flat(a, e, h, lz, map_plan(SCENE))
 
@@ -325,18 +375,25 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
     fns = {
         "flat 1": threaded(1, flat_path),
         "flat 2": threaded(2, flat_path),
+        "api 1": threaded(1, api_path),
+        "api 2": threaded(2, api_path),
         "grid 1": threaded(1, grid_path),
         "grid 2": threaded(2, grid_path),
         "peer": lambda: peer(a, e, h, lz),
         "carlson": lambda: carlson_numpy(a, lz, pts["r1"], pts["r2"]),
-        "ref 1": threaded(1, lambda: _reference_kernel(x_ref, y_ref)),
-        "ref 2": threaded(2, lambda: _reference_kernel(x_ref, y_ref)),
     }
     for fn in fns.values():  # compile, warm the thread pool
         fn()
+    # The control loop lasts as long as the engine's call: a short one would find the second
+    # core free more often on a loaded machine, and its best round would promise too much.
+    inner = control_inner(threaded(1, flat_path))
+    fns["ref 1"] = threaded(1, lambda: spin(64, inner))
+    fns["ref 2"] = threaded(2, lambda: spin(64, inner))
+    load_before = load()
     best = measure(fns, args.rounds)
+    load_after = load()
     layer = numba.threading_layer()
-    size = {"flat": n, "grid": n_grid, "peer": n, "carlson": n}
+    size = {"flat": n, "api": n, "grid": n_grid, "peer": n, "carlson": n}
 
     def rate(key: str, cpu: bool) -> float:
         return size[key.split()[0]] / best[key][1 if cpu else 0]
@@ -356,6 +413,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
     print("\n" + head + "\n" + "-" * len(head))
     rows = (
         ("(a) engine, random points: evaluate_flat", "flat"),
+        ("    the same through engine.evaluate (an xarray Dataset)", "api"),
         ("(b) engine, survey grid: evaluate_block", "grid"),
     )
     for label, key in rows:
@@ -367,24 +425,31 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
     print(f"{'    peer given the turning points (Carlson only)':58s} {1:3d} "
           f"{rate('carlson', False):11.3g} {rate('carlson', True):11.3g}")  # fmt: skip
     ceiling = best["ref 1"][0] / best["ref 2"][0]
-    print(f"(d) reference kernel: 2-thread speedup available now {ceiling:.2f}")
+    print(f"(d) compute-only control loop: 2-thread speedup available now {ceiling:.2f} "
+          f"(2.0 on two free cores); load average {load_before} before these rounds, "
+          f"{load_after} after")  # fmt: skip
 
     per_core = rate("flat 1", True) / rate("peer", True)
     per_core_strict = rate("flat 1", True) / rate("carlson", True)
     per_core_grid = rate("grid 1", True) / rate("peer", True)
     wall_1 = rate("flat 1", False) / rate("peer", False)
     sp_flat = best["flat 1"][0] / best["flat 2"][0]
+    sp_api = best["api 1"][0] / best["api 2"][0]
     sp_grid = best["grid 1"][0] / best["grid 2"][0]
     print("\n(e) goals")
     print(f"exact (random points) / peer, per core (CPU): {per_core:.2f}x "
           f"(target >= {TARGET_VS_PEER:g}x: {verdict(per_core, TARGET_VS_PEER)}); "
           f"wall {wall_1:.2f}x; vs the Carlson-only peer {per_core_strict:.2f}x")  # fmt: skip
     print(f"survey grid / peer, per core (CPU): {per_core_grid:.2f}x")
-    print(f"2 threads vs 1 (wall): random points {sp_flat:.2f}, survey grid {sp_grid:.2f} "
-          f"(target >= {TARGET_SPEEDUP:g}: {verdict(min(sp_flat, sp_grid), TARGET_SPEEDUP)}); "
-          f"the reference kernel got {ceiling:.2f} at the same time")  # fmt: skip
+    print(f"2 threads vs 1 (wall): random points {sp_flat:.2f} (engine.evaluate {sp_api:.2f}), "
+          f"survey grid {sp_grid:.2f} (target >= {TARGET_SPEEDUP:g}: "
+          f"{verdict(min(sp_flat, sp_api, sp_grid), TARGET_SPEEDUP)}); "
+          f"the control loop got {ceiling:.2f} at the same time, load {load_after}")  # fmt: skip
+    print(f"share of the control loop's speedup reached (1.00: all the second core gave): "
+          f"evaluate {sp_api / ceiling:.2f}, evaluate_flat {sp_flat / ceiling:.2f}, survey grid "
+          f"{sp_grid / ceiling:.2f}")  # fmt: skip
 
-    region = (engine.evaluation, "run_units")
+    region = (engine.evaluation, "run_queued")  # every parallel region of the exact path
     serial = {
         "exact path (`evaluate`)": serial_share(lambda: engine.evaluate(a, e, h, lz, SCENE),
                                                 *region),
@@ -392,7 +457,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
         "exact survey grid (`evaluate_block`)": serial_share(grid_path, *region),
     }  # fmt: skip
     for label, share in serial.items():
-        print(f"{label} serial share at 1 thread (wall time outside the parallel region): "
+        print(f"{label} serial share at 1 thread (wall time outside the parallel regions): "
               f"{share:.2%} (target <= {TARGET_SERIAL:.0%}: "
               f"{'met' if share <= TARGET_SERIAL else 'MISSED'})")  # fmt: skip
 
@@ -404,16 +469,20 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
     print(f"    {'total':22s} {total:7.1f}   (the peer: {1e9 / rate('peer', True):.0f})")
 
     goals = (
-        ("exact path (`evaluate`) vs the peer, per core", rate("flat 1", True), rate("peer", True),
-         per_core, TARGET_VS_PEER),
+        ("exact path (`evaluate_flat`) vs the peer, per core", rate("flat 1", True),
+         rate("peer", True), per_core, TARGET_VS_PEER),
         ("exact survey grid (`evaluate_block`) vs the peer, per core", rate("grid 1", True),
          rate("peer", True), per_core_grid, TARGET_VS_PEER),
-        ("exact path, 2 threads vs 1 (wall)", rate("flat 2", False), None, sp_flat,
-         TARGET_SPEEDUP),
+        ("exact path (`evaluate`, the Dataset), 2 threads vs 1 (wall)", rate("api 2", False),
+         None, sp_api, TARGET_SPEEDUP),
+        ("exact path (`evaluate_flat`), 2 threads vs 1 (wall)", rate("flat 2", False), None,
+         sp_flat, TARGET_SPEEDUP),
         ("exact survey grid, 2 threads vs 1 (wall)", rate("grid 2", False), None, sp_grid,
          TARGET_SPEEDUP),
     )  # fmt: skip
-    md = doc_table(n, n_grid, args.rounds, goals, ceiling, stages, rate("peer", True), serial)
+    loads = f"{load_before} before the timed rounds, {load_after} after"
+    md = doc_table(n, n_grid, args.rounds, goals, ceiling, stages, rate("peer", True), serial,
+                   loads)  # fmt: skip
     print("\n(g) docs/performance.md table\n" + md)
     if args.doc:
         update_readme("bench_exact", md, DOC)
@@ -430,6 +499,8 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
                 f"{label:34s} {d['import']:8.3f} {d['first']:9.3f} {d['second']:9.5f} "
                 f"{d['process']:8.3f}"
             )
+    if args.threads:
+        print("\n(i) threads\n" + scaling(args.threads, a, e, h, lz, grid_path, args.rounds))
     print(f"\nload average after the run: {load()}; total benchmark time "
           f"{time.perf_counter() - t_start:.1f} s")  # fmt: skip
     return 0

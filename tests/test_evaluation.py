@@ -5,9 +5,10 @@ import numpy as np
 import pytest
 
 import engine
-from engine.evaluation import evaluate_block, evaluate_flat
+from engine.evaluation import bad_inputs, evaluate_block, evaluate_flat
 from engine.families import family_values, minimum_energy_flat
 from engine.kernels.geometry import OUT_OF_RANGE
+from engine.kernels.workqueue import CHECK_UNIT
 from engine.plan import map_plan, survey_plan
 from engine.schema import DIMS
 
@@ -98,3 +99,65 @@ def test_threads_share_the_units_and_give_the_same_numbers():
     finally:
         numba.set_num_threads(before)
     assert len(np.unique(one[0]["orbit_class"])) >= 2
+
+
+def test_inputs_are_checked_on_the_threads():
+    """bad_inputs: each bad value (NaN, +-inf, out of the open interval) flagged in its own
+    array, wherever it lies among the threads' units (the first and last point, both sides of
+    a unit's edge); engine.evaluate on inputs of one shape names the first bad value of the
+    first bad input, as for a scalar input, and its coordinates hold the inputs."""
+    n = 2 * CHECK_UNIT + 5  # three units per array, the last one short
+    rng = np.random.default_rng(9)
+    a, e, h, lz = (rng.uniform(0.2, 1.4, n) for _ in range(4))
+    lo, hi = (0.0, -np.inf, -np.inf, -np.inf), (np.pi / 2, np.inf, np.inf, np.inf)
+    before = numba.get_num_threads()
+    try:
+        for nt in sorted({1, numba.config.NUMBA_NUM_THREADS}):
+            numba.set_num_threads(nt)
+            assert not bad_inputs((a, e, h, lz), lo, hi).any()
+            for i, value in ((0, np.nan), (CHECK_UNIT - 1, np.inf), (CHECK_UNIT, -np.inf),
+                             (n - 1, np.nan)):  # fmt: skip
+                for j, arr in enumerate((e, h, lz)):
+                    x = arr.copy()
+                    x[i] = value
+                    arrays = [a, e, h, lz]
+                    arrays[j + 1] = x
+                    assert bad_inputs(tuple(arrays), lo, hi).tolist() == [
+                        k == j + 1 for k in range(4)
+                    ]
+            for value in (0.0, np.pi / 2, -0.1, np.nan):
+                x = a.copy()
+                x[CHECK_UNIT + 1] = value
+                assert bad_inputs((x, e, h, lz), lo, hi).tolist() == [1, 0, 0, 0]
+            x, y = a.copy(), e.copy()
+            x[n - 1], x[CHECK_UNIT + 3], y[0] = np.pi / 2, -0.5, np.nan
+            with pytest.raises(ValueError, match=r"^alpha must .*; got -0\.5$"):
+                engine.evaluate(x, y, h, lz)  # alpha before energy; its first bad value
+            with pytest.raises(ValueError, match=r"^energy must .*; got nan$"):
+                engine.evaluate(a, y, h, lz)
+        ds = engine.evaluate(a[:100], e[:100], h[:100], lz[:100])
+        for name, arr in zip(("alpha", "energy", "h", "Lz"), (a, e, h, lz), strict=True):
+            assert np.array_equal(ds[name].values, arr[:100])
+    finally:
+        numba.set_num_threads(before)
+
+
+def test_one_period_map_of_bounded_points_only_equals_the_mixed_map():
+    """A one-period map whose points are all bounded takes the integrator's outputs as they
+    are (no copies, no fill): the same numbers and dtypes, bit for bit, as the same points
+    beside a forbidden one (where the bounded ones are picked out and put back)."""
+    rng = np.random.default_rng(12)
+    n = 40
+    a, h, lz = rng.uniform(0.3, 1.2, n), rng.uniform(-1, 1, n), rng.uniform(0.3, 1.5, n)
+    vmin = minimum_energy_flat(a, h, lz, engine.Scene())
+    e = vmin + rng.uniform(0.2, 2.0, n) * np.abs(vmin)
+    plan = map_plan(engine.Scene(), "dop853", rtol=1e-10)
+    every = evaluate_flat(a, e, h, lz, plan)
+    assert (every["orbit_class"] == 1).all() and (every["status"] == 0).all()
+    mixed = evaluate_flat(*(np.append(x, v) for x, v in ((a, 0.5), (e, -1e3), (h, 0.0),
+                                                         (lz, 1.0))), plan)  # fmt: skip
+    assert mixed["orbit_class"][-1] == 0 and mixed["status"][-1] != 0
+    assert set(every) == set(mixed)
+    for name, col in every.items():
+        assert col.dtype == mixed[name].dtype, name
+        assert np.array_equal(col, mixed[name][:n], equal_nan=True), name
