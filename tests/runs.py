@@ -104,6 +104,14 @@ def cli(*args: str) -> list[str]:
     return [sys.executable, "-m", "engine.cli", *args]
 
 
+def as_in_a_terminal() -> None:
+    """``preexec_fn`` of a subprocess that must see its own Ctrl-C: SIGINT at its default, as a
+    shell gives a command in the foreground. A test run started in the background (``cmd &``
+    from a script) has SIGINT ignored, every child inherits that, and Python then keeps
+    ignoring it: the child would never see the SIGINT it sends itself."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def run(cwd: Path, *args: str, timeout: float = 600, **extra: str) -> subprocess.CompletedProcess:
     """``conesurvey ARGS`` in ``cwd``, to completion (text output captured)."""
     return subprocess.run(

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 import xarray as xr
-from runs import env, free_fall_survey, here
+from runs import as_in_a_terminal, env, free_fall_survey, here
 
 SCRIPT = textwrap.dedent(
     """
@@ -54,6 +54,7 @@ def test_sigint_after_the_output_is_complete_says_so(
     proc = subprocess.run(
         [sys.executable, "-c", SCRIPT, moment, "run", "s.toml", "-o", name],
         cwd=tmp_path, env=env(), capture_output=True, text=True, timeout=600,
+        preexec_fn=as_in_a_terminal,
     )  # fmt: skip
     assert proc.returncode in (0, 130), proc.stderr
     assert "resume" not in proc.stderr.replace("nothing to resume", ""), proc.stderr
@@ -78,6 +79,7 @@ def test_sigint_before_the_output_is_complete_still_says_resume(tmp_path: Path):
     proc = subprocess.run(
         [sys.executable, "-c", script, "early", "run", "s.toml", "-o", "out.nc"],
         cwd=tmp_path, env=env(), capture_output=True, text=True, timeout=600,
+        preexec_fn=as_in_a_terminal,
     )  # fmt: skip
     assert proc.returncode == 130, proc.stderr
     assert "resume" in proc.stderr, proc.stderr

@@ -18,7 +18,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
-from runs import ROOT, env, free_fall_survey
+from runs import ROOT, as_in_a_terminal, env, free_fall_survey
 from runs import cli as runs_cli
 
 from engine._startup import as_module_command
@@ -115,6 +115,7 @@ def test_ctrl_c_while_the_package_imports(tmp_path: Path, launcher: str, at: str
         capture_output=True,
         text=True,
         timeout=300,
+        preexec_fn=as_in_a_terminal,
     )
     assert proc.returncode == 130, proc.stderr[-3000:]
     assert proc.stderr == "conesurvey: error: interrupted; nothing written\n", proc.stderr[-3000:]
@@ -159,6 +160,7 @@ def test_ctrl_c_while_numba_compiles_or_loads_a_kernel(tmp_path: Path, hook: str
         capture_output=True,
         text=True,
         timeout=300,
+        preexec_fn=as_in_a_terminal,
     )
     assert proc.returncode == 130, proc.stderr[-3000:]
     assert "Traceback" not in proc.stderr and "Exception ignored" not in proc.stderr, proc.stderr
