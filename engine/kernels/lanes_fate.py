@@ -68,6 +68,22 @@ def _clip(method, effects, l, W):
 
 
 @kernel(inline="always")
+def lane_run_from(method, effects, l, y, t_left, atol, p, rtol, max_steps, W, I, LEV, LEVK, K,
+                  buf, ev_t, ev_kind, ev_y):  # fmt: skip
+    """Start lane l's run from state y with t_left [s] to its horizon and tolerances atol
+    (:func:`.lanes.lane_begin`), its first attempt clipped as :func:`.rk.rk_run` clips it; the
+    status of the start (OK: the lane runs). Every start and restart of a fate-run lane (here
+    and in :mod:`.lanes_hybrid`)."""
+    ly = lanes_layout(method, effects)
+    W[ly.T_END * LANES + l] = t_left
+    status = lane_begin(method, effects, l, y, atol, p, rtol, max_steps, W, I, LEV, LEVK, K, buf,
+                        ev_t, ev_kind, ev_y)  # fmt: skip
+    if status == OK:
+        _clip(method, effects, l, W)
+    return status
+
+
+@kernel(inline="always")
 def _finish(method, effects, l, fate, t, y, steps, W, I, F, LY0, p, out_fate, out_f, out_n):
     """Write lane l's point (its fate at state y, t [s] into its run) and idle the lane."""
     ly = lanes_layout(method, effects)
@@ -101,13 +117,12 @@ def _run_ended(method, effects, l, status, t_run, y, rtol, max_steps, W, I, F, L
             _finish(method, effects, l, FAILED, t, y, steps, W, I, F, LY0, p, out_fate, out_f,
                     out_n)  # fmt: skip
             return False
-        W[ly.T_END * L + l] = F[l, F_HORIZON] - t
         for j in range(ly.n):
             at[j] = W[(ly.ATOL + j) * L + l]
-        status = lane_begin(method, effects, l, y, at, p, rtol, max_steps, W, I, LEV, LEVK, K,
-                            buf, ev_t, ev_kind, ev_y)  # fmt: skip
+        status = lane_run_from(method, effects, l, y, F[l, F_HORIZON] - t, at, p, rtol,
+                               max_steps, W, I, LEV, LEVK, K, buf, ev_t, ev_kind,
+                               ev_y)  # fmt: skip
         if status == OK:
-            _clip(method, effects, l, W)
             return True
         t_run = 0.0
 
@@ -160,11 +175,9 @@ def _lane_start(method, effects, l, i, alpha, energy, hh, Lz, r_start, params, r
             out_n,
         )
         return False
-    W[ly.T_END * L + l] = F[l, F_HORIZON] - 0.0
-    status = lane_begin(method, effects, l, y, atol, p, rtol, max_steps, W, I, LEV, LEVK, K, buf,
-                        ev_t, ev_kind, ev_y)  # fmt: skip
+    status = lane_run_from(method, effects, l, y, F[l, F_HORIZON] - 0.0, atol, p, rtol, max_steps,
+                           W, I, LEV, LEVK, K, buf, ev_t, ev_kind, ev_y)  # fmt: skip
     if status == OK:
-        _clip(method, effects, l, W)
         return True
     return _run_ended(method, effects, l, status, 0.0, y, rtol, max_steps, W, I, F, LY0, LEV,
                       LEVK, p, K, buf, atol, ev_t, ev_kind, ev_y, out_fate, out_f,
@@ -269,13 +282,6 @@ def fate_points_lanes(alpha, energy, h, Lz, r_start, params, method, effects, rt
     for _ in prange(max(1, min(n_workers, alpha.shape[0]))):
         lanes_fate_worker(method, effects, alpha, energy, h, Lz, r_start, params, rtol, t_horizon,
                           max_steps, queue, out_fate, out_f, out_n)  # fmt: skip
-
-
-@kernel(inline="always")
-def lane_clip(method, effects, l, W):
-    """Clip lane l's next attempt to its T_END (:func:`_clip`), for other fate-run lanes
-    (:mod:`.lanes_hybrid`)."""
-    _clip(method, effects, l, W)
 
 
 @kernel(inline="always")

@@ -41,8 +41,8 @@ from numba import literally, prange
 
 from .._jit import kernel, parallel_kernel
 from .fate import FAILED, MAX_RESTARTS, after_run, fate_of_status, starts_at_rest
-from .lanes import ORBIT, lane_begin, lane_params, lane_workspace
-from .lanes_fate import lane_clip, lane_flagged_run
+from .lanes import ORBIT, lane_params, lane_workspace
+from .lanes_fate import lane_flagged_run, lane_run_from
 from .lanes_step import LANES, borrow, fetch_add, lanes_attempt, lanes_control_fate, lanes_layout
 from .model import N_PARAMS, set_alpha
 from .protocol import OK
@@ -106,13 +106,12 @@ def _stretch_ended(method, effects, l, status, t_run, yv, rtol, max_steps, W, I,
             rolled(effects, fate, t, yv, steps - np.int64(F[l, F_STEPS0]), LYH[l], LHS[l], LHI[l],
                    hev_t, hev_kind, hev_y)  # fmt: skip
             return False
-        W[ly.T_END * L + l] = F[l, F_HORIZON] - t
         for j in range(ly.n):
             at[j] = W[(ly.ATOL + j) * L + l]
-        status = lane_begin(method, effects, l, yv, at, p, rtol, max_steps, W, I, LEV, LEVK, K,
-                            buf, ev_t, ev_kind, ev_y)  # fmt: skip
+        status = lane_run_from(method, effects, l, yv, F[l, F_HORIZON] - t, at, p, rtol,
+                               max_steps, W, I, LEV, LEVK, K, buf, ev_t, ev_kind,
+                               ev_y)  # fmt: skip
         if status == OK:
-            lane_clip(method, effects, l, W)
             return True
         t_run = 0.0
 
@@ -147,11 +146,10 @@ def _lane_story(method, effects, spin, l, rtol, t_horizon, max_steps, W, I, F, L
             W[ly.N_ACC * L + l] = hi[HI_STEPS]  # the budget is the story's
             W[ly.N_REJ * L + l] = 0.0
             W[ly.ACTIVE * L + l] = 0.0
-            W[ly.T_END * L + l] = F[l, F_HORIZON] - 0.0
-            status = lane_begin(method, effects, l, yr, ra, p, rtol, max_steps, W, I, LEV, LEVK,
-                                K, buf, ev_t, ev_kind, ev_y)  # fmt: skip
+            status = lane_run_from(method, effects, l, yr, F[l, F_HORIZON] - 0.0, ra, p, rtol,
+                                   max_steps, W, I, LEV, LEVK, K, buf, ev_t, ev_kind,
+                                   ev_y)  # fmt: skip
             if status == OK:
-                lane_clip(method, effects, l, W)
                 return True
             if _stretch_ended(method, effects, l, status, 0.0, yr, rtol, max_steps, W, I, F, LP,
                               LYH, LHS, LHI, LEV, LEVK, K, buf, at, ev_t, ev_kind, ev_y, hev_t,
