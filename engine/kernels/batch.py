@@ -222,6 +222,13 @@ def scalar_lanes(F, m, p, circ_tol, S):
 
 
 @kernel
+def _put(out_f, i, o, value):
+    """out_f[i][o] = value where row i is wanted (not of length 0)."""
+    if out_f[i].size:
+        out_f[i][o] = value
+
+
+@kernel
 def store_lanes(m, p, S, out_cls, out_f, oidx):
     """The scene's rules (.geometry.scene_point) and every lane's outputs, to column oidx[j]."""
     plain = not (p[P_RIM_SLANT] < math.inf or p[P_MU] < math.inf)
@@ -231,15 +238,16 @@ def store_lanes(m, p, S, out_cls, out_f, oidx):
                                                           S[_PSI, j], S[_PREC, j]):  # fmt: skip
             out_cls[o] = BOUNDED
             for i in range(7):
-                out_f[i, o] = S[_OUTROWS[i], j]
+                _put(out_f, i, o, S[_OUTROWS[i], j])
             for i in range(7, 10):
-                out_f[i, o] = math.nan
+                _put(out_f, i, o, math.nan)
             continue
         res = scene_point(int(S[_CLS, j]), S[_R1, j], S[_R2, j], S[_RCOUT, j], S[_T, j],
                           S[_PSI, j], S[_PREC, j], S[_MU, j], S[_AL, j], S[_E, j], S[_H, j],
                           S[_LZ, j], p)  # fmt: skip
         out_cls[o] = res[0]
-        _store(out_f, o, 0, res[1:])
+        for i, value in enumerate(res[1:]):
+            _put(out_f, i, o, value)
 
 
 #: The stages of :func:`lanes`, as :func:`profile_batch` names them (after ``families``).
@@ -299,7 +307,7 @@ def profile_batch(alpha, energy, h, Lz, p, circ_tol, out_cls, out_f, upto):
             store_lanes(m, p, S, out_cls, out_f, oidx)
         else:  # keep the stages' results live
             for j in range(m):
-                out_f[0, i0 + j] = S[_R1, j] + S[_T, j] + S[_MU, j] + F[F_VMIN, j]
+                out_f[0][i0 + j] = S[_R1, j] + S[_T, j] + S[_MU, j] + F[F_VMIN, j]
 
 
 @kernel
@@ -326,7 +334,8 @@ def _grid_energy(energy, ie, relative, nhl, m, F, S, base, oidx, out_energy):
         S[_E, j] = e
         o = base[j] + ie * nhl
         oidx[j] = o
-        out_energy[o] = e
+        if out_energy.size:
+            out_energy[o] = e
 
 
 @kernel
@@ -338,31 +347,22 @@ def _no_minimum(m, F, S, out_cls, out_f, oidx):
             out_cls[o] = OUT_OF_RANGE if F[F_KIND, j] == OUT_OF_RANGE else FORBIDDEN
             for i in range(10):
                 if i != 2:
-                    out_f[i, o] = math.nan
-
-
-@kernel
-def work_units(n, ne, nhl, grid):
-    """Units of work of :func:`orbit_units`: chunks of BLOCKS_PER_CHUNK blocks of n points, or
-    on a grid (``grid``: n alphas, ne energies, nhl (h, L_z) pairs) a block of LANES triples
-    times a chunk of GRID_ENERGY_CHUNK energies."""
-    if grid:
-        return (n * nhl + LANES - 1) // LANES * ((ne + GRID_ENERGY_CHUNK - 1) // GRID_ENERGY_CHUNK)
-    return ((n + LANES - 1) // LANES + BLOCKS_PER_CHUNK - 1) // BLOCKS_PER_CHUNK
+                    _put(out_f, i, o, math.nan)
 
 
 @kernel
 def orbit_units(u0, u1, alpha, energy, h, Lz, grid, relative, p, circ_tol, out_cls, out_f,
                 out_energy):  # fmt: skip
-    """Units u0..u1-1 (:func:`work_units`) of :func:`.geometry.orbit_point` (scene ``p``) in lanes.
+    """Units u0..u1-1 (:func:`.workqueue.work_units`) of :func:`.geometry.orbit_point` in lanes.
 
-    Flat (``grid`` False): over 1-D arrays of points, outputs ``out_cls`` int8[n], ``out_f``
-    float64[10, n] (rows :data:`BATCH_ROWS`), ``out_energy`` unused. On the grid alpha x
-    energy x h x Lz (1-D axes; outputs flat in that C order), each family is computed once per
+    Scene ``p``. Flat (``grid`` False): over 1-D arrays of points, outputs ``out_cls`` int8[n],
+    ``out_f`` 10 float64 arrays (rows :data:`BATCH_ROWS`), each [n] or, for a row not wanted,
+    [0] (not written: no memory to fill), ``out_energy`` unused. On the grid alpha x energy x
+    h x Lz (1-D axes; outputs flat in that C order), each family is computed once per
     (alpha, h, L_z) and a chunk of energies; with ``relative`` the energy axis is an offset:
     the energy is V_min + offset |V_min|; with no V_min a point is :func:`_no_minimum`;
-    ``out_energy`` float64[n] receives the absolute energy. Units are independent (callers
-    run them on several threads; the kernel releases the GIL)."""
+    ``out_energy`` float64[n] receives the absolute energy ([0]: not wanted). Units are
+    independent (callers run them on threads; the kernel releases the GIL)."""
     n, nhl = alpha.size, h.size * Lz.size
     ntri = alpha.size * nhl
     nec = (energy.size + GRID_ENERGY_CHUNK - 1) // GRID_ENERGY_CHUNK
@@ -408,6 +408,6 @@ def minimum_energy_batch(alpha, h, Lz, p, out):
             out[0, i], out[1, i] = fam.V_min, fam.r_c
 
 
-def empty_outputs(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Output buffers (out_cls, out_f) of :func:`orbit_units`."""
-    return np.empty(n, np.int8), np.empty((len(BATCH_ROWS), n), np.float64)
+def empty_outputs(n: int, rows=BATCH_ROWS) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+    """(out_cls, out_f) of :func:`orbit_units`: out_f's rows named in ``rows`` [n], others [0]."""
+    return np.empty(n, np.int8), tuple(np.empty(n if r in rows else 0) for r in BATCH_ROWS)
