@@ -18,7 +18,7 @@ import numpy as np
 from .families import minimum_energy_flat
 from .fates import fate_map
 from .integrated import integrate_period
-from .kernels.batch import BATCH_ROWS, empty_outputs
+from .kernels.batch_rows import BATCH_ROWS, empty_outputs
 from .kernels.geometry import BOUNDED, OUT_OF_RANGE, ideal_cone
 from .kernels.protocol import NOT_BOUNDED
 from .kernels.workqueue import CHECK_UNIT, checked_queued, orbit_units_queued, work_units
@@ -162,8 +162,8 @@ def orbit_batch(alpha: np.ndarray, energy: np.ndarray, h: np.ndarray, Lz: np.nda
                 out_f: tuple[np.ndarray, ...]) -> None:  # fmt: skip
     """:func:`.kernels.geometry.orbit_point` over 1-D float64 arrays, in parallel and in lanes,
     on the scene's parameter array ``params`` (``Scene.params()``): ``out_cls`` int8[n],
-    ``out_f`` 10 float64 arrays (rows :data:`.kernels.batch.BATCH_ROWS`), each [n], or [0]
-    where the row is not wanted (:func:`.kernels.batch.empty_outputs`)."""
+    ``out_f`` 10 float64 arrays (rows :data:`.kernels.batch_rows.BATCH_ROWS`), each [n], or [0]
+    where the row is not wanted (:func:`.kernels.batch_rows.empty_outputs`)."""
     run_units(alpha, energy, h, Lz, False, False, params, float(circ_tol), out_cls, out_f,
               _NO_ENERGY)  # fmt: skip
 

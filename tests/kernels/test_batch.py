@@ -12,10 +12,10 @@ from engine.evaluation import orbit_batch, orbit_grid
 from engine.kernels.batch import (
     LANES,
     STAGES,
-    empty_outputs,
     minimum_energy_batch,
     profile_batch,
 )
+from engine.kernels.batch_rows import empty_outputs
 from engine.kernels.geometry import BOUNDED, CLASS_NAMES, OUT_OF_RANGE, orbit_point, scene_params
 
 # (M, g, k, a, rim, mu): gravity, extreme scales, free fall, a point particle, a rim, a
