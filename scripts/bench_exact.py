@@ -12,7 +12,8 @@ Prints, with the machine load before and after:
     rate and mu_required per point), on 1 and 2 numba threads;
 (b) the engine on a survey grid through the grid path (``engine.evaluation.evaluate_block`` on
     the first block of ``surveys/large_1e8.toml``: what ``conesurvey run`` computes), 1 and 2
-    threads;
+    threads, into new arrays and into buffers reused from call to call (``out=``, as a survey
+    reuses them from block to block);
 (c) the peer, on one core: numpy turning points (the trigonometric cubic formula) and T_r, psi
     from Carlson's R_F, R_D, R_J with ``scipy.special.elliprf/elliprd/elliprj``; and the same
     given the engine's turning points (Carlson only: the stricter peer);
@@ -29,7 +30,14 @@ Prints, with the machine load before and after:
 (g) the exact-path table of docs/performance.md, in markdown (``--doc`` writes it there);
 (h) first-call time of the kernels in a fresh interpreter: cold (empty cache) and warm;
 (i) with ``--threads``: wall time and speedup of ``engine.evaluate`` (random points) and of
-    the survey block at each thread count, the control loop beside them.
+    the survey block at each thread count, the control loop beside them;
+(j) with ``--first-touch``: what the first touch of new outputs costs the closed form on the
+    random points (``engine.evaluation.orbit_batch``), 1 and 2 threads, minor page faults per
+    call, side by side: the outputs as ``evaluate_flat`` allocates them (one array per row),
+    as one [rows, n] table (before), as one table whose rows start on 2 MiB boundaries (every
+    page of them a transparent huge page where the system gives them), and reused; each on
+    memory as the allocator has it after the previous call, and on memory just returned to the
+    system (``malloc_trim(0)`` before the call: a first call, or a process whose heap shrank).
 
 Per core means CPU time (``time.process_time``, best of the rounds): on a machine shared with
 other jobs a process's wall time includes the time it waits for a core, its CPU time does not.
@@ -52,11 +60,11 @@ import numba
 import numpy as np
 
 import engine
-from engine.evaluation import evaluate_block, evaluate_flat
+from engine.evaluation import block_variables, evaluate_block, evaluate_flat, orbit_batch
 from engine.families import minimum_energy_flat
 from engine.grid import Tiling
 from engine.kernels.batch import STAGES, profile_batch
-from engine.kernels.batch_rows import empty_outputs
+from engine.kernels.batch_rows import BATCH_ROWS, empty_outputs
 from engine.kernels.geometry import BOUNDED, scene_params
 from engine.plan import map_plan, plan_from_survey
 from engine.surveyfile import load_survey
@@ -298,6 +306,89 @@ def scaling(counts: str, a, e, h, lz, grid_path, rounds: int) -> str:
     return "\n".join(lines)
 
 
+_HUGE = 1 << 21  # a transparent huge page (x86-64)
+_ROWS = ("r_min", "r_max", "r_circ", "period", "apsidal_angle", "precession_rate", "mu_required")
+
+
+def _one_table(n: int) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+    """The closed form's outputs as one [rows, n] table (how they were allocated before)."""
+    table, unused = np.empty((len(_ROWS), n)), np.empty(0)
+    rows = iter(table)
+    return np.empty(n, np.int8), tuple(next(rows) if r in _ROWS else unused for r in BATCH_ROWS)
+
+
+def _aligned_table(n: int) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+    """The outputs in one allocation, each row (and the class) starting on a 2 MiB boundary."""
+    row = -(-8 * n // _HUGE) * _HUGE
+    raw = np.empty((len(_ROWS) + 1) * row + _HUGE, np.uint8)  # numpy advises huge pages
+    buf = raw[(-raw.ctypes.data) % _HUGE :]
+    rows = iter(range(len(_ROWS)))
+    f = tuple(buf[next(rows) * row :][: 8 * n].view(np.float64) if r in _ROWS else np.empty(0)
+              for r in BATCH_ROWS)  # fmt: skip
+    return buf[len(_ROWS) * row :][:n].view(np.int8), f
+
+
+def first_touch(a, e, h, lz, rounds: int) -> str:
+    """(j): the closed form on the random points into outputs allocated four ways, 1 and 2
+    threads, on the allocator's memory and on memory just returned to the system."""
+    import ctypes
+    import resource
+
+    try:
+        trim = ctypes.CDLL("libc.so.6").malloc_trim
+    except (OSError, AttributeError):
+        trim = None
+    p, n = SCENE.params(), a.size
+    kept = empty_outputs(n, _ROWS)
+    allocs = {
+        "one array per row (evaluate_flat)": lambda: empty_outputs(n, _ROWS),
+        "one [rows, n] table (before)": lambda: _one_table(n),
+        "one table, rows on 2 MiB boundaries": lambda: _aligned_table(n),
+        "reused (touched before)": lambda: kept,
+    }
+    fns, faults = {}, {}
+    for label, alloc in allocs.items():
+        for fresh in (False, True) if trim else (False,):
+            for nt in (1, 2):
+
+                def call(alloc=alloc, fresh=fresh):
+                    if fresh:
+                        trim(0)
+                    orbit_batch(a, e, h, lz, p, 1e-12, *alloc())
+
+                fns[(label, fresh, nt)] = threaded(nt, call)
+    inner = control_inner(fns[(next(iter(allocs)), False, 1)])
+    fns["control 1"] = threaded(1, lambda: spin(64, inner))
+    fns["control 2"] = threaded(2, lambda: spin(64, inner))
+    for key, fn in fns.items():
+        fn()
+        before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+        fn()
+        faults[key] = resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before
+    load_before = load()
+    best = measure(fns, rounds)
+    ceiling = best["control 1"][0] / best["control 2"][0]
+    lines = [
+        f"{MACHINE}; load average {load_before} before, {load()} after; {n} random bounded "
+        f"points, the closed form (`orbit_batch`) into outputs allocated each way; best of "
+        f"{rounds} interleaved rounds; minor page faults of one call at 1 thread; the control "
+        f"loop got {ceiling:.2f} in the same rounds",
+        "",
+        "| outputs | memory | faults | 1 thread [ms] (CPU) | 2 threads [ms] (CPU) | 2 / 1 |",
+        "|---|---|---|---|---|---|",
+    ]
+    for label in allocs:
+        for fresh in (False, True) if trim else (False,):
+            (w1, c1), (w2, c2) = best[(label, fresh, 1)], best[(label, fresh, 2)]
+            memory = "just returned to the system" if fresh else "the allocator's"
+            nf = faults[(label, fresh, 1)]
+            lines.append(
+                f"| {label} | {memory} | {nf} | {w1 * 1e3:.1f} ({c1 * 1e3:.1f}) | "
+                f"{w2 * 1e3:.1f} ({c2 * 1e3:.1f}) | {w1 / w2:.2f} |"
+            )
+    return "\n".join(lines)
+
+
 def control_inner(fn: Callable[[], object]) -> int:
     """The inner length of ``bench_common.spin(64, inner)`` that takes as long at 1 thread as
     ``fn`` (one call of each, after a warm-up call of spin)."""
@@ -323,6 +414,8 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
     parser.add_argument("--doc", action="store_true", help="rewrite docs/performance.md's table")
     parser.add_argument("--threads", default="", help="thread counts for a scaling table, "
                         "comma-separated (e.g. 1,2,4,8,16; at most NUMBA_NUM_THREADS)")  # fmt: skip
+    parser.add_argument("--first-touch", action="store_true",
+                        help="also time the first touch of new outputs, (j)")  # fmt: skip
     parser.add_argument(
         "--tiny", action="store_true", help="a seconds-long smoke run (tests/test_scripts.py)"
     )
@@ -373,6 +466,11 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
     def grid_path():
         evaluate_block(spec, slices)
 
+    buffers = {name: np.empty(block[name].shape, dt) for name, dt in block_variables(spec).items()}
+
+    def grid_reused():
+        evaluate_block(spec, slices, out=buffers)
+
     fns = {
         "flat 1": threaded(1, flat_path),
         "flat 2": threaded(2, flat_path),
@@ -380,11 +478,14 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
         "api 2": threaded(2, api_path),
         "grid 1": threaded(1, grid_path),
         "grid 2": threaded(2, grid_path),
+        "reuse 1": threaded(1, grid_reused),
+        "reuse 2": threaded(2, grid_reused),
         "peer": lambda: peer(a, e, h, lz),
         "carlson": lambda: carlson_numpy(a, lz, pts["r1"], pts["r2"]),
     }
     for fn in fns.values():  # compile, warm the thread pool
         fn()
+    same = same and all(np.array_equal(buffers[k], block[k], equal_nan=True) for k in buffers)
     # The control loop lasts as long as the engine's call: a short one would find the second
     # core free more often on a loaded machine, and its best round would promise too much.
     inner = control_inner(threaded(1, flat_path))
@@ -394,7 +495,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
     best = measure(fns, args.rounds)
     load_after = load()
     layer = numba.threading_layer()
-    size = {"flat": n, "api": n, "grid": n_grid, "peer": n, "carlson": n}
+    size = {"flat": n, "api": n, "grid": n_grid, "reuse": n_grid, "peer": n, "carlson": n}
 
     def rate(key: str, cpu: bool) -> float:
         return size[key.split()[0]] / best[key][1 if cpu else 0]
@@ -406,9 +507,8 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
     )
     print(
         "agreement: peer vs engine max |rel diff| T_r {:.1e}, psi {:.1e}; Carlson-only peer "
-        "{:.1e}, {:.1e}; grid path == flat path bit for bit: {}".format(
-            *agree["peer"], *agree["carlson"], same
-        )
+        "{:.1e}, {:.1e}; grid path (new arrays and reused buffers) == flat path bit for bit: "
+        "{}".format(*agree["peer"], *agree["carlson"], same)
     )
     head = f"{'evaluation':58s} {'thr':>3s} {'wall pts/s':>11s} {'CPU pts/s':>11s}"
     print("\n" + head + "\n" + "-" * len(head))
@@ -416,6 +516,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
         ("(a) engine, random points: evaluate_flat", "flat"),
         ("    the same through engine.evaluate (an xarray Dataset)", "api"),
         ("(b) engine, survey grid: evaluate_block", "grid"),
+        ("    the same into reused buffers (evaluate_block(out=))", "reuse"),
     )
     for label, key in rows:
         for nt in (1, 2):
@@ -437,18 +538,20 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
     sp_flat = best["flat 1"][0] / best["flat 2"][0]
     sp_api = best["api 1"][0] / best["api 2"][0]
     sp_grid = best["grid 1"][0] / best["grid 2"][0]
+    sp_reuse = best["reuse 1"][0] / best["reuse 2"][0]
     print("\n(e) goals")
     print(f"exact (random points) / peer, per core (CPU): {per_core:.2f}x "
           f"(target >= {TARGET_VS_PEER:g}x: {verdict(per_core, TARGET_VS_PEER)}); "
           f"wall {wall_1:.2f}x; vs the Carlson-only peer {per_core_strict:.2f}x")  # fmt: skip
     print(f"survey grid / peer, per core (CPU): {per_core_grid:.2f}x")
     print(f"2 threads vs 1 (wall): random points {sp_flat:.2f} (engine.evaluate {sp_api:.2f}), "
-          f"survey grid {sp_grid:.2f} (target >= {TARGET_SPEEDUP:g}: "
-          f"{verdict(min(sp_flat, sp_api, sp_grid), TARGET_SPEEDUP)}); "
+          f"survey grid {sp_grid:.2f}, into reused buffers {sp_reuse:.2f} (target >= "
+          f"{TARGET_SPEEDUP:g}: {verdict(min(sp_flat, sp_api, sp_grid), TARGET_SPEEDUP)}); "
           f"the control loop got {ceiling:.2f} at the same time, load {load_after}")  # fmt: skip
     print(f"share of the control loop's speedup reached (1.00: all the second core gave): "
           f"evaluate {sp_api / ceiling:.2f}, evaluate_flat {sp_flat / ceiling:.2f}, survey grid "
-          f"{sp_grid / ceiling:.2f}")  # fmt: skip
+          f"{sp_grid / ceiling:.2f}, survey grid into reused buffers "
+          f"{sp_reuse / ceiling:.2f}")  # fmt: skip
 
     region = (engine.evaluation, "run_queued")  # every parallel region of the exact path
     serial = {
@@ -480,6 +583,8 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
          sp_flat, TARGET_SPEEDUP),
         ("exact survey grid, 2 threads vs 1 (wall)", rate("grid 2", False), None, sp_grid,
          TARGET_SPEEDUP),
+        ("exact survey grid into reused buffers (`out=`), 2 threads vs 1 (wall)",
+         rate("reuse 2", False), None, sp_reuse, TARGET_SPEEDUP),
     )  # fmt: skip
     loads = f"{load_before} before the timed rounds, {load_after} after"
     md = doc_table(n, n_grid, args.rounds, goals, ceiling, stages, rate("peer", True), serial,
@@ -502,6 +607,8 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 (a report, top 
             )
     if args.threads:
         print("\n(i) threads\n" + scaling(args.threads, a, e, h, lz, grid_path, args.rounds))
+    if args.first_touch:
+        print("\n(j) first touch of new outputs\n" + first_touch(a, e, h, lz, args.rounds))
     print(f"\nload average after the run: {load()}; total benchmark time "
           f"{time.perf_counter() - t_start:.1f} s")  # fmt: skip
     return 0
