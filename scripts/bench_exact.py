@@ -33,9 +33,9 @@ Prints, with the machine load before and after:
     the survey block at each thread count, the control loop beside them;
 (j) with ``--first-touch``: what the first touch of new outputs costs the closed form on the
     random points (``engine.evaluation.orbit_batch``), 1 and 2 threads, minor page faults per
-    call, side by side: the outputs as ``evaluate_flat`` allocates them (one array per row),
-    as one [rows, n] table (before), as one table whose rows start on 2 MiB boundaries (every
-    page of them a transparent huge page where the system gives them), and reused; each on
+    call, side by side: the outputs as ``evaluate_flat`` allocates them (one [rows, n] table),
+    one ``np.empty`` per row, one table whose rows start on 2 MiB boundaries (every page of it
+    a transparent huge page where the system gives them), and reused; each on
     memory as the allocator has it after the previous call, and on memory just returned to the
     system (``malloc_trim(0)`` before the call: a first call, or a process whose heap shrank).
 
@@ -310,11 +310,10 @@ _HUGE = 1 << 21  # a transparent huge page (x86-64)
 _ROWS = ("r_min", "r_max", "r_circ", "period", "apsidal_angle", "precession_rate", "mu_required")
 
 
-def _one_table(n: int) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
-    """The closed form's outputs as one [rows, n] table (how they were allocated before)."""
-    table, unused = np.empty((len(_ROWS), n)), np.empty(0)
-    rows = iter(table)
-    return np.empty(n, np.int8), tuple(next(rows) if r in _ROWS else unused for r in BATCH_ROWS)
+def _plain_rows(n: int) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+    """The outputs one ``np.empty`` per row."""
+    unused = np.empty(0)
+    return np.empty(n, np.int8), tuple(np.empty(n) if r in _ROWS else unused for r in BATCH_ROWS)
 
 
 def _aligned_table(n: int) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
@@ -341,8 +340,8 @@ def first_touch(a, e, h, lz, rounds: int) -> str:
     p, n = SCENE.params(), a.size
     kept = empty_outputs(n, _ROWS)
     allocs = {
-        "one array per row (evaluate_flat)": lambda: empty_outputs(n, _ROWS),
-        "one [rows, n] table (before)": lambda: _one_table(n),
+        "one [rows, n] table (evaluate_flat)": lambda: empty_outputs(n, _ROWS),
+        "one np.empty per row": lambda: _plain_rows(n),
         "one table, rows on 2 MiB boundaries": lambda: _aligned_table(n),
         "reused (touched before)": lambda: kept,
     }

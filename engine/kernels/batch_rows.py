@@ -44,5 +44,13 @@ def put_rows(out_f, o, v):
 
 def empty_outputs(n: int, rows=BATCH_ROWS) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
     """(out_cls, out_f) of :func:`.batch.orbit_units`: int8[n], and for each of
-    :data:`BATCH_ROWS` a float64 row, [n] where named in ``rows``, else [0] (not written)."""
-    return np.empty(n, np.int8), tuple(np.empty(n if r in rows else 0) for r in BATCH_ROWS)
+    :data:`BATCH_ROWS` a float64 row, [n] where named in ``rows``, else [0] (not written).
+
+    The rows named are the rows of one [k, n] table: one allocation, so new memory comes in
+    few transparent huge pages where the system gives them (numpy advises them for arrays of
+    4 MiB and more); an allocation per row leaves each row's ends in 4 kB pages, and a first
+    call faulted 4,207 pages in for 10^6 points (386 as one table; docs/performance.md)."""
+    names = [r for r in BATCH_ROWS if r in rows]
+    table, unused = np.empty((len(names), n)), np.empty(0)
+    at = {name: i for i, name in enumerate(names)}
+    return np.empty(n, np.int8), tuple(table[at[r]] if r in at else unused for r in BATCH_ROWS)
