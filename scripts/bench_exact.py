@@ -34,10 +34,11 @@ Prints, with the machine load before and after:
 (j) with ``--first-touch``: what the first touch of new outputs costs the closed form on the
     random points (``engine.evaluation.orbit_batch``), 1 and 2 threads, minor page faults per
     call, side by side: the outputs as ``evaluate_flat`` allocates them (one [rows, n] table),
-    one ``np.empty`` per row, one table whose rows start on 2 MiB boundaries (every page of it
-    a transparent huge page where the system gives them), and reused; each on
-    memory as the allocator has it after the previous call, and on memory just returned to the
-    system (``malloc_trim(0)`` before the call: a first call, or a process whose heap shrank).
+    the same without numpy's advice to use huge pages, one ``np.empty`` per row, one table
+    whose rows start on 2 MiB boundaries (every page of it a transparent huge page where the
+    system gives them), and reused; each on memory as the allocator has it after the previous
+    call, and on memory just returned to the system (``malloc_trim(0)`` before the call: a
+    first call, or a process whose heap shrank).
 
 Per core means CPU time (``time.process_time``, best of the rounds): on a machine shared with
 other jobs a process's wall time includes the time it waits for a core, its CPU time does not.
@@ -327,6 +328,17 @@ def _aligned_table(n: int) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
     return buf[len(_ROWS) * row :][:n].view(np.int8), f
 
 
+def _small_pages(n: int) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+    """The table as evaluate_flat allocates it, without numpy's advice to use huge pages."""
+    from numpy._core.multiarray import _set_madvise_hugepage
+
+    was = _set_madvise_hugepage(False)
+    try:
+        return empty_outputs(n, _ROWS)
+    finally:
+        _set_madvise_hugepage(was)
+
+
 def first_touch(a, e, h, lz, rounds: int) -> str:
     """(j): the closed form on the random points into outputs allocated four ways, 1 and 2
     threads, on the allocator's memory and on memory just returned to the system."""
@@ -341,6 +353,7 @@ def first_touch(a, e, h, lz, rounds: int) -> str:
     kept = empty_outputs(n, _ROWS)
     allocs = {
         "one [rows, n] table (evaluate_flat)": lambda: empty_outputs(n, _ROWS),
+        "the same, 4 kB pages (no huge-page advice)": lambda: _small_pages(n),
         "one np.empty per row": lambda: _plain_rows(n),
         "one table, rows on 2 MiB boundaries": lambda: _aligned_table(n),
         "reused (touched before)": lambda: kept,
