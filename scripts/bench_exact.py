@@ -38,7 +38,8 @@ Prints, with the machine load before and after:
     whose rows start on 2 MiB boundaries (every page of it a transparent huge page where the
     system gives them), and reused; each on memory as the allocator has it after the previous
     call, and on memory just returned to the system (``malloc_trim(0)`` before the call: a
-    first call, or a process whose heap shrank).
+    first call, or a process whose heap shrank); and the writes alone (the same units from a
+    shared counter, nothing computed): what the first touch costs 1 and 2 threads.
 
 Per core means CPU time (``time.process_time``, best of the rounds): on a machine shared with
 other jobs a process's wall time includes the time it waits for a core, its CPU time does not.
@@ -61,12 +62,19 @@ import numba
 import numpy as np
 
 import engine
-from engine.evaluation import block_variables, evaluate_block, evaluate_flat, orbit_batch
+from engine.evaluation import (
+    block_variables,
+    evaluate_block,
+    evaluate_flat,
+    orbit_batch,
+    run_queued,
+)
 from engine.families import minimum_energy_flat
 from engine.grid import Tiling
 from engine.kernels.batch import STAGES, profile_batch
 from engine.kernels.batch_rows import BATCH_ROWS, empty_outputs
 from engine.kernels.geometry import BOUNDED, scene_params
+from engine.kernels.lanes_step import fetch_add
 from engine.plan import map_plan, plan_from_survey
 from engine.surveyfile import load_survey
 
@@ -339,6 +347,24 @@ def _small_pages(n: int) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
         _set_madvise_hugepage(was)
 
 
+@numba.njit(nogil=True)
+def _write_units(queue, units, cls, f):
+    """The closed form's writes with nothing computed: units of 512 points taken from
+    ``queue`` (as :func:`engine.kernels.workqueue.orbit_units_queued` takes them), each output
+    of the unit written once."""
+    while True:
+        u = fetch_add(queue, 1)
+        if u >= units:
+            return
+        lo, hi = u * 512, min(cls.size, u * 512 + 512)
+        for i in range(lo, hi):
+            cls[i] = 1
+        for k in range(len(f)):
+            row = f[k]
+            for i in range(lo, hi if row.size else lo):
+                row[i] = 1.0
+
+
 def first_touch(a, e, h, lz, rounds: int) -> str:
     """(j): the closed form on the random points into outputs allocated four ways, 1 and 2
     threads, on the allocator's memory and on memory just returned to the system."""
@@ -369,6 +395,16 @@ def first_touch(a, e, h, lz, rounds: int) -> str:
                     orbit_batch(a, e, h, lz, p, 1e-12, *alloc())
 
                 fns[(label, fresh, nt)] = threaded(nt, call)
+    writes = "the writes alone, nothing computed (the table)"
+    for fresh in (False, True) if trim else (False,):
+        for nt in (1, 2):
+
+            def call(fresh=fresh):
+                if fresh:
+                    trim(0)
+                run_queued(_write_units, -(-n // 512), *empty_outputs(n, _ROWS))
+
+            fns[(writes, fresh, nt)] = threaded(nt, call)
     inner = control_inner(fns[(next(iter(allocs)), False, 1)])
     fns["control 1"] = threaded(1, lambda: spin(64, inner))
     fns["control 2"] = threaded(2, lambda: spin(64, inner))
@@ -389,7 +425,7 @@ def first_touch(a, e, h, lz, rounds: int) -> str:
         "| outputs | memory | faults | 1 thread [ms] (CPU) | 2 threads [ms] (CPU) | 2 / 1 |",
         "|---|---|---|---|---|---|",
     ]
-    for label in allocs:
+    for label in (*allocs, writes):
         for fresh in (False, True) if trim else (False,):
             (w1, c1), (w2, c2) = best[(label, fresh, 1)], best[(label, fresh, 2)]
             memory = "just returned to the system" if fresh else "the allocator's"
