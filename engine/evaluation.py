@@ -205,7 +205,7 @@ def evaluate_block(
     (a survey reuses its buffers from block to block: no new pages to fault in); other maps
     are computed as without ``out``, then copied in.
     """
-    dims = plan.dims
+    dims = tuple(plan.dims)
     sub = [np.ascontiguousarray(ax[s], np.float64) for ax, s in zip(plan.axes, slices, strict=True)]
     shape = tuple(x.size for x in sub)
     names = block_variables(plan)
@@ -218,8 +218,8 @@ def evaluate_block(
             return out
     else:
         res = _flat_block(sub, plan)
-    if out is None:
-        return {name: col.reshape(shape) for name, col in res.items() if name in names}
+    if out is None:  # r_circ (fewer dims): family_values
+        return {n: col.reshape(shape) for n, col in res.items() if variable_dims(n, dims) == dims}
     for name in names:  # the cast of a float32 plan, as ndarray.astype casts
         np.copyto(out[name], res[name].reshape(shape), casting="same_kind")
     return out
