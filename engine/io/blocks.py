@@ -220,7 +220,7 @@ class BlockStore:
             slab, chunk = self.tiling.slices(index), self.tiling.chunk
             block = StoredBlock(clean, codec.encode(slab, chunk, clean, compress_pool()), codec)
         fill = (lambda f: write_block(f, block)) if codec else (lambda f: write_npz(f, clean))
-        size, digest = write_atomic(self.path(index), fill, mode=0o600)
+        size, digest = write_atomic(self.path(index), fill, mode=0o600, sequential=bool(codec))
         fd = os.open(self.root / JOURNAL, os.O_WRONLY | os.O_APPEND | O_NOFOLLOW | O_CLOEXEC)
         try:
             os.write(fd, _line(index, size, digest))
