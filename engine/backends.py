@@ -62,10 +62,22 @@ class BackendError(Exception):
     lost, no workers left); the message is one line."""
 
 
-def compute_block(plan: RunPlan, tiling: Tiling, index: int) -> tuple[int, dict[str, np.ndarray]]:
+def compute_block(
+    plan: RunPlan, tiling: Tiling, index: int, out: dict[str, np.ndarray] | None = None
+) -> tuple[int, dict[str, np.ndarray]]:
     """Results of block ``index`` (module-level, so dask can ship it to workers), of the
-    plan's dtypes (float32 where its precision is single)."""
-    results = evaluate_block(plan, tiling.slices(index))
+    plan's dtypes (float32 where its precision is single). ``out``: buffers to compute into
+    (reused from block to block, no new memory to fault in): for each variable of
+    :func:`engine.evaluation.block_variables`, a C-contiguous 1-D array of its dtype with room
+    for the block's points; the results are views of their first ones, in the block's shape."""
+    slices = tiling.slices(index)
+    if out is not None:
+        shape = tuple(s.stop - s.start for s in slices)
+        size = tiling.points(index)
+        views = {n: a[:size].reshape(shape) if a.ndim == 1 and a.size >= size else a
+                 for n, a in out.items()}  # fmt: skip
+        return index, evaluate_block(plan, slices, out=views)
+    results = evaluate_block(plan, slices)
     dtypes = plan.variables
     return index, {n: a.astype(dtypes.get(n, a.dtype), copy=False) for n, a in results.items()}
 

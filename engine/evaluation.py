@@ -18,10 +18,10 @@ import numpy as np
 from .families import minimum_energy_flat
 from .fates import fate_map
 from .integrated import integrate_period
-from .kernels.batch import BATCH_ROWS, empty_outputs, work_units
+from .kernels.batch_rows import BATCH_ROWS, empty_outputs
 from .kernels.geometry import BOUNDED, OUT_OF_RANGE, ideal_cone
 from .kernels.protocol import NOT_BOUNDED
-from .kernels.workqueue import CHECK_UNIT, checked_queued, orbit_units_queued
+from .kernels.workqueue import CHECK_UNIT, checked_queued, orbit_units_queued, work_units
 from .launch import invariants
 from .schema import (
     DIMS,
@@ -36,7 +36,7 @@ from .schema import (
 if TYPE_CHECKING:
     from .plan import MapPlan, RunPlan
 
-__all__ = ["evaluate_flat", "evaluate_block", "bad_inputs"]
+__all__ = ["evaluate_flat", "evaluate_block", "block_variables", "bad_inputs"]
 
 
 def evaluate_flat(
@@ -65,7 +65,10 @@ def evaluate_flat(
     hh = np.ascontiguousarray(h, np.float64)
     lz = np.ascontiguousarray(Lz, np.float64)
     kind, scene = plan.map_kind, plan.scene
-    cls, f = empty_outputs(a.shape[0])
+    wanted = set(plan.variables)  # the rows not wanted are not written (nor allocated)
+    if kind in FATE_KINDS and r_start is None:
+        wanted.add("r_min")  # where the fates start
+    cls, f = empty_outputs(a.shape[0], wanted)
     p = scene.params()
     if kind in FATE_KINDS:  # the launch orbit on the ideal cone; the integration follows the scene
         p = ideal_cone(p)
@@ -156,26 +159,29 @@ def bad_inputs(
 
 def orbit_batch(alpha: np.ndarray, energy: np.ndarray, h: np.ndarray, Lz: np.ndarray,
                 params: np.ndarray, circ_tol: float, out_cls: np.ndarray,
-                out_f: np.ndarray) -> None:  # fmt: skip
+                out_f: tuple[np.ndarray, ...]) -> None:  # fmt: skip
     """:func:`.kernels.geometry.orbit_point` over 1-D float64 arrays, in parallel and in lanes,
     on the scene's parameter array ``params`` (``Scene.params()``): ``out_cls`` int8[n],
-    ``out_f`` float64[10, n] (rows :data:`.kernels.batch.BATCH_ROWS`)."""
+    ``out_f`` 10 float64 arrays (rows :data:`.kernels.batch_rows.BATCH_ROWS`), each [n], or [0]
+    where the row is not wanted (:func:`.kernels.batch_rows.empty_outputs`)."""
     run_units(alpha, energy, h, Lz, False, False, params, float(circ_tol), out_cls, out_f,
               _NO_ENERGY)  # fmt: skip
 
 
 def orbit_grid(alpha: np.ndarray, energy: np.ndarray, h: np.ndarray, Lz: np.ndarray,
                relative: bool, params: np.ndarray, circ_tol: float, out_cls: np.ndarray,
-               out_f: np.ndarray, out_energy: np.ndarray) -> None:  # fmt: skip
+               out_f: tuple[np.ndarray, ...], out_energy: np.ndarray) -> None:  # fmt: skip
     """:func:`orbit_batch` over the grid alpha x energy x h x Lz (1-D float64 axes; outputs
     flat in that C order), each family computed once per (alpha, h, L_z) for a chunk of
     energies; ``relative``: the energy axis is an offset (:func:`.kernels.batch.orbit_units`),
-    ``out_energy`` float64[n] receives the absolute energy."""
+    ``out_energy`` float64[n] receives the absolute energy (float64[0]: not wanted)."""
     run_units(alpha, energy, h, Lz, True, bool(relative), params, float(circ_tol), out_cls, out_f,
               out_energy)  # fmt: skip
 
 
-def evaluate_block(plan: RunPlan, slices: tuple[slice, ...]) -> dict[str, np.ndarray]:
+def evaluate_block(
+    plan: RunPlan, slices: tuple[slice, ...], *, out: dict[str, np.ndarray] | None = None
+) -> dict[str, np.ndarray]:
     """Results on one hyperslab of the grid, each array shaped like the slab.
 
     ``plan``: the validated run plan (:class:`engine.plan.RunPlan`): its dims (one of
@@ -190,31 +196,78 @@ def evaluate_block(plan: RunPlan, slices: tuple[slice, ...]) -> dict[str, np.nda
     (alpha, h, L_z); its numbers equal :func:`evaluate_flat`'s on the same points bit for bit.
     On that grid r_circ and V_min, stored on (alpha, h, Lz), are in no block
     (:func:`family_values`).
+
+    ``out``: arrays to write the results into, and return (the same dict), in place of new
+    ones: one for each of :func:`block_variables`, C-contiguous, of the slab's shape and the
+    plan's dtype (a ValueError names the variable that is not). The numbers equal a call
+    without ``out`` bit for bit. A closed-form map on (alpha, energy, h, L_z) with float64
+    results (the survey grid) is computed into them directly, allocating nothing per point
+    (a survey reuses its buffers from block to block: no new pages to fault in); other maps
+    are computed as without ``out``, then copied in.
     """
     dims = plan.dims
     sub = [np.ascontiguousarray(ax[s], np.float64) for ax, s in zip(plan.axes, slices, strict=True)]
     shape = tuple(x.size for x in sub)
+    names = block_variables(plan)
+    if out is not None:
+        _check_out(out, names, shape)
     if tuple(dims) == DIMS and plan.map_kind == "closed form":
-        res = _closed_form_grid(sub, plan)
+        direct = out is not None and all(names[n] == np.float64 for n in names if n in BATCH_ROWS)
+        res = _closed_form_grid(sub, plan, names, out if direct else None)
+        if direct:
+            return out
     else:
         res = _flat_block(sub, plan)
-    fewer = [n for n in res if variable_dims(n, dims) != tuple(dims)]  # r_circ: family_values
-    return {name: col.reshape(shape) for name, col in res.items() if name not in fewer}
+    if out is None:
+        return {name: col.reshape(shape) for name, col in res.items() if name in names}
+    for name in names:  # the cast of a float32 plan, as ndarray.astype casts
+        np.copyto(out[name], res[name].reshape(shape), casting="same_kind")
+    return out
 
 
-def _closed_form_grid(sub: list[np.ndarray], plan: RunPlan):
-    """The closed form on the grid of the axes ``sub`` (flat arrays in the grid's C order)."""
+def block_variables(plan: RunPlan) -> dict[str, np.dtype]:
+    """The arrays of a block of ``plan``'s grid (:func:`evaluate_block`): names and dtypes,
+    the plan's variables but those stored on fewer dims (r_circ and V_min on
+    (alpha, h, L_z): :func:`family_values`)."""
+    dims = tuple(plan.dims)
+    return {n: dt for n, dt in plan.variables.items() if variable_dims(n, dims) == dims}
+
+
+def _check_out(out: dict[str, np.ndarray], names: dict[str, np.dtype], shape: tuple) -> None:
+    """ValueError naming the first array of ``out`` that :func:`evaluate_block` cannot write."""
+    unknown = sorted(set(out) - set(names))
+    missing = [n for n in names if n not in out]
+    if unknown or missing:
+        raise ValueError(f"out: arrays for {', '.join(names)} are wanted; "
+                         f"missing {missing or 'none'}, unknown {unknown or 'none'}")  # fmt: skip
+    for name, dtype in names.items():
+        a = out[name]
+        if not isinstance(a, np.ndarray):
+            raise ValueError(f"out[{name!r}] is a {type(a).__name__}, not a numpy array")
+        if a.shape != shape:
+            raise ValueError(f"out[{name!r}] has shape {a.shape}; the block's is {shape}")
+        if a.dtype != dtype:
+            raise ValueError(f"out[{name!r}] has dtype {a.dtype}; the plan's is {dtype}")
+        if not (a.flags.c_contiguous and a.flags.writeable):
+            raise ValueError(f"out[{name!r}] is not a writeable C-contiguous array")
+
+
+def _closed_form_grid(sub: list[np.ndarray], plan: RunPlan, names, out=None):
+    """The closed form on the grid of the axes ``sub`` (flat arrays in the grid's C order),
+    for the block's variables ``names``: into new arrays, or the float64 arrays ``out``."""
     n = math.prod(x.size for x in sub)
     scene, relative = plan.scene, plan.energy_relative
-    cls, f = empty_outputs(n)
-    e_abs = np.empty(n)
-    orbit_grid(*sub, relative, scene.params(), plan.circular_tol, cls, f, e_abs)
-    wanted = plan.variables
-    out: dict[str, np.ndarray] = {"orbit_class": cls}
+    if out is None:
+        cls, f = empty_outputs(n, names)
+    else:
+        cls = out["orbit_class"].reshape(-1)
+        f = tuple(out[r].reshape(-1) if r in names else _NO_ENERGY for r in BATCH_ROWS)
+    orbit_grid(*sub, relative, scene.params(), plan.circular_tol, cls, f, _NO_ENERGY)
+    res: dict[str, np.ndarray] = {"orbit_class": cls}
     for i, name in enumerate(BATCH_ROWS):
-        if name in wanted:
-            out[name] = f[i]
-    return out
+        if name in names:
+            res[name] = f[i]
+    return res
 
 
 def _flat_block(sub: list[np.ndarray], plan: RunPlan):

@@ -55,7 +55,8 @@ import engine
 from engine.evaluation import evaluate_block, evaluate_flat
 from engine.families import minimum_energy_flat
 from engine.grid import Tiling
-from engine.kernels.batch import STAGES, empty_outputs, profile_batch
+from engine.kernels.batch import STAGES, profile_batch
+from engine.kernels.batch_rows import empty_outputs
 from engine.kernels.geometry import BOUNDED, scene_params
 from engine.plan import map_plan, plan_from_survey
 from engine.surveyfile import load_survey

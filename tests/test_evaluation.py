@@ -5,8 +5,10 @@ import numpy as np
 import pytest
 
 import engine
-from engine.evaluation import bad_inputs, evaluate_block, evaluate_flat
+from engine.backends import compute_block
+from engine.evaluation import bad_inputs, block_variables, evaluate_block, evaluate_flat
 from engine.families import family_values, minimum_energy_flat
+from engine.grid import Tiling
 from engine.kernels.geometry import OUT_OF_RANGE
 from engine.kernels.workqueue import CHECK_UNIT
 from engine.plan import map_plan, survey_plan
@@ -45,6 +47,14 @@ def test_grid_path_equals_flat_path_bit_for_bit(relative, scene):
     spec = survey_plan(DIMS, axes, scene, "exact", energy_relative=relative, circular_tol=1e-12,
                        rtol=1e-10)  # fmt: skip
     block = evaluate_block(spec, (slice(0, 3), slice(0, 23), slice(0, 3), slice(0, 5)))
+    assert set(block) == set(block_variables(spec))
+    # into buffers (the survey reuses them from block to block): the same numbers bit for bit,
+    # every value written (the buffers start full of other numbers)
+    out = {n: np.full((3, 23, 3, 5), 7, dt) for n, dt in block_variables(spec).items()}
+    got = evaluate_block(spec, (slice(0, 3), slice(0, 23), slice(0, 3), slice(0, 5)), out=out)
+    assert got is out and all(out[n] is got[n] for n in out)
+    for name, col in block.items():
+        assert np.array_equal(out[name], col, equal_nan=True), name
     # r_circ and V_min are not in a block: stored on (alpha, h, Lz), computed once per triple
     fam = family_values(DIMS, axes, scene, spec.map_kind, spec.variables)
     assert set(fam) == ({"r_circ", "V_min"} if relative else {"r_circ"})
@@ -161,3 +171,63 @@ def test_one_period_map_of_bounded_points_only_equals_the_mixed_map():
     for name, col in every.items():
         assert col.dtype == mixed[name].dtype, name
         assert np.array_equal(col, mixed[name][:n], equal_nan=True), name
+
+
+def _grid_spec(**kw):
+    axes = dict(alpha=np.array([0.3, 0.7, 1.1]), energy=np.geomspace(1e-6, 20.0, 7),
+                h=np.array([-1.0, 1.0]), Lz=np.array([0.0, 0.2, 0.5, 0.9]))  # fmt: skip
+    return survey_plan(DIMS, axes, engine.Scene(), circular_tol=1e-12, rtol=1e-10,
+                       energy_relative=True, **kw)  # fmt: skip
+
+
+@pytest.mark.parametrize("precision", ["double", "single"])
+def test_blocks_into_reused_buffers_equal_fresh_blocks(precision):
+    """compute_block with buffers (1-D, room for the largest block; a survey reuses them):
+    each block bit for bit the fresh one, float32 cast as the fresh block is (single)."""
+    spec = _grid_spec(precision=precision, block_points=30)
+    tiling = Tiling((3, 7, 2, 4), (1, 3, 2, 4), (1, 3, 2, 4))  # 9 blocks of 24 or 8 points
+    assert tiling.nblocks > 2 and len({tiling.points(i) for i in range(tiling.nblocks)}) > 1
+    names = block_variables(spec)
+    assert names["period"] == (np.float32 if precision == "single" else np.float64)
+    big = max(tiling.points(i) for i in range(tiling.nblocks))
+    buffers = {n: np.full(big, -3, dt) for n, dt in names.items()}
+    for i in range(tiling.nblocks):
+        _, fresh = compute_block(spec, tiling, i)
+        _, into = compute_block(spec, tiling, i, out=buffers)
+        assert set(into) == set(fresh) == set(names)
+        for name, col in fresh.items():
+            assert into[name].dtype == col.dtype and into[name].shape == col.shape, name
+            assert np.shares_memory(into[name], buffers[name]), name
+            assert np.array_equal(into[name], col, equal_nan=True), (i, name)
+
+
+def test_one_period_block_into_buffers_equals_the_fresh_block():
+    """Maps other than the closed form are computed, then copied into the buffers."""
+    axes = dict(alpha=np.array([0.5, 0.9]), energy=np.array([0.3, 1.0]), h=np.array([0.4]),
+                Lz=np.array([0.6, 1.1]))  # fmt: skip
+    spec = survey_plan(DIMS, axes, engine.Scene(), "dop853", energy_relative=True, rtol=1e-10)
+    whole = (slice(0, 2), slice(0, 2), slice(0, 1), slice(0, 2))
+    fresh = evaluate_block(spec, whole)
+    out = {n: np.zeros((2, 2, 1, 2), dt) for n, dt in block_variables(spec).items()}
+    assert set(fresh) == set(out) and "n_steps" in out
+    evaluate_block(spec, whole, out=out)
+    for name, col in fresh.items():
+        assert np.array_equal(out[name], col, equal_nan=True), name
+
+
+def test_buffers_that_do_not_fit_are_refused_naming_the_variable():
+    spec = _grid_spec()
+    whole = (slice(0, 3), slice(0, 7), slice(0, 2), slice(0, 4))
+    good = {n: np.empty((3, 7, 2, 4), dt) for n, dt in block_variables(spec).items()}
+    cases = [
+        ({**good, "period": np.empty((3, 7, 2, 3))}, "out['period'] has shape (3, 7, 2, 3)"),
+        ({**good, "r_min": np.empty((3, 7, 2, 4), np.float32)}, "out['r_min'] has dtype float32"),
+        ({**good, "orbit_class": np.empty((3, 7, 2, 4))}, "out['orbit_class'] has dtype float64"),
+        ({**good, "r_max": np.empty((4, 2, 7, 3)).T}, "out['r_max'] is not a writeable C-contig"),
+        ({k: v for k, v in good.items() if k != "mu_required"}, "missing ['mu_required']"),
+        ({**good, "r_circ": np.empty((3, 7, 2, 4))}, "unknown ['r_circ']"),
+    ]
+    for out, message in cases:
+        with pytest.raises(ValueError) as err:
+            evaluate_block(spec, whole, out=out)
+        assert message in str(err.value)

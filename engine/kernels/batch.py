@@ -23,6 +23,8 @@ import numpy as np
 from numba import prange
 
 from .._jit import kernel, parallel_kernel
+from .batch_rows import BATCH_ROWS as BATCH_ROWS  # the rows, where they were named before
+from .batch_rows import put_rows
 from .carlson import cel_pair_lanes
 from .ending import mu_required_of
 from .geometry import (
@@ -67,16 +69,10 @@ F_KIND, F_S, F_A, F_B, F_C, F_K, F_RC, F_WELL, F_VMIN, F_C3, F_IGAM, F_NOISE, F_
     FAMILY_FIELDS.index(n) for n in ("kind", "s", "A", "B", "C", "K", "r_c", "a", "V_min", "c3",
                                      "igam", "noise", "kk"))  # fmt: skip
 
-#: Rows of the float output of :func:`orbit_units`.
-BATCH_ROWS = ("r_min", "r_max", "r_circ", "period", "apsidal_angle", "precession_rate",
-              "mu_required", "end_r", "end_time", "end_theta")  # fmt: skip
-
 # Rows of the lanes' scratch table.
 (_E, _AL, _H, _LZ, _REG, _RC, _CC, _AA, _DEL, _G1, _G2, _R1, _R2, _D1, _D2, _KC, _P1, _A1, _B1,
  _P2, _A2, _B2, _C1, _C2, _CLS, _T, _PSI, _PREC, _MU, _RCOUT, _ST) = range(31)  # fmt: skip
 _NS = _ST + 4  # the last takes four rows (cel_pair_lanes' state)
-#: Rows of the lanes' table holding the first seven outputs (BATCH_ROWS).
-_OUTROWS = np.array([_R1, _R2, _RCOUT, _T, _PSI, _PREC, _MU])
 
 
 @kernel
@@ -230,16 +226,15 @@ def store_lanes(m, p, S, out_cls, out_f, oidx):
         if plain and S[_REG, j] != 0.0 and representable(BOUNDED, S[_R1, j], S[_R2, j], S[_T, j],
                                                           S[_PSI, j], S[_PREC, j]):  # fmt: skip
             out_cls[o] = BOUNDED
-            for i in range(7):
-                out_f[i, o] = S[_OUTROWS[i], j]
-            for i in range(7, 10):
-                out_f[i, o] = math.nan
+            nan = math.nan
+            put_rows(out_f, o, (S[_R1, j], S[_R2, j], S[_RCOUT, j], S[_T, j], S[_PSI, j],
+                                S[_PREC, j], S[_MU, j], nan, nan, nan))  # fmt: skip
             continue
         res = scene_point(int(S[_CLS, j]), S[_R1, j], S[_R2, j], S[_RCOUT, j], S[_T, j],
                           S[_PSI, j], S[_PREC, j], S[_MU, j], S[_AL, j], S[_E, j], S[_H, j],
                           S[_LZ, j], p)  # fmt: skip
         out_cls[o] = res[0]
-        _store(out_f, o, 0, res[1:])
+        put_rows(out_f, o, res[1:])
 
 
 #: The stages of :func:`lanes`, as :func:`profile_batch` names them (after ``families``).
@@ -299,7 +294,7 @@ def profile_batch(alpha, energy, h, Lz, p, circ_tol, out_cls, out_f, upto):
             store_lanes(m, p, S, out_cls, out_f, oidx)
         else:  # keep the stages' results live
             for j in range(m):
-                out_f[0, i0 + j] = S[_R1, j] + S[_T, j] + S[_MU, j] + F[F_VMIN, j]
+                out_f[0][i0 + j] = S[_R1, j] + S[_T, j] + S[_MU, j] + F[F_VMIN, j]
 
 
 @kernel
@@ -326,7 +321,8 @@ def _grid_energy(energy, ie, relative, nhl, m, F, S, base, oidx, out_energy):
         S[_E, j] = e
         o = base[j] + ie * nhl
         oidx[j] = o
-        out_energy[o] = e
+        if out_energy.size:
+            out_energy[o] = e
 
 
 @kernel
@@ -336,33 +332,24 @@ def _no_minimum(m, F, S, out_cls, out_f, oidx):
         if math.isnan(S[_E, j]):
             o = oidx[j]
             out_cls[o] = OUT_OF_RANGE if F[F_KIND, j] == OUT_OF_RANGE else FORBIDDEN
-            for i in range(10):
-                if i != 2:
-                    out_f[i, o] = math.nan
-
-
-@kernel
-def work_units(n, ne, nhl, grid):
-    """Units of work of :func:`orbit_units`: chunks of BLOCKS_PER_CHUNK blocks of n points, or
-    on a grid (``grid``: n alphas, ne energies, nhl (h, L_z) pairs) a block of LANES triples
-    times a chunk of GRID_ENERGY_CHUNK energies."""
-    if grid:
-        return (n * nhl + LANES - 1) // LANES * ((ne + GRID_ENERGY_CHUNK - 1) // GRID_ENERGY_CHUNK)
-    return ((n + LANES - 1) // LANES + BLOCKS_PER_CHUNK - 1) // BLOCKS_PER_CHUNK
+            nan = math.nan  # r_circ (row 2) stays
+            rc = out_f[2][o] if out_f[2].size else nan
+            put_rows(out_f, o, (nan, nan, rc, nan, nan, nan, nan, nan, nan, nan))
 
 
 @kernel
 def orbit_units(u0, u1, alpha, energy, h, Lz, grid, relative, p, circ_tol, out_cls, out_f,
                 out_energy):  # fmt: skip
-    """Units u0..u1-1 (:func:`work_units`) of :func:`.geometry.orbit_point` (scene ``p``) in lanes.
+    """Units u0..u1-1 (:func:`.workqueue.work_units`) of :func:`.geometry.orbit_point` in lanes.
 
-    Flat (``grid`` False): over 1-D arrays of points, outputs ``out_cls`` int8[n], ``out_f``
-    float64[10, n] (rows :data:`BATCH_ROWS`), ``out_energy`` unused. On the grid alpha x
-    energy x h x Lz (1-D axes; outputs flat in that C order), each family is computed once per
+    Scene ``p``. Flat (``grid`` False): over 1-D arrays of points, outputs ``out_cls`` int8[n],
+    ``out_f`` 10 float64 arrays (rows :data:`BATCH_ROWS`), each [n] or, for a row not wanted,
+    [0] (:mod:`.batch_rows`: not written), ``out_energy`` unused. On the grid alpha x energy x
+    h x Lz (1-D axes; outputs flat in that C order), each family is computed once per
     (alpha, h, L_z) and a chunk of energies; with ``relative`` the energy axis is an offset:
     the energy is V_min + offset |V_min|; with no V_min a point is :func:`_no_minimum`;
-    ``out_energy`` float64[n] receives the absolute energy. Units are independent (callers
-    run them on several threads; the kernel releases the GIL)."""
+    ``out_energy`` float64[n] receives the absolute energy ([0]: not wanted). Units are
+    independent (callers run them on threads; the kernel releases the GIL)."""
     n, nhl = alpha.size, h.size * Lz.size
     ntri = alpha.size * nhl
     nec = (energy.size + GRID_ENERGY_CHUNK - 1) // GRID_ENERGY_CHUNK
@@ -406,8 +393,3 @@ def minimum_energy_batch(alpha, h, Lz, p, out):
         if Lz[i] != 0.0:
             fam = family(alpha[i], h[i], Lz[i], p, False)
             out[0, i], out[1, i] = fam.V_min, fam.r_c
-
-
-def empty_outputs(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Output buffers (out_cls, out_f) of :func:`orbit_units`."""
-    return np.empty(n, np.int8), np.empty((len(BATCH_ROWS), n), np.float64)

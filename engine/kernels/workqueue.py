@@ -1,7 +1,7 @@
 """The closed form's units of work taken from a counter the threads share.
 
 :func:`orbit_units_queued` is what each thread of :func:`engine.evaluation.run_units` runs:
-it takes the next unit (:func:`.batch.work_units`: 512 points, or 32 (alpha, h, L_z) triples
+it takes the next unit (:func:`work_units`: 512 points, or 32 (alpha, h, L_z) triples
 times 64 energies of a grid) with an atomic increment (:func:`.lanes_step.fetch_add`) until
 none is left. One call per thread, so the threads start at once and none waits on the Python
 interpreter for its next piece, and the split is as fine as a unit: the threads finish within
@@ -15,11 +15,21 @@ each thread checks chunks of :data:`CHECK_UNIT` points of one input, one pass ov
 from __future__ import annotations
 
 from .._jit import kernel
-from .batch import orbit_units
+from .batch import BLOCKS_PER_CHUNK, GRID_ENERGY_CHUNK, LANES, orbit_units
 from .lanes_step import fetch_add
 
 #: Points per unit of :func:`checked_queued` (a chunk of one input array).
 CHECK_UNIT = 1 << 15
+
+
+@kernel
+def work_units(n, ne, nhl, grid):
+    """Units of work of :func:`orbit_units`: chunks of BLOCKS_PER_CHUNK blocks of n points, or
+    on a grid (``grid``: n alphas, ne energies, nhl (h, L_z) pairs) a block of LANES triples
+    times a chunk of GRID_ENERGY_CHUNK energies."""
+    if grid:
+        return (n * nhl + LANES - 1) // LANES * ((ne + GRID_ENERGY_CHUNK - 1) // GRID_ENERGY_CHUNK)
+    return ((n + LANES - 1) // LANES + BLOCKS_PER_CHUNK - 1) // BLOCKS_PER_CHUNK
 
 
 @kernel

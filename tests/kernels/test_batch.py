@@ -12,10 +12,10 @@ from engine.evaluation import orbit_batch, orbit_grid
 from engine.kernels.batch import (
     LANES,
     STAGES,
-    empty_outputs,
     minimum_energy_batch,
     profile_batch,
 )
+from engine.kernels.batch_rows import empty_outputs
 from engine.kernels.geometry import BOUNDED, CLASS_NAMES, OUT_OF_RANGE, orbit_point, scene_params
 
 # (M, g, k, a, rim, mu): gravity, extreme scales, free fall, a point particle, a rim, a
@@ -68,6 +68,11 @@ def _points(n, seed, M, g, k):
     return alpha, energy, h, Lz
 
 
+def _scalar_outputs(n):
+    """Outputs of _scalar: class int8[n], float64[10, n]."""
+    return np.empty(n, np.int8), np.empty((10, n))
+
+
 def _same(a, b):
     return np.array_equal(a, b, equal_nan=True)
 
@@ -81,10 +86,10 @@ def test_lanes_equal_the_scalar_kernel_bit_for_bit(scene):
     M, g, k = scene[:3]
     alpha, energy, h, Lz = _points(20_000 + 7, 11, M, g, k)  # a partial last block too
     c1, f1 = empty_outputs(alpha.size)
-    c2, f2 = empty_outputs(alpha.size)
+    c2, f2 = _scalar_outputs(alpha.size)
     orbit_batch(alpha, energy, h, Lz, scene_params(*scene), 1e-12, c1, f1)
     _scalar(alpha, energy, h, Lz, scene_params(*scene), c2, f2)
-    assert _same(c1, c2) and _same(f1, f2)
+    assert _same(c1, c2) and _same(np.stack(f1), f2)
     # the sample reaches several classes (the lanes' scalar path) besides bounded
     classes = {CLASS_NAMES[c] for c in np.unique(c1)}
     assert {"forbidden", "bounded"} <= classes and len(classes) >= 4
@@ -98,10 +103,22 @@ def test_lanes_any_number_of_points(n):
     Lz = rng.uniform(0.1, 2, n)
     energy = rng.uniform(-5, 30, n)
     c1, f1 = empty_outputs(n)
-    c2, f2 = empty_outputs(n)
+    c2, f2 = _scalar_outputs(n)
     orbit_batch(alpha, energy, h, Lz, scene_params(1.0, 9.81, 0.4), 1e-12, c1, f1)
     _scalar(alpha, energy, h, Lz, scene_params(1.0, 9.81, 0.4), c2, f2)
-    assert _same(c1, c2) and _same(f1, f2)
+    assert _same(c1, c2) and _same(np.stack(f1), f2)
+
+
+def test_rows_not_wanted_are_not_written():
+    """A row of length 0 (not wanted) is skipped; the rows wanted are the full run's."""
+    alpha, energy, h, Lz = _points(2000, 9, *SCENES[7][:3])
+    p = scene_params(*SCENES[7])
+    c1, f1 = empty_outputs(alpha.size)
+    c2, f2 = empty_outputs(alpha.size, {"r_max", "mu_required", "end_time"})
+    assert sum(row.size for row in f2) == 3 * alpha.size
+    orbit_batch(alpha, energy, h, Lz, p, 1e-12, c1, f1)
+    orbit_batch(alpha, energy, h, Lz, p, 1e-12, c2, f2)
+    assert _same(c1, c2) and all(_same(a, b) for a, b in zip(f1, f2, strict=True) if b.size)
 
 
 @pytest.mark.parametrize("relative", [True, False])
@@ -115,8 +132,9 @@ def test_grid_equals_flat_kernel(relative, scene):
     h = np.array([-3.0, 0.0, 1e-5, 2.0])
     Lz = np.array([-2.0, -1e-4, 0.0, 1e-7, 0.05, 1.0, 3.0])
     n = alpha.size * energy.size * h.size * Lz.size
-    cls, f, e_abs = *empty_outputs(n), np.empty(n)
-    orbit_grid(alpha, energy, h, Lz, relative, scene_params(*scene), 1e-12, cls, f, e_abs)
+    cls, rows, e_abs = *empty_outputs(n), np.empty(n)
+    orbit_grid(alpha, energy, h, Lz, relative, scene_params(*scene), 1e-12, cls, rows, e_abs)
+    f = np.stack(rows)
     A, E, H, L = (x.reshape(-1) for x in np.meshgrid(alpha, energy, h, Lz, indexing="ij"))
     well = np.empty((2, n))
     minimum_energy_batch(A, H, L, scene_params(*scene), well)
@@ -129,8 +147,9 @@ def test_grid_equals_flat_kernel(relative, scene):
         vmin = well[0]
         E = vmin + E * np.abs(vmin)  # the rule of engine.evaluation (numpy arithmetic)
     assert _same(e_abs, E)
-    c2, f2 = empty_outputs(n)
-    orbit_batch(A, E, H, L, scene_params(*scene), 1e-12, c2, f2)
+    c2, rows2 = empty_outputs(n)
+    orbit_batch(A, E, H, L, scene_params(*scene), 1e-12, c2, rows2)
+    f2 = np.stack(rows2)
     undefined = np.isnan(E)
     if relative:  # no V_min (L_z = 0 here): forbidden, nothing but r_circ
         assert undefined.any()
