@@ -24,6 +24,7 @@ from engine.io.blocks import BlockStore, block_file_bytes
 from engine.io.chunkfile import ChunkCodec, StoredBlock, read_block, write_block
 from engine.io.contents import verify_file
 from engine.io.manifest import Manifest, read_manifest
+from engine.io.results import open_result
 from engine.plan import plan_from_survey
 from engine.runner import run_survey
 from engine.surveyfile import parse_survey
@@ -125,6 +126,22 @@ def test_a_resume_copies_the_stored_chunks_and_compresses_only_the_new_blocks(
     assert _data_chunks(out) == _data_chunks(whole[0])  # the same bytes as an uninterrupted run
     with netCDF4.Dataset(out) as nc, netCDF4.Dataset(whole[0]) as ref:
         assert nc.getncattr("content_checksum") == ref.getncattr("content_checksum")
+
+
+def test_an_unfinished_run_of_chunk_blocks_opens_for_reading(whole, tmp_path):
+    """plot and report read an unfinished run's blocks: the stored block's values, NaN for the
+    block not computed yet."""
+    out = tmp_path / "o.nc"
+    with pytest.raises(KeyboardInterrupt):
+        run_survey(parse_survey(RUN), out, block_points=BLOCK, on_block=_stop_after(1))
+    tiling = Tiling.for_grid(plan_from_survey(parse_survey(RUN)).shape, BLOCK)
+    done, todo = tiling.slices(0), tiling.slices(1)
+    partial = open_result(out)
+    with netCDF4.Dataset(whole[0]) as ref:
+        got = partial.ds["r_max"].values
+        assert np.array_equal(got[done], ref["r_max"][done], equal_nan=True)
+        assert np.isnan(got[todo]).all()
+        assert np.array_equal(partial.ds["orbit_class"].values[done], ref["orbit_class"][done])
 
 
 @pytest.mark.parametrize("compression", ["none", "zstd"])
