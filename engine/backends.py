@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .blockbuffers import Buffers
 from .errortext import install_hint
 from .evaluation import evaluate_block
 from .grid import Tiling
@@ -159,12 +160,13 @@ def _ahead(plan: RunPlan, tiling: Tiling, pending: list[int]) -> Blocks:
         yield from (compute_block(plan, tiling, i) for i in pending)
         return
     pool = ThreadPoolExecutor(1, thread_name_prefix="conesurvey-compute")
+    buffers = Buffers(plan, tiling)
     ahead = None
     try:
-        ahead = pool.submit(compute_block, plan, tiling, pending[0])
+        ahead = pool.submit(compute_block, plan, tiling, pending[0], buffers.take())
         for i in pending[1:]:
             done = ahead.result()
-            ahead = pool.submit(compute_block, plan, tiling, i)
+            ahead = pool.submit(compute_block, plan, tiling, i, buffers.take())
             yield done
         done, ahead = ahead.result(), None
         yield done

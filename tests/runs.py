@@ -136,7 +136,8 @@ def listing(directory: Path) -> list[str]:
 def blocks_in(parts: Path) -> int:
     """Committed block files in a block store (0 if it does not exist)."""
     try:
-        return sum(1 for n in os.listdir(parts) if n.startswith("b") and n.endswith(".npz"))
+        names = os.listdir(parts)
+        return sum(1 for n in names if n.startswith("b") and n.endswith((".npz", ".chunks")))
     except FileNotFoundError:
         return 0
 

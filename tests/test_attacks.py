@@ -17,11 +17,13 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 import pytest
 import runs
 
 from engine.io import manifest as io_manifest
+from engine.io.blocks import BlockStore
+from engine.io.chunkfile import StoredBlock, write_block
+from engine.io.deflate import compress_pool
 from engine.runner import run_survey
 from engine.surveyfile import parse_survey
 
@@ -192,7 +194,7 @@ def test_a_second_run_is_refused_at_every_stage_of_the_first(work, reference, ca
 
 
 def _block(work: Path, i: int) -> Path:
-    return parts(work) / f"b{i:08d}.npz"
+    return parts(work) / f"b{i:08d}.chunks"  # the default output is deflated: chunk blocks
 
 
 def test_swapped_edited_truncated_and_stray_blocks_after_a_kill(work, reference, capsys):
@@ -201,18 +203,19 @@ def test_swapped_edited_truncated_and_stray_blocks_after_a_kill(work, reference,
     _block(work, 0).write_bytes(b[1])  # a block copied over another
     _block(work, 1).write_bytes(b[0])  # (a swap)
     _block(work, 2).write_bytes(b[2][: len(b[2]) // 2])  # truncated
-    with np.load(_block(work, 3)) as z:  # edited values, a valid file
-        edited = {k: z[k].copy() for k in z.files}
+    store = BlockStore.open(parts(work))  # edited values, a valid file
+    edited = store.decode(3, _block(work, 3).read_bytes())
     edited["r_min"][...] = 1.0
+    chunks = store.codec.encode(store.tiling.slices(3), store.tiling.chunk, edited, compress_pool())
     with open(_block(work, 3), "wb") as f:
-        np.savez(f, **edited)
+        write_block(f, StoredBlock(edited, chunks, store.codec))
     data = bytearray(b[4])
     data[len(data) // 2] ^= 0x04  # one flipped bit
     _block(work, 4).write_bytes(bytes(data))
     (parts(work) / "b-0000001.npz").write_bytes(b[5])  # a stray name (the IndexError)
     err = finish_and_compare(work, reference, capsys, kept=["b-0000001.npz"])
     for i in range(5):
-        assert f"block file b{i:08d}.npz is corrupt" in err, err
+        assert f"block file b{i:08d}.chunks is corrupt" in err, err
     assert "ignoring files that are not blocks of this run" in err and "b-0000001.npz" in err
     assert "survey" not in err.split("ignoring")[1].split("\n")[0]  # not blamed on the survey
     assert "left out.nc.parts with the files you put there: b-0000001.npz" in err
@@ -279,7 +282,7 @@ def test_links_planted_in_the_parts_directory_are_never_followed(work, reference
     killed_after(work, 6)
     victim = work / "victim"
     victim.write_text("precious")
-    for name in ("manifest.json.tmp", "b00000003.npz.tmp", "b00000007.npz.tmp", "journal.tmp"):
+    for name in ("manifest.json.tmp", "b00000003.chunks.tmp", "b00000007.npz.tmp", "journal.tmp"):
         (parts(work) / name).symlink_to(victim)
     good = work / "copy.npz"
     original = _block(work, 2).read_bytes()
@@ -289,7 +292,7 @@ def test_links_planted_in_the_parts_directory_are_never_followed(work, reference
     (work / "out.nc.tmp").symlink_to(victim)  # the output's old temporary name
     proc = runs.here(work, capsys, *ARGS)
     assert proc.returncode == 0, proc.stderr
-    assert "block file b00000002.npz is corrupt (not a regular file" in proc.stderr
+    assert "block file b00000002.chunks is corrupt (not a regular file" in proc.stderr
     assert victim.read_text() == "precious"
     assert good.read_bytes() == original  # the link's target is untouched
     assert runs.listing(work) == ["copy.npz", "out.nc", "out.nc.tmp", "s.toml", "victim"]

@@ -24,7 +24,7 @@ from engine.io.blocks import BlockStore
 from engine.runner import run_survey
 from engine.surveyfile import parse_survey
 
-# 4 x 10 x 330 x 10 = 132,000 points in 4 blocks of 33,200 (2.2 MB of block files each)
+# 4 x 10 x 330 x 10 = 132,000 points in 4 blocks of 33,200 (1.2 MB of block files each)
 SURVEY = runs.gravity_survey("enospc test", energy=10, h=330, lz=10)
 ENOSPC = OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
@@ -70,20 +70,20 @@ def resumes(work, capsys, reference) -> None:
 
 
 def test_disk_full_while_a_block_is_stored(work, capsys, reference, monkeypatch):
-    real = io_blocks.write_npz
+    real = io_blocks.write_block  # the default output is deflated: blocks are its chunks
     calls = []
 
-    def write_npz(file, arrays):
+    def write_block(file, block):
         calls.append(1)
         if len(calls) == 3:  # half of the third block, then the disk is full
             file.write(b"\0" * 100_000)
             raise ENOSPC
-        real(file, arrays)
+        real(file, block)
 
-    monkeypatch.setattr(io_blocks, "write_npz", write_npz)
+    monkeypatch.setattr(io_blocks, "write_block", write_block)
     store = stopped_cleanly(work, capsys, "No space left on device")
     assert len(calls) == 3 and store.scan().good == {0, 1}
-    monkeypatch.setattr(io_blocks, "write_npz", real)
+    monkeypatch.setattr(io_blocks, "write_block", real)
     resumes(work, capsys, reference)
 
 
@@ -157,14 +157,15 @@ def _in_small_fs(work, size: str) -> dict[str, str]:
 
 @pytest.mark.parametrize(
     ("size", "stored"),
-    [("5m", 2), ("10m", 4)],
+    [("3m", 2), ("7m", 4)],
     ids=["early in the run", "late in the run"],
 )
 def test_a_real_full_disk(work, reference, size, stored):
-    """5 MB: room for at most two of the four 2.2 MB block files. 10 MB: for all four blocks
-    (8.6 MB), not the output merged beside them. The output is written while the blocks are
-    computed, so the disk fills while a block is stored or while the output is written,
-    whichever comes first, with fewer blocks stored than fit alone."""
+    """3 MB: room for at most two of the four 1.2 MB block files (the compressed chunks the
+    output gets). 7 MB: for all four blocks (4.7 MB), not the output merged beside them. The
+    output is written while the blocks are computed, so the disk fills while a block is stored
+    or while the output is written, whichever comes first, with fewer blocks stored than fit
+    alone."""
     r = _in_small_fs(work, size)
     assert r["first.rc"].strip() == "1", r
     err = r["first.err"]
@@ -172,7 +173,7 @@ def test_a_real_full_disk(work, reference, size, stored):
     assert "Traceback" not in err and "the run is resumable: run the same command again" in err
     assert ("No space left on device" in err) or ("NetCDF: HDF error" in err), err
     assert r["first.ls"].split() == ["out.nc.parts"]
-    blocks = [n for n in r["first.parts"].split() if n.endswith(".npz")]
+    blocks = [n for n in r["first.parts"].split() if n.endswith(".chunks")]
     assert 1 <= len(blocks) <= stored, r["first.parts"]
     assert not [n for n in r["first.parts"].split() if ".tmp" in n]
     assert r["second.rc"].strip() == "0", r["second.err"]

@@ -60,7 +60,7 @@ def test_sigkill_mid_run_then_resume_gives_identical_file(tmp_path, reference_ru
         proc = subprocess.Popen(cmd, cwd=tmp_path, env=_env(), stderr=subprocess.PIPE)
         deadline = time.monotonic() + 300
         while time.monotonic() < deadline and proc.poll() is None:
-            if parts.is_dir() and len(list(parts.glob("b*.npz"))) >= target:
+            if parts.is_dir() and len(list(parts.glob("b*.chunks"))) >= target:
                 proc.send_signal(signal.SIGKILL)
                 kills += 1
                 break
@@ -68,7 +68,7 @@ def test_sigkill_mid_run_then_resume_gives_identical_file(tmp_path, reference_ru
         proc.wait(timeout=60)
         assert not (tmp_path / "out.nc").exists() or proc.returncode == 0
     assert kills >= 2, "the run finished before it could be killed"
-    stored = len(list(parts.glob("b*.npz")))
+    stored = len(list(parts.glob("b*.chunks")))
     info = runs.here(tmp_path, capsys, "info", "out.nc")
     assert info.returncode == 0 and "unfinished" in info.stdout, info.stdout + info.stderr
     done = subprocess.run(
@@ -118,7 +118,7 @@ def test_corrupt_block_is_reported_and_recomputed(tmp_path):
     out = tmp_path / "o.nc"
     with pytest.raises(KeyboardInterrupt):
         run_survey(s, out, block_points=CHUNK, on_block=_kill_after(2))
-    blocks = sorted((tmp_path / "o.nc.parts").glob("b*.npz"))
+    blocks = sorted((tmp_path / "o.nc.parts").glob("b*.chunks"))
     assert len(blocks) == 2
     blocks[0].write_bytes(blocks[0].read_bytes()[:100])  # truncated: a torn write
     (tmp_path / "o.nc.parts" / "b00000099.npz.tmp").write_bytes(b"stale")
@@ -183,7 +183,7 @@ def test_refuses_a_grid_too_large_for_the_disk(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err
     values = 65 * 1.32e6 / 1e6
     total, blocks, output = _needed_mb(err)
-    assert blocks == round(values, 1)  # 3 significant digits; the zip headers are < 0.1 MB
+    assert blocks == round(values, 1)  # 3 significant digits; framing and headers < 0.1 MB
     assert values * 1.01 <= output <= values * 1.01 + 1.1, err
     assert abs(total - (blocks + output)) <= 1.0
     assert "blocks still to compute" in err and "output merged beside them" in err
@@ -206,7 +206,7 @@ def test_space_check_counts_only_the_blocks_still_to_compute(tmp_path, capsys, m
     assert cli.main(args) == 2
     need_now, blocks, _ = _needed_mb(capsys.readouterr().err)
     tiling = Tiling.for_grid(s.shape, CHUNK)
-    stored = [int(p.stem[1:]) for p in (tmp_path / "o.nc.parts").glob("b*.npz")]
+    stored = [int(p.stem[1:]) for p in (tmp_path / "o.nc.parts").glob("b*.chunks")]
     assert len(stored) == 2
     left = s.size - sum(tiling.points(i) for i in stored)
     assert blocks == pytest.approx(65 * left / 1e6, rel=5e-3)

@@ -1,6 +1,7 @@
 """The local backend computes one block ahead: block k + 1 runs on a thread of its own while
 the run stores and writes block k, errors come out in block order, and a run that stops early
-leaves no compute thread behind."""
+leaves no compute thread behind. Blocks are computed into reused buffers, a set given out
+again only once nothing refers to it."""
 
 from __future__ import annotations
 
@@ -9,12 +10,31 @@ import time
 
 import numpy as np
 import pytest
+import runs
 
 from engine import backends
+from engine.blockbuffers import Buffers
+from engine.grid import Tiling
+from engine.plan import plan_from_survey
+from engine.surveyfile import parse_survey
+
+
+class _NoBuffers:
+    def __init__(self, plan, tiling):
+        pass
+
+    def take(self):
+        return None
+
+
+@pytest.fixture
+def no_buffers(monkeypatch):
+    """The fakes below compute nothing: no plan to size buffers by."""
+    monkeypatch.setattr(backends, "Buffers", _NoBuffers)
 
 
 def _fake(started: list[int], fail_at: int | None = None):
-    def compute_block(plan, tiling, index):
+    def compute_block(plan, tiling, index, out=None):
         started.append(index)
         if index == fail_at:
             raise ZeroDivisionError(f"block {index}")
@@ -34,7 +54,7 @@ def _compute_threads() -> list[threading.Thread]:
     return [t for t in threading.enumerate() if t.name.startswith("conesurvey-compute")]
 
 
-def test_the_next_block_is_computed_while_the_caller_holds_this_one(monkeypatch):
+def test_the_next_block_is_computed_while_the_caller_holds_this_one(monkeypatch, no_buffers):
     started: list[int] = []
     monkeypatch.setattr(backends, "compute_block", _fake(started))
     blocks = backends.LocalBackend().blocks(None, None, [4, 5, 6])
@@ -44,7 +64,7 @@ def test_the_next_block_is_computed_while_the_caller_holds_this_one(monkeypatch)
     assert not _compute_threads()
 
 
-def test_an_error_comes_out_in_block_order_and_stops_the_compute(monkeypatch):
+def test_an_error_comes_out_in_block_order_and_stops_the_compute(monkeypatch, no_buffers):
     started: list[int] = []
     monkeypatch.setattr(backends, "compute_block", _fake(started, fail_at=1))
     got = []
@@ -56,7 +76,7 @@ def test_an_error_comes_out_in_block_order_and_stops_the_compute(monkeypatch):
     assert not _compute_threads()
 
 
-def test_a_run_that_stops_early_waits_for_the_block_in_the_compute(monkeypatch):
+def test_a_run_that_stops_early_waits_for_the_block_in_the_compute(monkeypatch, no_buffers):
     started: list[int] = []
     monkeypatch.setattr(backends, "compute_block", _fake(started))
     blocks = backends.LocalBackend().blocks(None, None, [0, 1, 2])
@@ -64,3 +84,59 @@ def test_a_run_that_stops_early_waits_for_the_block_in_the_compute(monkeypatch):
     blocks.close()  # the runner leaving (an error, KeyboardInterrupt)
     assert not _compute_threads()
     assert 2 not in started
+
+
+# 3 x 20 x 33 x 160 points in 8 blocks of one chunk (3, 20, 33, 20)
+SURVEY = runs.gravity_survey("buffers", alpha=(0.3, 0.8, 1.3), energy=20, h=33, lz=160)
+
+
+def test_blocks_computed_into_reused_buffers_are_the_fresh_blocks():
+    """Eight blocks, the caller holding each one's arrays until the next arrives (as the store
+    does): every block bit for bit its fresh compute, and three sets of buffers serve them all
+    (the block the caller holds, the one it is handed next, the one computed meanwhile)."""
+    plan = plan_from_survey(parse_survey(SURVEY))
+    tiling = Tiling.for_grid(plan.shape, 16_000)
+    assert tiling.nblocks == 8
+    made = []
+
+    class Counted(Buffers):
+        def take(self):
+            got = super().take()
+            made[:] = [len(self.sets)]
+            return got
+
+    real = backends.Buffers
+    backends.Buffers = Counted
+    try:
+        for i, block in backends.LocalBackend().blocks(plan, tiling, list(range(8))):
+            _, fresh = backends.compute_block(plan, tiling, i)
+            assert set(block) == set(fresh)
+            for name, values in fresh.items():
+                assert block[name].dtype == values.dtype and block[name].shape == values.shape
+                assert np.array_equal(block[name], values, equal_nan=True), (i, name)
+            assert all(np.shares_memory(a, b) is False for a, b in zip(block.values(),
+                       fresh.values(), strict=True))  # fmt: skip
+    finally:
+        backends.Buffers = real
+    assert made == [3]
+
+
+def test_a_set_is_given_out_again_only_once_nothing_refers_to_it():
+    plan = plan_from_survey(parse_survey(SURVEY))
+    tiling = Tiling.for_grid(plan.shape, 16_000)
+    buffers = Buffers(plan, tiling, most=2)
+    first = buffers.take()
+    name = next(iter(first))
+    assert first[name].size == int(np.prod(tiling.block))
+    _, block = backends.compute_block(plan, tiling, 1, first)
+    assert np.shares_memory(block[name], first[name])
+    second = buffers.take()
+    assert second is not first  # the block's views hold the first set
+    _, other = backends.compute_block(plan, tiling, 2, second)
+    held = block[name][0, 0]  # a view of a view: still the first set's memory
+    del block
+    assert buffers.take() is None  # both in use (at most 2): no third set
+    del held
+    assert buffers.take() is first
+    del other
+    assert buffers.take() is first  # not handed to anyone yet: still free

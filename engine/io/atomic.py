@@ -208,29 +208,51 @@ def replacing(path: Path, *, overwrite: bool = True, tmp_dir: Path | None = None
 
 
 def write_atomic(
-    path: Path, write: Callable[[BinaryIO], None], *, mode: int = 0o666, overwrite: bool = True
+    path: Path,
+    write: Callable[[BinaryIO], None],
+    *,
+    mode: int = 0o666,
+    overwrite: bool = True,
+    sequential: bool = False,
 ) -> tuple[int, str]:
     """Write ``path`` with ``write(file)`` (binary) through a new temporary file opened with
     ``O_EXCL | O_NOFOLLOW``, fsync it and rename it into place (replacing ``path`` unless not
     ``overwrite``). Returns the size [bytes] and SHA-256 (hex) of what was written, read back
-    through the same descriptor before the rename."""
+    through the same descriptor before the rename; with ``sequential`` (``write`` only calls
+    ``file.write``, never seeks), hashed as it is written instead (no second pass)."""
     if overwrite:
         refuse_special(path)
     fd, tmp = create_new(path.parent, path.name, mode)
     try:
         with os.fdopen(fd, "w+b") as f:
-            write(f)
+            hashed = _Hashed(f)
+            write(hashed if sequential else f)  # type: ignore[arg-type]
             f.flush()
             os.fsync(f.fileno())
-            f.seek(0)
-            digest = hashlib.file_digest(f, "sha256").hexdigest()
-            size = f.tell()
+            if sequential:
+                digest, size = hashed.sha.hexdigest(), hashed.size
+            else:
+                f.seek(0)
+                digest = hashlib.file_digest(f, "sha256").hexdigest()
+                size = f.tell()
         _put_in_place(tmp, path, overwrite)
     except BaseException:
         with contextlib.suppress(OSError):
             tmp.unlink(missing_ok=True)
         raise
     return size, digest
+
+
+class _Hashed:
+    """The ``write`` of a binary file, hashing what passes."""
+
+    def __init__(self, f: BinaryIO) -> None:
+        self.f, self.sha, self.size = f, hashlib.sha256(), 0
+
+    def write(self, data: bytes) -> int:
+        self.sha.update(data)
+        self.size += memoryview(data).nbytes
+        return self.f.write(data)
 
 
 def _kind(mode: int) -> str:

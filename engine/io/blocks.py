@@ -6,7 +6,9 @@ Layout while a run is under way, next to the output ``OUT``::
                                 directory is refused)
     OUT.parts/manifest.json     the survey's fingerprint, tiling, variables (engine.io.manifest)
     OUT.parts/journal           one line per committed block: index, size, SHA-256, line check
-    OUT.parts/b00000042.npz     results of block 42 (written through engine.io.atomic)
+    OUT.parts/b00000042.chunks  block 42 as compressed storage chunks, the bytes the output
+                                gets (engine.io.chunkfile; a run whose output is deflated)
+    OUT.parts/b00000042.npz     or its values (engine.io.npz; any other compression)
 
 A block is committed in this order: its file is written under a fresh temporary name (``O_EXCL
 | O_NOFOLLOW``), fsynced and renamed into place; then its size and SHA-256 are appended to the
@@ -52,6 +54,8 @@ from .atomic import (
     read_regular,
     write_atomic,
 )
+from .chunkfile import SUFFIX, ChunkCodec, StoredBlock, read_block, write_block
+from .deflate import compress_pool
 from .manifest import MANIFEST, Manifest, read_manifest, survey_variables, write_manifest
 from .npz import write_npz
 
@@ -70,9 +74,10 @@ __all__ = [
 ]
 
 JOURNAL = "journal"
-_BLOCK = re.compile(r"b(\d{8})\.npz")
+_BLOCK = re.compile(r"b(\d{8})\.(?:npz|chunks)")
 #: Zip headers of one member of a block file, an upper bound [bytes].
 _NPZ_MEMBER_OVERHEAD = 512
+_CHUNK_OVERHEAD = 64  # a deflated chunk's framing and header entry, an upper bound [bytes]
 _MAX_JOURNAL_BYTES = 1 << 30
 
 
@@ -82,10 +87,13 @@ def estimate_bytes(plan: RunPlan) -> int:
     return per_point * plan.size
 
 
-def block_file_bytes(names: dict[str, np.dtype], points: int) -> int:
-    """Upper bound of the size [bytes] of one block file of ``points`` points."""
-    per_point = sum(dt.itemsize for dt in names.values())
-    return per_point * points + _NPZ_MEMBER_OVERHEAD * (len(names) + 1)
+def block_file_bytes(names: dict[str, np.dtype], points: int, chunks: int = 1) -> int:
+    """Upper bound of the size [bytes] of one block file of ``points`` points in ``chunks``
+    storage chunks per variable (deflate grows what it cannot shrink by < 1/8192 + framing;
+    the zeros padding an edge chunk shrink to next to nothing)."""
+    values = sum(dt.itemsize for dt in names.values()) * points
+    framing = _CHUNK_OVERHEAD * chunks * len(names)
+    return values + values // 8192 + framing + _NPZ_MEMBER_OVERHEAD * (len(names) + 1)
 
 
 def check_parts_dir(root: Path) -> bool:
@@ -171,6 +179,7 @@ class BlockStore:
     names: dict[str, np.dtype]
     warn: Callable[[str], None] = field(default=lambda msg: None)
     journal: dict[int, tuple[int, str]] = field(default_factory=dict)
+    codec: ChunkCodec | None = None  # None: .npz files of the values
 
     @classmethod
     def create(
@@ -188,24 +197,30 @@ class BlockStore:
             with contextlib.suppress(OSError):
                 remove_store(root)
             raise
-        return cls(root, manifest.tiling, manifest.names, warn)
+        return cls(root, manifest.tiling, manifest.names, warn, codec=manifest.codec)
 
     @classmethod
     def open(cls, root: Path, warn: Callable[[str], None] = lambda msg: None) -> BlockStore:
         """The existing store ``root`` (its manifest and journal read and checked)."""
         m = read_manifest(root)
-        return cls(root, m.tiling, m.names, warn, read_journal(root, m.tiling.nblocks))
+        return cls(root, m.tiling, m.names, warn, read_journal(root, m.tiling.nblocks), m.codec)
 
     def path(self, index: int) -> Path:
-        return self.root / f"b{index:08d}.npz"
+        return self.root / f"b{index:08d}{'.npz' if self.codec is None else SUFFIX}"
 
     # -- writing --
 
-    def commit(self, index: int, arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    def commit(self, index: int, arrays: dict[str, np.ndarray]) -> StoredBlock:
         """Store block ``index``: write its file atomically, then journal its size and hash.
-        Returns the arrays as stored (the store's variables, C-contiguous, its dtypes)."""
+        Returns the block as stored (the store's variables, C-contiguous, its dtypes; with a
+        codec, the compressed chunks its file holds, made here on every core)."""
         clean = {n: np.ascontiguousarray(arrays[n], dtype=dt) for n, dt in self.names.items()}
-        size, digest = write_atomic(self.path(index), lambda f: write_npz(f, clean), mode=0o600)
+        block, codec = StoredBlock(clean), self.codec
+        if codec is not None:
+            slab, chunk = self.tiling.slices(index), self.tiling.chunk
+            block = StoredBlock(clean, codec.encode(slab, chunk, clean, compress_pool()), codec)
+        fill = (lambda f: write_block(f, block)) if codec else (lambda f: write_npz(f, clean))
+        size, digest = write_atomic(self.path(index), fill, mode=0o600, sequential=bool(codec))
         fd = os.open(self.root / JOURNAL, os.O_WRONLY | os.O_APPEND | O_NOFOLLOW | O_CLOEXEC)
         try:
             os.write(fd, _line(index, size, digest))
@@ -213,7 +228,7 @@ class BlockStore:
         finally:
             os.close(fd)
         self.journal[index] = (size, digest)
-        return clean
+        return block
 
     # -- verifying --
 
@@ -228,10 +243,10 @@ class BlockStore:
                 found.tmp.append(name)
                 continue
             m = _BLOCK.fullmatch(name)
-            if m is None or int(m.group(1)) >= self.tiling.nblocks:
+            index = int(m.group(1)) if m else -1  # a block of this store's kind, in range:
+            if not 0 <= index < self.tiling.nblocks or name != self.path(index).name:
                 found.stray.append(name)
                 continue
-            index = int(m.group(1))
             entry = self.journal.get(index)
             if entry is None:
                 found.bad[name] = "not recorded in the journal"
@@ -261,7 +276,7 @@ class BlockStore:
             shown = ", ".join(found.stray[:5]) + (" ..." if len(found.stray) > 5 else "")
             self.warn(f"ignoring files that are not blocks of this run in {self.root}: {shown}")
 
-    def load(self, index: int) -> dict[str, np.ndarray]:
+    def load(self, index: int) -> StoredBlock:
         """Block ``index``, its bytes verified against the journal as they are read;
         OutputError if it is missing, changed or of the wrong layout."""
         entry = self.journal.get(index)
@@ -276,18 +291,25 @@ class BlockStore:
             data = b""
         if len(data) != entry[0] or hashlib.sha256(data).hexdigest() != entry[1]:
             raise OutputError(f"block file {p.name} changed since it was written")
-        shape = tuple(s.stop - s.start for s in self.tiling.slices(index))
+        return self.decode(index, data)
+
+    def decode(self, index: int, data: bytes) -> StoredBlock:
+        """Block ``index`` from its file's bytes ``data`` (not verified here); OutputError if
+        they are not a block of this store."""
+        p, slab = self.path(index), self.tiling.slices(index)
         try:
+            if self.codec is not None:
+                return read_block(data, self.codec, self.names, slab, self.tiling.chunk)
             with np.load(io.BytesIO(data), allow_pickle=False) as z:
                 out = {n: z[n] for n in self.names}
         except Exception as exc:  # a journaled file that numpy cannot read: not ours
             raise OutputError(f"block file {p.name} is unreadable ({exc})") from None
         for n, dt in self.names.items():
-            if out[n].shape != shape or out[n].dtype != dt:
+            if out[n].shape != tuple(s.stop - s.start for s in slab) or out[n].dtype != dt:
                 raise OutputError(f"block file {p.name} has the wrong {n} layout")
-        return out
+        return StoredBlock(out)
 
-    def take(self, index: int) -> dict[str, np.ndarray]:
+    def take(self, index: int) -> StoredBlock:
         """Block ``index`` for the merge, verified as it is read (:meth:`load`); a bad block is
         deleted (so that the next run computes it again) and raises OutputError."""
         try:
@@ -297,10 +319,9 @@ class BlockStore:
                 os.unlink(self.path(index))
             raise OutputError(f"{exc}; it will be computed again") from None
 
-    def blocks(self) -> Iterator[tuple[tuple[slice, ...], dict[str, np.ndarray]]]:
-        """(hyperslab, arrays) of every block in order, each read by :meth:`take`."""
-        for i in range(self.tiling.nblocks):
-            yield self.tiling.slices(i), self.take(i)
+    def blocks(self) -> Iterator[tuple[tuple[slice, ...], StoredBlock]]:
+        """(hyperslab, block) of every block in order, each read by :meth:`take`."""
+        return ((self.tiling.slices(i), self.take(i)) for i in range(self.tiling.nblocks))
 
     def remove(self) -> list[str]:
         """Delete the store: the manifest first (what is left is recognisable debris); returns

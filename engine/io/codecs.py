@@ -31,6 +31,8 @@ import functools
 import netCDF4
 import numpy as np
 
+from . import deflate
+
 __all__ = [
     "COMPRESSIONS",
     "DEFAULT_COMPRESSION",
@@ -42,6 +44,7 @@ __all__ = [
     "compression_keywords",
     "SMALL_CHUNK_BYTES",
     "is_blosc",
+    "merge_notices",
     "level",
     "variable_keywords",
 ]
@@ -129,6 +132,18 @@ def variable_keywords(name: str, complevel: int | None, chunk_bytes: int) -> dic
     if is_blosc(kw) and chunk_bytes < SMALL_CHUNK_BYTES:
         return compression_keywords(FALLBACK, complevel)
     return kw
+
+
+def merge_notices(compression: str, complevel: int | None) -> list[str]:
+    """What :func:`engine.io.netcdf.merge` says before writing: a compression written as zlib
+    instead (:func:`fallback_notice`), zlib compressed by netCDF4 on one thread."""
+    if notice := fallback_notice(compression):
+        return [notice]
+    if compression_keywords(compression, complevel).get("compression") == "zlib" and (
+        why := deflate.unavailable()
+    ):
+        return [f"zlib is compressed by netCDF4 on one thread here, slower: {why}"]
+    return []
 
 
 def is_blosc(keywords: dict) -> bool:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import concurrent.futures
 import itertools
+import math
 import os
 import zlib
 from collections.abc import Callable, Iterator, Mapping
@@ -33,7 +34,16 @@ try:
 except ImportError:  # pragma: no cover - isal is a dependency; zlib writes the same format
     isal_zlib = None
 
-__all__ = ["DirectChunks", "compress_chunk", "shuffle", "unavailable"]
+__all__ = [
+    "DirectChunks",
+    "chunk_parts",
+    "chunk_starts",
+    "compress_chunk",
+    "compress_pool",
+    "decompress_chunk",
+    "shuffle",
+    "unavailable",
+]
 
 #: HDF5's filter ids (H5Zpublic.h): deflate and shuffle.
 _DEFLATE, _SHUFFLE = 1, 2
@@ -65,7 +75,43 @@ def compress_chunk(values: np.ndarray, level: int, shuffled: bool = True) -> byt
     return zlib.compress(raw, level)
 
 
-def _offsets(slab: tuple[slice, ...], chunk: tuple[int, ...]) -> Iterator[tuple[int, ...]]:
+def decompress_chunk(
+    data: bytes, dtype: np.dtype, shape: tuple[int, ...], shuffled: bool = True
+) -> np.ndarray:
+    """The values of a chunk :func:`compress_chunk` made (ValueError if ``data`` is not a zlib
+    stream of exactly that many values)."""
+    dtype = np.dtype(dtype)
+    n = math.prod(shape)
+    try:
+        raw = (isal_zlib or zlib).decompress(data)
+    except Exception as exc:  # isal and zlib raise their own errors
+        raise ValueError(f"a chunk does not decompress ({exc})") from None
+    if len(raw) != n * dtype.itemsize:
+        raise ValueError(f"a chunk holds {len(raw)} bytes, not {n * dtype.itemsize}")
+    flat = np.frombuffer(raw, np.uint8)
+    if shuffled and dtype.itemsize > 1:
+        flat = flat.reshape(dtype.itemsize, n).T.copy()
+    return flat.view(dtype).reshape(shape)
+
+
+def chunk_parts(
+    slab: tuple[slice, ...], chunk: tuple[int, ...], values: np.ndarray
+) -> Iterator[tuple[tuple[int, ...], np.ndarray]]:
+    """(first index, values) of every storage chunk of the block ``values`` at ``slab``, in C
+    order; a chunk at the end of an axis that hangs over it is padded with zeros to the whole
+    chunk, as HDF5 stores it."""
+    for start in chunk_starts(slab, chunk):
+        at = zip(start, slab, chunk, strict=True)
+        local = tuple(slice(o - s.start, o - s.start + c) for o, s, c in at)
+        part = values[local]
+        if part.shape != chunk:  # an edge chunk: HDF5 stores it whole
+            full = np.zeros(chunk, values.dtype)
+            full[tuple(slice(0, n) for n in part.shape)] = part
+            part = full
+        yield start, part
+
+
+def chunk_starts(slab: tuple[slice, ...], chunk: tuple[int, ...]) -> Iterator[tuple[int, ...]]:
     """The first index of every storage chunk in ``slab`` (a whole multiple of chunks)."""
     ranges = [range(s.start, s.stop, c) for s, c in zip(slab, chunk, strict=True)]
     return itertools.product(*ranges)
@@ -115,17 +161,10 @@ class DirectChunks:
         writes them, in order, as they finish (the caller may hash meanwhile, and submit
         every variable of a block first so that the pool never waits for the writer)."""
         dset, level, shuffled = self._vars[name]
-        chunk = dset.chunks
-        jobs = []
-        for start in _offsets(slab, chunk):
-            at = zip(start, slab, chunk, strict=True)
-            local = tuple(slice(o - s.start, o - s.start + c) for o, s, c in at)
-            part = values[local]
-            if part.shape != chunk:  # an edge chunk: HDF5 stores it whole
-                full = np.zeros(chunk, values.dtype)
-                full[tuple(slice(0, n) for n in part.shape)] = part
-                part = full
-            jobs.append((start, self._pool.submit(compress_chunk, part, level, shuffled)))
+        jobs = [
+            (start, self._pool.submit(compress_chunk, part, level, shuffled))
+            for start, part in chunk_parts(slab, dset.chunks, values)
+        ]
 
         def finish() -> None:
             try:
@@ -136,6 +175,43 @@ class DirectChunks:
                     job.cancel()
 
         return finish
+
+    def copies(self, name: str, codec: Any, chunk: tuple[int, ...]) -> bool:
+        """Whether chunks compressed by ``codec`` (its ``level`` and ``shuffle``; None: not
+        compressed) in storage chunks of ``chunk`` are what variable ``name`` stores (then
+        :meth:`copy` writes them as they are)."""
+        dset, lvl, shuf = self._vars[name]
+        if codec is None:
+            return False
+        return (lvl, shuf, tuple(dset.chunks)) == (codec.level, codec.shuffle, tuple(chunk))
+
+    def copy(self, name: str, slab: tuple[slice, ...], chunks: list[bytes]) -> Callable[[], None]:
+        """The call that writes ``chunks`` (compressed already, in the order of
+        :func:`chunk_parts`) of variable ``name`` at ``slab`` as they are: nothing is
+        compressed again."""
+        dset = self._vars[name][0]
+        starts = list(chunk_starts(slab, dset.chunks))
+        if len(starts) != len(chunks):
+            raise ValueError(f"{name}: {len(chunks)} chunks for the {len(starts)} of the block")
+
+        def finish() -> None:
+            for start, data in zip(starts, chunks, strict=True):
+                dset.id.write_direct_chunk(start, data)
+
+        return finish
+
+
+_POOL: list[concurrent.futures.ThreadPoolExecutor] = []
+
+
+def compress_pool() -> concurrent.futures.ThreadPoolExecutor:
+    """A thread pool of one thread per core, shared by everything that compresses chunks
+    outside a :class:`DirectChunks` (the block files of a run, :mod:`engine.io.chunkfile`)."""
+    if not _POOL:
+        _POOL.append(
+            concurrent.futures.ThreadPoolExecutor(_cores(), thread_name_prefix="conesurvey-zip")
+        )
+    return _POOL[0]
 
 
 def _cores() -> int:

@@ -36,6 +36,7 @@ format"; ``tests/io/test_format_recipe.py`` applies the recipe).
 from __future__ import annotations
 
 import importlib
+import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -46,6 +47,7 @@ import netCDF4
 
 from . import zarr as zarr_io
 from .blocks import BlockStore, block_file_bytes
+from .chunkfile import block_codec
 from .codecs import COMPRESSIONS, DEFAULT_COMPRESSION, level
 from .manifest import Manifest
 from .space import output_bytes
@@ -61,12 +63,20 @@ def _nothing_missing() -> str:
 
 def _block_run_bytes(names: dict, tiling: Any, pending: list[int]) -> tuple[int, int]:
     """Block files for every pending block, and the output merged beside all of them."""
-    blocks = sum(block_file_bytes(names, tiling.points(i)) for i in pending)
+    blocks = sum(block_file_bytes(names, tiling.points(i), _chunks(tiling, i)) for i in pending)
     return blocks, output_bytes(names, tiling.shape)
 
 
+def _chunks(tiling: Any, index: int) -> int:
+    """Storage chunks of a variable in block ``index``."""
+    slab = tiling.slices(index)
+    return math.prod(-(-(s.stop - s.start) // c) for s, c in zip(slab, tiling.chunk, strict=True))
+
+
 def _create_blocks(root: Path, plan: Any, tiling: Any, complevel: int, warn: Callable):
-    return BlockStore.create(root, Manifest.new(plan, tiling), warn)
+    """A block store whose files hold the chunks the output gets where it is deflated."""
+    codec = block_codec(plan.output.compression, plan.output.complevel)
+    return BlockStore.create(root, Manifest.new(plan, tiling, codec), warn)
 
 
 def _refuse(what: str, name: str) -> Callable[..., Any]:

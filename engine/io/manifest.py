@@ -29,6 +29,7 @@ from ..grid import Tiling
 from ..schema import GRID_DIMS, RESULTS, variable_dims
 from . import OutputError
 from .atomic import NotRegularFile, read_regular, write_atomic
+from .chunkfile import ChunkCodec
 
 if TYPE_CHECKING:
     from ..plan import RunPlan
@@ -142,12 +143,15 @@ class Manifest:
     tiling: Tiling
     variables: tuple[tuple[str, str], ...]
     survey_definition: str = ""
+    #: How the block files hold a block: compressed chunks by this codec
+    #: (:mod:`engine.io.chunkfile`), or None: ``.npz`` files of the values.
+    codec: ChunkCodec | None = None
 
     @classmethod
-    def new(cls, plan: RunPlan, tiling: Tiling) -> Manifest:
+    def new(cls, plan: RunPlan, tiling: Tiling, codec: ChunkCodec | None = None) -> Manifest:
         """The manifest of a run of ``survey`` by this engine, in blocks of ``tiling``."""
         names = tuple((n, dt.name) for n, dt in survey_variables(plan).items())
-        return cls(fingerprint(plan), __version__, tiling, names, plan.source_text)
+        return cls(fingerprint(plan), __version__, tiling, names, plan.source_text, codec)
 
     def to_doc(self) -> dict[str, Any]:
         """The JSON document, with the format tag and the checksum of its fields."""
@@ -161,6 +165,8 @@ class Manifest:
             "variables": dict(self.variables),
             "survey_definition": self.survey_definition,
         }
+        if self.codec is not None:  # absent: .npz blocks (the manifests of before)
+            doc["blocks"] = self.codec.to_doc()
         doc["check"] = _self_check(doc)
         return doc
 
@@ -184,7 +190,8 @@ class Manifest:
         for name, dtype in variables.items():
             if name not in RESULTS or dtype != np.dtype(RESULTS[name].dtype).name:
                 raise ValueError(f"variable {name!r} of dtype {dtype!r} is not a result variable")
-        return cls(fp, engine, _tiling(doc), tuple(variables.items()), text)
+        codec = ChunkCodec.from_doc(doc["blocks"]) if "blocks" in doc else None
+        return cls(fp, engine, _tiling(doc), tuple(variables.items()), text, codec)
 
     def mismatch(self, plan: RunPlan) -> str | None:
         """Why this store cannot hold ``survey``'s results (None if it can)."""

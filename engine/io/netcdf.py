@@ -38,7 +38,7 @@ import numpy as np
 
 from ..grid import storage_chunks
 from ..schema import FINGERPRINT_ATTR, axis_attrs, variable_attrs, variable_dims
-from . import WriteError
+from . import WriteError, deflate
 from .atomic import fsync_path, replacing
 from .blocks import BlockStore
 from .cf import CONVENTIONS, cf_attrs, cf_dataset, history_line, typed_flags
@@ -48,10 +48,11 @@ from .codecs import (
     compression_keywords,
     fallback_notice,
     is_blosc,
+    merge_notices,
     variable_keywords,
 )
 from .contents import CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher
-from .deflate import DirectChunks, unavailable
+from .deflate import DirectChunks
 from .feed import feed
 from .manifest import survey_families
 from .netcdf_info import read_fingerprint, read_info
@@ -185,7 +186,7 @@ def merge(
     WriteError if the netCDF library fails to write (a full disk shows up as "NetCDF: HDF
     error"); nothing is left under ``out`` in any of these cases.
     """
-    for notice in _notices(compression, complevel):
+    for notice in merge_notices(compression, complevel):
         (warn or _warn)(notice)
     chunk = math.prod(store.tiling.chunk)
     codecs = {
@@ -233,18 +234,6 @@ def merge(
             pending, blocks = (), ()
 
 
-def _notices(compression: str, complevel: int | None) -> list[str]:
-    """What :func:`merge` says before writing: a compression written as zlib instead
-    (:func:`engine.io.codecs.fallback_notice`), zlib compressed by netCDF4 on one thread."""
-    if notice := fallback_notice(compression):
-        return [notice]
-    if compression_keywords(compression, complevel).get("compression") == "zlib" and (
-        why := unavailable()
-    ):
-        return [f"zlib is compressed by netCDF4 on one thread here, slower: {why}"]
-    return []
-
-
 class _Refused(Exception):  # noqa: N818 (not an error: the merge's signal to rewrite)
     """Blosc could not write a chunk of variable ``name``."""
 
@@ -277,7 +266,9 @@ def _write_file(
     variables are written as chunks compressed on every core (:mod:`engine.io.deflate`) into
     the file defined by netCDF4 and closed, then reopened for the checksum; where h5py
     cannot open it, through netCDF4 (``warn`` says so)."""
-    direct = all(kw.get("compression") == "zlib" for kw in codecs.values()) and not unavailable()
+    deflated = all(kw.get("compression") == "zlib" for kw in codecs.values())
+    direct = deflated and not deflate.unavailable()
+    direct = deflated and not deflate.unavailable()
     nc = netCDF4.Dataset(tmp, "w", format="NETCDF4")
     try:
         hasher = ContentHasher(store.tiling.block)
@@ -285,7 +276,7 @@ def _write_file(
         chunks = _direct(nc, tmp, store, warn) if direct else None
         if chunks is not None:
             with chunks:
-                summary = _fill(store, chunks.submit, codecs, hasher, pending, blocks)
+                summary = _fill(store, chunks.submit, codecs, hasher, pending, blocks, chunks)
             nc = netCDF4.Dataset(tmp, "a")
         else:
             if direct:  # h5py could not open it: netCDF4 writes the values
@@ -373,17 +364,24 @@ def _fill(
     hasher: ContentHasher,
     pending: Collection[int],
     incoming: Iterable[tuple[int, dict[str, np.ndarray]]],
+    direct: DirectChunks | None = None,
 ) -> Summary:
     """Write every block on a writer thread while ``incoming`` computes the ``pending`` ones
-    (:func:`engine.io.feed.feed`): ``put(name, slab, values)`` starts a variable (direct
-    chunks: compressed on the pool) and returns the call that completes it; a block is hashed
-    and counted while its variables are compressed."""
+    (:func:`engine.io.feed.feed`): a block whose file holds the chunks this file stores
+    (:mod:`engine.io.chunkfile`) has them copied by ``direct``; else ``put(name, slab,
+    values)`` starts a variable (direct chunks: compressed on the pool) and returns the call
+    that completes it. A block is hashed and counted meanwhile."""
     summary = Summary()
+    chunk = store.tiling.chunk
 
     def write(index: int, block: dict[str, np.ndarray]) -> None:
         slab = store.tiling.slices(index)
         finishing = []
+        stored, codec = getattr(block, "chunks", None), getattr(block, "codec", None)
         for name, arr in block.items():
+            if direct is not None and stored and direct.copies(name, codec, chunk):
+                finishing.append(direct.copy(name, slab, stored[name]))
+                continue
             try:
                 finishing.append(put(name, slab, arr))
             except RuntimeError as exc:

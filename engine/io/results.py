@@ -4,10 +4,11 @@ One function opens every kind of result the commands ``plot`` and ``report`` loo
 
 - a finished netCDF file ``OUT.nc`` (read lazily with xarray: a map reads only its slice);
 - a run that is still going or was killed: ``OUT.nc`` is not there yet but ``OUT.nc.parts/``
-  holds some blocks (:mod:`engine.io.blocks`). The blocks are read lazily too, one ``.npz``
-  member at a time, never modified (a reader must not touch a running run's files); points of
-  blocks not computed yet are NaN and :meth:`Result.computed` tells them from undefined values.
-  Integer variables (``orbit_class``, ``status``) become float64 so that they can hold NaN.
+  holds some blocks (:mod:`engine.io.blocks`). The blocks are read lazily too, one block file
+  at a time (a ``.npz`` member, or a ``.chunks`` file decoded), never modified (a reader must
+  not touch a running run's files); points of blocks not computed yet are NaN and
+  :meth:`Result.computed` tells them from undefined values. Integer variables
+  (``orbit_class``, ``status``) become float64 so that they can hold NaN.
 
 - a finished Zarr store ``OUT.zarr`` (:mod:`engine.io.zarr`), or the unfinished run behind it
   (``OUT.zarr.parts/``: the blocks its journal records are read from its store).
@@ -211,7 +212,7 @@ def _open_parts(path: Path) -> Result:
     else:
         store = BlockStore.open(root)
         done = frozenset(i for i in store.journal if store.path(i).is_file())
-        load = _npz_loader(store)
+        load = _block_loader(store)
     coords = {d: xr.Variable(d, v, axis_attrs(d, plan.energy_relative)) for d, v in axes.items()}
     data = {}
     for name, dtype in store.names.items():
@@ -238,9 +239,13 @@ def _open_parts(path: Path) -> Result:
 Loader = Callable[[int, str], "np.ndarray | None"]
 
 
-def _npz_loader(store: BlockStore) -> Loader:
+def _block_loader(store: BlockStore) -> Loader:
+    """Block files of either kind (values in ``.npz``, compressed chunks), read unverified."""
+
     def load(index: int, name: str) -> np.ndarray | None:
         try:
+            if store.codec is not None:
+                return store.decode(index, store.path(index).read_bytes())[name]
             with np.load(store.path(index), allow_pickle=False) as z:
                 return z[name]
         except Exception:  # vanished (the run just finished), truncated, wrong members ...

@@ -160,7 +160,7 @@ def test_a_compression_this_library_cannot_write_falls_back_to_zlib(tmp_path, mo
 
 
 def test_without_h5py_zlib_is_written_by_netcdf4_with_a_notice(files, tmp_path, monkeypatch):
-    monkeypatch.setattr("engine.io.netcdf.unavailable", lambda: "h5py is not installed")
+    monkeypatch.setattr("engine.io.deflate.unavailable", lambda: "h5py is not installed")
     notices: list[str] = []
     s = parse_survey(SURVEY)
     run_survey(s, tmp_path / "a.nc", block_points=70_000, warn=notices.append)
