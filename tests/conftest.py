@@ -35,7 +35,8 @@ SLOW = {
 #: test_scripts.py runs each script in a fresh interpreter, which loads from the compile cache
 #: the kernels the files before it compiled (on an empty cache, minutes of compiling): it comes
 #: after the files that compile the kernels its scripts' smoke runs use (the fate and hybrid
-#: maps of test_fates, test_lanes_fate, test_lanes_hybrid and test_hybrid).
+#: maps of test_fates, test_lanes_fate, test_lanes_hybrid and test_hybrid, the period maps of
+#: test_lanes and test_integrated).
 LONGEST_FIRST = (
     "test_hybrid.py",
     "test_dask.py",
@@ -43,6 +44,8 @@ LONGEST_FIRST = (
     "test_lanes_fate.py",
     "test_lanes_hybrid.py",
     "test_simulate.py",
+    "test_lanes.py",
+    "test_integrated.py",
     "test_recipes.py",
     "test_architecture.py",
     "test_attacks.py",
