@@ -150,6 +150,11 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.tiny:
         args.points, args.rounds, args.min_time = 16, 1, 0.0
+        # The smoke run adds a slip check that never fires (mu 1e3): the kernels of rk45 on
+        # rolling resistance, a rim and the slip check, which tests/test_fates.py and
+        # tests/kernels/test_lanes_fate.py compile already (the suite compiles no others).
+        global SCENE
+        SCENE = engine.Scene(c_rr=0.02, rim=4.0, mu=1e3)
     pts = sample(args.points)
     maps = {
         "lanes 1": (FateMap(pts, True), 1),

@@ -32,13 +32,23 @@ SLOW = {
 #: the collection's order (``--no-loadscope-reorder`` in pyproject.toml; xdist's own order, by
 #: number of tests, put these few-test files last, so the suite ended with one of them running
 #: alone). They start first; the other files follow, most tests first, and fill the gaps.
+#: test_scripts.py runs each script in a fresh interpreter, which loads from the compile cache
+#: the kernels the files before it compiled (on an empty cache, minutes of compiling): it comes
+#: after the files that compile the kernels its scripts' smoke runs use (the fate and hybrid
+#: maps of test_fates, test_lanes_fate, test_lanes_hybrid and test_hybrid, the period maps of
+#: test_lanes and test_integrated).
 LONGEST_FIRST = (
     "test_hybrid.py",
     "test_dask.py",
+    "test_fates.py",
+    "test_lanes_fate.py",
+    "test_lanes_hybrid.py",
+    "test_simulate.py",
+    "test_lanes.py",
+    "test_integrated.py",
+    "test_recipes.py",
     "test_architecture.py",
     "test_attacks.py",
-    "test_recipes.py",
-    "test_fates.py",
     "test_interrupt_after_complete.py",
     "test_runner.py",
     "test_scripts.py",

@@ -8,7 +8,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +18,28 @@ from engine import _jit
 from engine import cli as engine_cli
 
 ROOT = Path(__file__).resolve().parent.parent
+
+
+class Computed(Sequence):
+    """A list computed on first use, not when the test module is imported: with ``pytest -n``
+    every worker imports (collects) every test file, so a kernel a module-level value compiles
+    would be compiled by both workers at once, before any test runs (tens of seconds each on a
+    cold compile cache). ``make()`` returns the list."""
+
+    def __init__(self, make: Callable[[], list]) -> None:
+        self._make = make
+        self._items: list | None = None
+
+    def _list(self) -> list:
+        if self._items is None:
+            self._items = self._make()
+        return self._items
+
+    def __getitem__(self, i):  # type: ignore[override]
+        return self._list()[i]
+
+    def __len__(self) -> int:
+        return len(self._list())
 
 
 def copy_cache(tmp_path: Path, recipe: str) -> Path:

@@ -1,5 +1,6 @@
 """engine.simulate: the single-trajectory API, its events and effects, and its validation."""
 
+import functools
 import math
 
 import numpy as np
@@ -10,8 +11,16 @@ import engine
 from engine.simulate import simulate
 
 A3, E3, H3, L3 = P003["alpha"], P003["calE"], P003["h"], P003["Lz"]
-EX = engine.evaluate(A3, E3, H3, L3)
-R1, R2, T3 = float(EX.r_min), float(EX.r_max), float(EX.period)
+
+
+@functools.cache
+def p003():
+    """P003's closed form and (r_min, r_max, period): computed on first use, not at import
+    (both xdist workers import every test file: each would compile the closed form's kernel)."""
+    ex = engine.evaluate(A3, E3, H3, L3)
+    return ex, float(ex.r_min), float(ex.r_max), float(ex.period)
+
+
 METHODS = ("rk45", "dop853", "symplectic")
 
 
@@ -21,6 +30,7 @@ def ds3():
 
 
 def test_dataset_contract(ds3):
+    EX, R1, R2, T3 = p003()
     ds = ds3
     assert set(ds.dims) == {"time", "event"}
     for name in ("r", "theta", "u", "v", "w", "x", "y", "z", "E_drift", "Lz_drift", "h_drift"):
@@ -49,6 +59,7 @@ def test_dataset_contract(ds3):
 
 
 def test_periods_end_at_the_2n_th_apsis_and_match_the_closed_form(ds3):
+    EX, R1, R2, T3 = p003()
     ev = ds3.event_time.values
     assert ds3.sizes["event"] == 6 and ds3.time.values[-1] == ev[-1]
     np.testing.assert_allclose(ev[1::2], T3 * np.arange(1, 4), rtol=100 * RTOL)
@@ -59,6 +70,7 @@ def test_periods_end_at_the_2n_th_apsis_and_match_the_closed_form(ds3):
 
 @pytest.mark.parametrize("method", METHODS)
 def test_t_end_and_sampling(method):
+    EX, R1, R2, T3 = p003()
     ds = simulate(A3, E3, H3, L3, t_end=1.3 * T3, method=method, dt_out=0.01)
     t = ds.time.values
     assert t[-1] == pytest.approx(1.3 * T3, rel=1e-15)
@@ -118,6 +130,7 @@ FAR = 1e6
 @pytest.mark.parametrize("method", ["rk45", "symplectic"])
 def test_rim_event_fires_at_the_rim(method):
     # the rim is the real cone's slant length; the centre reaches it at rim - a cot(alpha)
+    EX, R1, R2, T3 = p003()
     r_rim = 0.5 * (R1 + R2)
     sc = engine.Scene(rim=r_rim + 0.01 / math.tan(A3), mu=FAR)
     ds = simulate(A3, E3, H3, L3, sc, periods=2, method=method)
@@ -136,6 +149,7 @@ def test_rim_event_fires_at_the_rim(method):
 def test_slip_event_against_the_closed_form_requirement(method):
     """mu below max |F|/N over the orbit (closed form) -> a slip event where |F|/N = mu;
     above it -> rolls through three periods."""
+    EX, R1, R2, T3 = p003()
     mu_req = float(EX.mu_required)
     ds = simulate(A3, E3, H3, L3, engine.Scene(mu=0.97 * mu_req, rim=FAR), periods=3, method=method)
     assert ds.event_kind.values[-1] == 3
@@ -150,6 +164,7 @@ def test_slip_event_against_the_closed_form_requirement(method):
 
 @pytest.mark.parametrize("method", ["rk45"])
 def test_attitude_stays_unit_and_rolls_without_slipping(method):
+    EX, R1, R2, T3 = p003()
     sc = engine.Scene(attitude=True, a=0.05)
     ds = simulate(A3, E3, H3, L3, sc, t_end=T3, method=method)
     n = ds.attrs["n_steps"]
@@ -226,6 +241,7 @@ def test_escaping_free_fall_orbit_runs_with_t_end_only():
 
 
 def test_circular_orbit_needs_t_end():
+    EX, R1, R2, T3 = p003()
     v = float(np.asarray(engine.minimum_energy(A3, H3, L3)).reshape(-1)[0])
     with pytest.raises(ValueError, match="circular minimum.*give t_end"):
         _call(energy=v)

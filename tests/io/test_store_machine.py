@@ -8,6 +8,7 @@ that differs from the reference; and every block a resume verifies is the right 
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import secrets
@@ -36,13 +37,23 @@ N = TILING.nblocks
 _SPEC = plan_from_survey(SURVEY)
 FP = fingerprint(_SPEC)
 MANIFEST = Manifest.new(_SPEC, TILING)
-REF_BLOCKS = [compute_block(_SPEC, TILING, i)[1] for i in range(N)]
-assert len({REF_BLOCKS[i]["r_min"].tobytes() for i in range(N)}) > N // 2  # blocks differ
 
 
+def _ref_blocks() -> list:
+    blocks = [compute_block(_SPEC, TILING, i)[1] for i in range(N)]
+    assert len({b["r_min"].tobytes() for b in blocks}) > N // 2  # blocks differ
+    return blocks
+
+
+#: Computed on first use (runs.Computed: not while both xdist workers collect this file).
+REF_BLOCKS = runs.Computed(_ref_blocks)
+
+
+@functools.cache
 def _reference_file() -> tuple[bytes, dict]:
     """The bytes and the contents of the reference output (its directory removed at once: a
-    module-level temporary directory would outlive the test run)."""
+    module-level temporary directory would outlive the test run). Made on first use, not
+    while both xdist workers collect this file."""
     d = Path(tempfile.mkdtemp(prefix="store-machine-ref-"))
     try:
         store = BlockStore.create(parts_dir(d / "ref.nc"), MANIFEST)
@@ -65,9 +76,6 @@ def _contents(path: Path) -> dict:
                 repr({k: v.getncattr(k) for k in v.ncattrs()}),
             )
     return out
-
-
-REF_BYTES, REFERENCE = _reference_file()
 
 
 class StoreMachine(RuleBasedStateMachine):
@@ -118,7 +126,7 @@ class StoreMachine(RuleBasedStateMachine):
     @rule()
     def kill_during_the_merge(self) -> None:
         """A killed merge leaves its temporary netCDF file in the store."""
-        data = REF_BYTES
+        data = _reference_file()[0]
         (self.root / f"out.nc.{secrets.token_hex(6)}.tmp").write_bytes(data[: len(data) // 2])
 
     # -- corruption behind the store's back --
@@ -212,7 +220,7 @@ class StoreMachine(RuleBasedStateMachine):
         except OutputError:
             return  # not readable: nobody calls it complete
         if info.get("complete") and info["verified"][0]:
-            assert _contents(self.out) == REFERENCE
+            assert _contents(self.out) == _reference_file()[1]
             self.verified_files += 1
 
 
