@@ -29,7 +29,11 @@ class Buffers:
     is given out again only once nothing refers to its arrays: a block's results are views of
     them (:func:`engine.backends.compute_block`), held by the store, the writer and the feed
     until the block is written, and each view holds a reference to its buffer (CPython's
-    reference counts). At most ``most`` sets; when all are in use, None (new arrays)."""
+    reference counts). At most ``most`` sets; when all are in use, None (new arrays).
+    A set handed to a block not yet computed has no views to count: :meth:`take` is safe
+    only where, as in the local backend (:mod:`engine.backends`), the next set is taken once
+    the block before it is done (one block ahead); a deeper queue would have to keep the sets
+    of its queued blocks out of :meth:`take`."""
 
     def __init__(self, plan: RunPlan, tiling: Tiling, most: int = 8) -> None:
         self.names = block_variables(plan)
