@@ -306,26 +306,38 @@ def _compute(
     points = tiling.size - sum(tiling.points(i) for i in pending)
     if progress is not None:
         progress(points, tiling.size)
-    stored = reused
+    stored = [reused]  # blocks durable (journaled) so far
+
+    def landed(index: int) -> None:  # a block file's store: on the thread that made it durable
+        stored[0] += 1
+        if on_block is not None:
+            on_block(index)
+
+    behind = getattr(store, "behind", None)  # the block files: made durable on a thread
+    durably = behind(landed) if behind is not None else contextlib.nullcontext()
     try:
         writer = getattr(store, "writer", None)  # Zarr: blocks write their own chunks
-        for i, res in backend.blocks(run, tiling, pending, writer):  # type: ignore[attr-defined]
-            try:
-                clean = store.commit(i, res)
-            except OSError as exc:
-                raise RunFailed(
-                    f"{_cannot_write(exc, store.path(i))}; {stored} of {tiling.nblocks} "
-                    "blocks are stored"
-                ) from None
-            stored += 1
-            points += tiling.points(i)
-            if progress is not None:
-                progress(points, tiling.size)
-            if on_block is not None:
-                on_block(i)
-            yield i, clean
+        with durably:
+            for i, res in backend.blocks(run, tiling, pending, writer):  # type: ignore[attr-defined]
+                try:
+                    clean = store.commit(i, res)
+                except OSError as exc:
+                    raise RunFailed(
+                        f"{_cannot_write(exc, store.path(i))}; {stored[0]} of {tiling.nblocks} "
+                        "blocks are stored"
+                    ) from None
+                points += tiling.points(i)
+                if progress is not None:
+                    progress(points, tiling.size)
+                if behind is None:
+                    landed(i)
+                yield i, clean
+    except OSError as exc:  # the last blocks' files, made durable as the run ends
+        raise RunFailed(
+            f"{_cannot_write(exc, store.root)}; {stored[0]} of {tiling.nblocks} blocks are stored"
+        ) from None
     except (BackendError, OutputError) as exc:  # OutputError: a writer's (Zarr)
-        raise RunFailed(f"{exc}; {stored} of {tiling.nblocks} blocks are stored") from None
+        raise RunFailed(f"{exc}; {stored[0]} of {tiling.nblocks} blocks are stored") from None
 
 
 def _timed(blocks: Iterator[_Block], ended: list[float]) -> Iterator[_Block]:

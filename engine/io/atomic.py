@@ -31,7 +31,9 @@ import hashlib
 import os
 import secrets
 import stat
+import threading
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
@@ -40,6 +42,7 @@ __all__ = [
     "NotRegularFile",
     "create_new",
     "fsync_path",
+    "flushing",
     "fsync_dir",
     "exists_error",
     "not_regular",
@@ -49,6 +52,8 @@ __all__ = [
     "rename_no_clobber",
     "replacing",
     "write_atomic",
+    "write_unsynced",
+    "Written",
 ]
 
 #: errno values of a directory fsync that mean "not supported here", not "the data is lost".
@@ -62,6 +67,8 @@ O_CLOEXEC = getattr(os, "O_CLOEXEC", 0)
 O_NONBLOCK = getattr(os, "O_NONBLOCK", 0)
 #: Flags of a file created by this package: new, never through a link.
 NEW_FILE = os.O_RDWR | os.O_CREAT | os.O_EXCL | O_NOFOLLOW | O_CLOEXEC | getattr(os, "O_BINARY", 0)
+#: How often a file being written is flushed to the disk meanwhile (:func:`flushing`) [s].
+FLUSH_SECONDS = 1.0
 #: Suffix of every temporary file (a killed run may leave some; they are never reused).
 TMP_SUFFIX = ".tmp"
 
@@ -114,6 +121,36 @@ def fsync_path(path: Path) -> None:
     try:
         os.fsync(fd)
     finally:
+        os.close(fd)
+
+
+@contextlib.contextmanager
+def flushing(path: Path, every: float = FLUSH_SECONDS) -> Iterator[None]:
+    """While inside, the file ``path`` (being written by someone else) is flushed to the disk
+    every ``every`` seconds on a thread of its own, so that the final :func:`fsync_path`
+    finds little left to write and the disk works while the data is computed. Best effort:
+    an error of these flushes is ignored (the final fsync is the one that counts)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | O_NOFOLLOW | O_CLOEXEC)
+    except OSError:
+        yield
+        return
+    stop, sync = threading.Event(), getattr(os, "fdatasync", os.fsync)
+
+    def flush() -> None:
+        while not stop.wait(every):
+            try:
+                sync(fd)
+            except OSError:
+                return
+
+    thread = threading.Thread(target=flush, name="conesurvey-flush", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()
         os.close(fd)
 
 
@@ -171,12 +208,14 @@ def refuse_special(path: Path) -> None:
         raise NotRegularFile(errno.EINVAL, f"is {kind}; refusing to replace it", str(path))
 
 
-def _put_in_place(tmp: Path, path: Path, overwrite: bool) -> None:
+def _put_in_place(tmp: Path, path: Path, overwrite: bool, sync_dir: bool = True) -> None:
     if overwrite:
         refuse_special(path)  # checked again just before the rename
         os.replace(tmp, path)
     else:
         rename_no_clobber(tmp, path)
+    if not sync_dir:
+        return
     fsync_dir(path.parent)
     if tmp.parent != path.parent:
         fsync_dir(tmp.parent)
@@ -220,27 +259,73 @@ def write_atomic(
     ``overwrite``). Returns the size [bytes] and SHA-256 (hex) of what was written, read back
     through the same descriptor before the rename; with ``sequential`` (``write`` only calls
     ``file.write``, never seeks), hashed as it is written instead (no second pass)."""
+    written = write_unsynced(path, write, mode=mode, overwrite=overwrite, sequential=sequential)
+    written.finish()
+    return written.size, written.digest
+
+
+def write_unsynced(
+    path: Path,
+    write: Callable[[BinaryIO], None],
+    *,
+    mode: int = 0o666,
+    overwrite: bool = True,
+    sequential: bool = False,
+) -> Written:
+    """The first half of :func:`write_atomic`: ``path``'s bytes written and hashed under a new
+    temporary name, not yet durable nor in place; :meth:`Written.finish` does the rest (the
+    descriptor stays open until then). On any error the temporary file is removed."""
     if overwrite:
         refuse_special(path)
     fd, tmp = create_new(path.parent, path.name, mode)
     try:
-        with os.fdopen(fd, "w+b") as f:
+        with os.fdopen(fd, "w+b", closefd=False) as f:
             hashed = _Hashed(f)
             write(hashed if sequential else f)  # type: ignore[arg-type]
             f.flush()
-            os.fsync(f.fileno())
             if sequential:
                 digest, size = hashed.sha.hexdigest(), hashed.size
             else:
                 f.seek(0)
                 digest = hashlib.file_digest(f, "sha256").hexdigest()
                 size = f.tell()
-        _put_in_place(tmp, path, overwrite)
     except BaseException:
+        os.close(fd)
         with contextlib.suppress(OSError):
             tmp.unlink(missing_ok=True)
         raise
-    return size, digest
+    return Written(fd, tmp, path, size, digest, overwrite)
+
+
+@dataclass
+class Written:
+    """A file written by :func:`write_unsynced`: its open descriptor and temporary name, the
+    name it goes to, and the size [bytes] and SHA-256 (hex) of its bytes."""
+
+    fd: int
+    tmp: Path
+    path: Path
+    size: int
+    digest: str
+    overwrite: bool = True
+
+    def finish(self, *, sync_dir: bool = True) -> None:
+        """fsync the file, close it and rename it into place; with ``sync_dir`` the directory
+        is fsynced too (the caller does it otherwise, once for several files). On any error
+        the temporary file is removed."""
+        try:
+            try:
+                os.fsync(self.fd)
+            finally:
+                os.close(self.fd)
+                self.fd = -1
+            _put_in_place(self.tmp, self.path, self.overwrite, sync_dir=False)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                self.tmp.unlink(missing_ok=True)
+            raise
+        if sync_dir:
+            fsync_dir(self.path.parent)
 
 
 class _Hashed:

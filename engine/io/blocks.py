@@ -52,10 +52,11 @@ from .atomic import (
     NotRegularFile,
     fsync_dir,
     read_regular,
-    write_atomic,
+    write_unsynced,
 )
 from .chunkfile import SUFFIX, ChunkCodec, StoredBlock, read_block, write_block
 from .deflate import compress_pool
+from .journal import JOURNAL, Durability, append_journal, read_journal
 from .manifest import MANIFEST, Manifest, read_manifest, survey_variables, write_manifest
 from .npz import write_npz
 
@@ -73,12 +74,10 @@ __all__ = [
     "parts_info",
 ]
 
-JOURNAL = "journal"
 _BLOCK = re.compile(r"b(\d{8})\.(?:npz|chunks)")
 #: Zip headers of one member of a block file, an upper bound [bytes].
 _NPZ_MEMBER_OVERHEAD = 512
 _CHUNK_OVERHEAD = 64  # a deflated chunk's framing and header entry, an upper bound [bytes]
-_MAX_JOURNAL_BYTES = 1 << 30
 
 
 def estimate_bytes(plan: RunPlan) -> int:
@@ -113,34 +112,6 @@ def check_parts_dir(root: Path) -> bool:
     if st.st_mode & 0o022:
         raise OutputError(f"{root} is writable by other users; refusing to use it")
     return True
-
-
-def _line(index: int, size: int, digest: str) -> bytes:
-    body = f"{index} {size} {digest}"
-    return f"{body} {hashlib.sha256(body.encode()).hexdigest()[:16]}\n".encode()
-
-
-def read_journal(root: Path, nblocks: int) -> dict[int, tuple[int, str]]:
-    """index -> (size, SHA-256) of the last valid journal line of each block (torn or damaged
-    lines are skipped); {} if there is no journal."""
-    try:
-        data = read_regular(root / JOURNAL, _MAX_JOURNAL_BYTES, follow_links=False)
-    except FileNotFoundError:
-        return {}
-    except (NotRegularFile, ValueError) as exc:
-        raise OutputError(f"{root / JOURNAL} is unreadable ({exc})") from None
-    entries: dict[int, tuple[int, str]] = {}
-    for raw in data.split(b"\n")[:-1]:  # the part after the last newline is torn
-        parts = raw.split(b" ")
-        if len(parts) != 4 or not all(p.isalnum() and p.isascii() for p in parts):
-            continue
-        try:
-            index, size, digest = int(parts[0]), int(parts[1]), parts[2].decode()
-        except ValueError:
-            continue
-        if _line(index, size, digest) == raw + b"\n" and 0 <= index < nblocks:
-            entries[index] = (size, digest)
-    return entries
 
 
 def _file_digest(path: Path, size: int) -> str | None:
@@ -180,6 +151,7 @@ class BlockStore:
     warn: Callable[[str], None] = field(default=lambda msg: None)
     journal: dict[int, tuple[int, str]] = field(default_factory=dict)
     codec: ChunkCodec | None = None  # None: .npz files of the values
+    _behind: Durability | None = field(default=None, repr=False)
 
     @classmethod
     def create(
@@ -220,15 +192,35 @@ class BlockStore:
             slab, chunk = self.tiling.slices(index), self.tiling.chunk
             block = StoredBlock(clean, codec.encode(slab, chunk, clean, compress_pool()), codec)
         fill = (lambda f: write_block(f, block)) if codec else (lambda f: write_npz(f, clean))
-        size, digest = write_atomic(self.path(index), fill, mode=0o600, sequential=bool(codec))
-        fd = os.open(self.root / JOURNAL, os.O_WRONLY | os.O_APPEND | O_NOFOLLOW | O_CLOEXEC)
-        try:
-            os.write(fd, _line(index, size, digest))
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-        self.journal[index] = (size, digest)
+        path, sequential = self.path(index), bool(codec)
+        if self._behind is not None:  # written, made durable and journaled on its thread
+            self._behind.submit(
+                index, lambda: write_unsynced(path, fill, mode=0o600, sequential=sequential)
+            )
+            return block
+        written = write_unsynced(path, fill, mode=0o600, sequential=sequential)
+        written.finish()
+        self._journaled(index, written.size, written.digest)
         return block
+
+    def _journaled(self, index: int, size: int, digest: str) -> None:
+        append_journal(self.root, index, size, digest)
+        self.journal[index] = (size, digest)
+
+    @contextlib.contextmanager
+    def behind(self, on_durable: Callable[[int], None] | None = None) -> Iterator[None]:
+        """Inside, :meth:`commit` returns once the block is compressed: a thread writes its file,
+        makes it durable and journals it, at most :data:`DEPTH` blocks behind, then calls
+        ``on_durable(index)`` (:class:`engine.io.journal.Durability`; :meth:`load` waits for a
+        block still on its way). Leaving waits for every committed block (and raises the
+        thread's error, unless leaving on an error)."""
+        sync = Durability(self._journaled, on_durable)
+        self._behind = sync
+        try:
+            with sync:
+                yield
+        finally:
+            self._behind = None
 
     # -- verifying --
 
@@ -279,6 +271,8 @@ class BlockStore:
     def load(self, index: int) -> StoredBlock:
         """Block ``index``, its bytes verified against the journal as they are read;
         OutputError if it is missing, changed or of the wrong layout."""
+        if self._behind is not None:
+            self._behind.wait(index)
         entry = self.journal.get(index)
         p = self.path(index)
         if entry is None:

@@ -39,7 +39,7 @@ import numpy as np
 from ..grid import storage_chunks
 from ..schema import FINGERPRINT_ATTR, axis_attrs, variable_attrs, variable_dims
 from . import WriteError, deflate
-from .atomic import fsync_path, replacing
+from .atomic import flushing, fsync_path, replacing
 from .blocks import BlockStore
 from .cf import CONVENTIONS, cf_attrs, cf_dataset, history_line, typed_flags
 from .codecs import (
@@ -213,9 +213,11 @@ def merge(
         try:
             with replacing(out, overwrite=overwrite, tmp_dir=store.root) as tmp:
                 try:
-                    summary = _write_file(
-                        tmp, store, plan, attrs, codecs, families, pending, blocks, warn or _warn
-                    )
+                    with flushing(tmp):  # the disk writes while the blocks are computed
+                        summary = _write_file(
+                            tmp, store, plan, attrs, codecs, families, pending, blocks,
+                            warn or _warn,
+                        )  # fmt: skip
                 except (RuntimeError, OSError) as exc:  # netCDF4 reports HDF5 failures (ENOSPC
                     # too) as RuntimeError, h5py as OSError
                     if upstream and exc is upstream[0]:

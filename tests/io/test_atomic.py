@@ -6,6 +6,7 @@ import errno
 import hashlib
 import os
 import re
+import time
 
 import pytest
 
@@ -171,3 +172,57 @@ def test_fsync_dir_reports_a_real_failure(tmp_path, monkeypatch, where):
     with pytest.raises(OSError) as info:
         fsync_dir(tmp_path)
     assert info.value.errno == errno.EIO
+
+
+# --- written now, durable later (the block files of a run) -------------------------------------
+
+
+def test_write_unsynced_is_not_in_place_until_finished(tmp_path, monkeypatch):
+    written = atomic.write_unsynced(tmp_path / "a", lambda f: f.write(b"abc"), sequential=True)
+    assert not (tmp_path / "a").exists() and written.tmp.read_bytes() == b"abc"
+    assert (written.size, written.digest) == (3, hashlib.sha256(b"abc").hexdigest())
+    synced = []
+    real_fsync = os.fsync
+    monkeypatch.setattr(atomic.os, "fsync", lambda fd: synced.append(fd) or real_fsync(fd))
+    written.finish()
+    assert (tmp_path / "a").read_bytes() == b"abc" and listing(tmp_path) == ["a"]
+    assert len(synced) == 2  # the file, then the directory
+
+
+def test_a_failed_finish_leaves_no_tmp(tmp_path, monkeypatch):
+    written = atomic.write_unsynced(tmp_path / "a", lambda f: f.write(b"abc"))
+
+    def full(fd):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(atomic.os, "fsync", full)
+    with pytest.raises(OSError, match="No space"):
+        written.finish()
+    assert listing(tmp_path) == []
+
+
+def test_flushing_flushes_the_file_while_it_is_written(tmp_path, monkeypatch):
+    path = tmp_path / "out.nc.tmp"
+    path.write_bytes(b"")
+    flushed: list[int] = []
+    monkeypatch.setattr(atomic.os, "fdatasync", lambda fd: flushed.append(os.fstat(fd).st_ino))
+    with atomic.flushing(path, every=0.01):
+        with open(path, "ab") as f:
+            f.write(b"x" * 1000)
+        time.sleep(0.3)
+    n = len(flushed)
+    assert n >= 2 and set(flushed) == {path.stat().st_ino}
+    time.sleep(0.05)
+    assert len(flushed) == n  # stopped with the context
+
+
+def test_flushing_ignores_a_failed_flush(tmp_path, monkeypatch):
+    path = tmp_path / "out.nc.tmp"
+    path.write_bytes(b"")
+
+    def fails(fd):
+        raise OSError(errno.EIO, "I/O error")
+
+    monkeypatch.setattr(atomic.os, "fdatasync", fails)
+    with atomic.flushing(path, every=0.01):
+        time.sleep(0.05)  # the final fsync of the file is the one that reports errors

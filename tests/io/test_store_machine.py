@@ -26,7 +26,8 @@ from hypothesis.stateful import RuleBasedStateMachine, invariant, precondition, 
 from engine.backends import compute_block
 from engine.grid import Tiling
 from engine.io import OutputError, netcdf
-from engine.io.blocks import JOURNAL, BlockStore, _line
+from engine.io.blocks import BlockStore
+from engine.io.journal import JOURNAL, journal_line
 from engine.io.manifest import Manifest, fingerprint, parts_dir
 from engine.plan import plan_from_survey
 from engine.surveyfile import parse_survey
@@ -119,7 +120,7 @@ class StoreMachine(RuleBasedStateMachine):
         elif how == "unjournaled":
             self.block(i).write_bytes(data)  # renamed into place, the journal line not written
         else:
-            line = _line(i, len(data), hashlib.sha256(data).hexdigest())
+            line = journal_line(i, len(data), hashlib.sha256(data).hexdigest())
             with open(self.root / JOURNAL, "ab") as f:
                 f.write(line[: len(line) // 2])
 
@@ -146,7 +147,7 @@ class StoreMachine(RuleBasedStateMachine):
             return
         if how == "bogus line":
             with open(self.root / JOURNAL, "ab") as f:
-                f.write(_line(i, 1234, "ab" * 32))
+                f.write(journal_line(i, 1234, "ab" * 32))
             return
         if not p.is_file() or p.is_symlink():
             return
