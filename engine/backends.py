@@ -20,11 +20,13 @@ scheduler can recompute it anywhere. A block is computed from the run plan
 
 from __future__ import annotations
 
+import itertools
 import logging
 import os
 import time
+from collections import deque
 from collections.abc import Iterator
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -152,27 +154,39 @@ class LocalBackend:
         """Nothing to release."""
 
 
+#: Blocks computed ahead of the caller: two, so that the compute thread starts the next block
+#: while the caller still hands the last one on (docs/output.md, "Where a run's time goes").
+AHEAD = 2
+
+
 def _ahead(plan: RunPlan, tiling: Tiling, pending: list[int]) -> Blocks:
-    """:func:`compute_block` of each pending block, the next one computed on a thread while
-    the caller has this one. Leaving early (an error, KeyboardInterrupt): the block being
-    computed finishes first."""
+    """:func:`compute_block` of each pending block, up to :data:`AHEAD` blocks computed in
+    turn on a thread while the caller has this one. Leaving early (an error,
+    KeyboardInterrupt): the block being computed finishes first, the queued ones are
+    dropped."""
     if len(pending) < 2:
         yield from (compute_block(plan, tiling, i) for i in pending)
         return
     pool = ThreadPoolExecutor(1, thread_name_prefix="conesurvey-compute")
     buffers = Buffers(plan, tiling)
-    ahead = None
+    queued: deque[tuple[Future, dict[str, np.ndarray] | None]] = deque()
+    indices = iter(pending)
+
+    def submit() -> None:
+        for i in itertools.islice(indices, 1):
+            out = buffers.take(busy=[b for _, b in queued if b is not None])
+            queued.append((pool.submit(compute_block, plan, tiling, i, out), out))
+
     try:
-        ahead = pool.submit(compute_block, plan, tiling, pending[0], buffers.take())
-        for i in pending[1:]:
-            done = ahead.result()
-            ahead = pool.submit(compute_block, plan, tiling, i, buffers.take())
+        for _ in range(AHEAD):
+            submit()
+        while queued:
+            done = queued.popleft()[0].result()
+            submit()
             yield done
-        done, ahead = ahead.result(), None
-        yield done
     finally:
-        if ahead is not None:
-            ahead.cancel()
+        for future, _ in queued:
+            future.cancel()
         pool.shutdown(wait=True)
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import sys
+from collections.abc import Collection
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -30,10 +31,9 @@ class Buffers:
     them (:func:`engine.backends.compute_block`), held by the store, the writer and the feed
     until the block is written, and each view holds a reference to its buffer (CPython's
     reference counts). At most ``most`` sets; when all are in use, None (new arrays).
-    A set handed to a block not yet computed has no views to count: :meth:`take` is safe
-    only where, as in the local backend (:mod:`engine.backends`), the next set is taken once
-    the block before it is done (one block ahead); a deeper queue would have to keep the sets
-    of its queued blocks out of :meth:`take`."""
+    A set handed to a block not computed yet has no views to count: the caller names such
+    sets (``busy``), as the local backend (:mod:`engine.backends`) does for the blocks it
+    queued."""
 
     def __init__(self, plan: RunPlan, tiling: Tiling, most: int = 8) -> None:
         self.names = block_variables(plan)
@@ -42,10 +42,11 @@ class Buffers:
         self.sets: list[dict[str, np.ndarray]] = []
         self.free_refs = -1  # the reference count of an array of a set that nothing else holds
 
-    def take(self) -> dict[str, np.ndarray] | None:
-        """A set of buffers no block uses now (new if none is and there is room), or None."""
+    def take(self, busy: Collection[dict[str, np.ndarray]] = ()) -> dict[str, np.ndarray] | None:
+        """A set of buffers no block uses now (new if none is and there is room), or None.
+        ``busy``: the sets given to blocks not computed yet (no view of them exists to count)."""
         for buffers in self.sets:
-            if self._unused(buffers):
+            if self._unused(buffers) and not any(b is buffers for b in busy):
                 return buffers
         if len(self.sets) >= self.most:
             return None

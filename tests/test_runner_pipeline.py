@@ -1,7 +1,7 @@
-"""The local backend computes one block ahead: block k + 1 runs on a thread of its own while
-the run stores and writes block k, errors come out in block order, and a run that stops early
-leaves no compute thread behind. Blocks are computed into reused buffers, a set given out
-again only once nothing refers to it."""
+"""The local backend computes blocks ahead (``backends.AHEAD``): block k + 1 and the ones
+after it run on a thread of their own while the run stores and writes block k, errors come out
+in block order, and a run that stops early leaves no compute thread behind. Blocks are
+computed into reused buffers, a set given out again only once nothing refers to it."""
 
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ class _NoBuffers:
     def __init__(self, plan, tiling):
         pass
 
-    def take(self):
+    def take(self, busy=()):
         return None
 
 
@@ -57,10 +57,12 @@ def _compute_threads() -> list[threading.Thread]:
 def test_the_next_block_is_computed_while_the_caller_holds_this_one(monkeypatch, no_buffers):
     started: list[int] = []
     monkeypatch.setattr(backends, "compute_block", _fake(started))
-    blocks = backends.LocalBackend().blocks(None, None, [4, 5, 6])
+    pending = list(range(4, 8))
+    blocks = backends.LocalBackend().blocks(None, None, pending)
     assert next(blocks)[0] == 4
-    assert _wait_for(lambda: started == [4, 5]), started  # 5 runs before 4 is handed back
-    assert [i for i, _ in blocks] == [5, 6]
+    ahead = pending[: 1 + backends.AHEAD]  # AHEAD blocks after it queued, running in turn
+    assert _wait_for(lambda: started == ahead), started
+    assert [i for i, _ in blocks] == pending[1:]
     assert not _compute_threads()
 
 
@@ -79,11 +81,11 @@ def test_an_error_comes_out_in_block_order_and_stops_the_compute(monkeypatch, no
 def test_a_run_that_stops_early_waits_for_the_block_in_the_compute(monkeypatch, no_buffers):
     started: list[int] = []
     monkeypatch.setattr(backends, "compute_block", _fake(started))
-    blocks = backends.LocalBackend().blocks(None, None, [0, 1, 2])
+    blocks = backends.LocalBackend().blocks(None, None, list(range(backends.AHEAD + 3)))
     next(blocks)
     blocks.close()  # the runner leaving (an error, KeyboardInterrupt)
     assert not _compute_threads()
-    assert 2 not in started
+    assert backends.AHEAD + 2 not in started  # never queued
 
 
 # 3 x 20 x 33 x 160 points in 8 blocks of one chunk (3, 20, 33, 20)
@@ -92,16 +94,16 @@ SURVEY = runs.gravity_survey("buffers", alpha=(0.3, 0.8, 1.3), energy=20, h=33, 
 
 def test_blocks_computed_into_reused_buffers_are_the_fresh_blocks():
     """Eight blocks, the caller holding each one's arrays until the next arrives (as the store
-    does): every block bit for bit its fresh compute, and three sets of buffers serve them all
-    (the block the caller holds, the one it is handed next, the one computed meanwhile)."""
+    does): every block bit for bit its fresh compute, and 2 + AHEAD sets of buffers serve them
+    all (the block the caller holds, the one it is handed next, the ones computed meanwhile)."""
     plan = plan_from_survey(parse_survey(SURVEY))
     tiling = Tiling.for_grid(plan.shape, 16_000)
     assert tiling.nblocks == 8
     made = []
 
     class Counted(Buffers):
-        def take(self):
-            got = super().take()
+        def take(self, busy=()):
+            got = super().take(busy)
             made[:] = [len(self.sets)]
             return got
 
@@ -118,7 +120,7 @@ def test_blocks_computed_into_reused_buffers_are_the_fresh_blocks():
                        fresh.values(), strict=True))  # fmt: skip
     finally:
         backends.Buffers = real
-    assert made == [3]
+    assert made == [2 + backends.AHEAD]
 
 
 def test_a_set_is_given_out_again_only_once_nothing_refers_to_it():
@@ -140,3 +142,13 @@ def test_a_set_is_given_out_again_only_once_nothing_refers_to_it():
     assert buffers.take() is first
     del other
     assert buffers.take() is first  # not handed to anyone yet: still free
+
+
+def test_a_set_given_to_a_queued_block_is_busy():
+    plan = plan_from_survey(parse_survey(SURVEY))
+    buffers = Buffers(plan, Tiling.for_grid(plan.shape, 16_000), most=2)
+    first = buffers.take()
+    assert buffers.take() is first  # nothing refers to its arrays...
+    second = buffers.take(busy=[first])  # ...but a queued block will write them
+    assert second is not first
+    assert buffers.take(busy=[first, second]) is None
