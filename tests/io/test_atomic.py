@@ -181,12 +181,16 @@ def test_write_unsynced_is_not_in_place_until_finished(tmp_path, monkeypatch):
     written = atomic.write_unsynced(tmp_path / "a", lambda f: f.write(b"abc"), sequential=True)
     assert not (tmp_path / "a").exists() and written.tmp.read_bytes() == b"abc"
     assert (written.size, written.digest) == (3, hashlib.sha256(b"abc").hexdigest())
-    synced = []
+    calls = []
     real_fsync = os.fsync
-    monkeypatch.setattr(atomic.os, "fsync", lambda fd: synced.append(fd) or real_fsync(fd))
+    monkeypatch.setattr(atomic.os, "fsync", lambda fd: calls.append("fsync") or real_fsync(fd))
+    monkeypatch.setattr(
+        atomic.os, "posix_fadvise", lambda fd, at, n, how: calls.append((at, n, how)), raising=False
+    )
     written.finish()
     assert (tmp_path / "a").read_bytes() == b"abc" and listing(tmp_path) == ["a"]
-    assert len(synced) == 2  # the file, then the directory
+    # the file reaches the disk, its cached pages are given back, then the rename is made durable
+    assert calls == ["fsync", (0, 0, getattr(os, "POSIX_FADV_DONTNEED", 4)), "fsync"]
 
 
 def test_a_failed_finish_leaves_no_tmp(tmp_path, monkeypatch):
