@@ -20,13 +20,10 @@ scheduler can recompute it anywhere. A block is computed from the run plan
 
 from __future__ import annotations
 
-import itertools
 import logging
 import os
 import time
-from collections import deque
 from collections.abc import Iterator
-from concurrent.futures import Future, ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -35,6 +32,7 @@ from .blockbuffers import Buffers
 from .errortext import install_hint
 from .evaluation import evaluate_block
 from .grid import Tiling
+from .pipeline import computed_ahead, written_behind
 
 if TYPE_CHECKING:
     from .plan import RunPlan
@@ -136,58 +134,26 @@ def _inproc_listening(rest: str) -> bool:
 
 
 class LocalBackend:
-    """The pending blocks computed one after the other in this process, one block ahead: block
-    ``k + 1`` is computed (the numba kernels on every core, on a thread of its own: the kernels
-    release the GIL) while the caller stores and writes block ``k`` (with a ``writer``, the
-    Zarr store's, its chunks are encoded and written here meanwhile), so the cores are not
-    idle while a block is written. One block waits at most (memory: two blocks)."""
+    """The pending blocks computed one after the other in this process, :data:`AHEAD` blocks
+    ahead of the caller on a thread of their own (the numba kernels on every core; they
+    release the GIL), into reused buffers (:class:`engine.blockbuffers.Buffers`), while the
+    caller stores and writes the last; with a ``writer`` (the Zarr store's), each block's
+    chunks are encoded and written on another thread meanwhile (:mod:`engine.pipeline`)."""
 
     def blocks(
         self, plan: RunPlan, tiling: Tiling, pending: list[int], writer: Any = None
     ) -> Blocks:
-        for i, results in _ahead(plan, tiling, pending):
-            yield (
-                (i, results) if writer is None else (i, writer.write(i, tiling.slices(i), results))
-            )
+        computed = computed_ahead(
+            lambda i, out: compute_block(plan, tiling, i, out), pending,
+            lambda: Buffers(plan, tiling),
+        )  # fmt: skip
+        if writer is None:
+            yield from computed
+        else:
+            yield from written_behind(computed, lambda i, r: writer.write(i, tiling.slices(i), r))
 
     def close(self) -> None:
         """Nothing to release."""
-
-
-#: Blocks computed ahead of the caller: two, so that the compute thread starts the next block
-#: while the caller still hands the last one on (docs/output.md, "Where a run's time goes").
-AHEAD = 2
-
-
-def _ahead(plan: RunPlan, tiling: Tiling, pending: list[int]) -> Blocks:
-    """:func:`compute_block` of each pending block, up to :data:`AHEAD` blocks computed in
-    turn on a thread while the caller has this one. Leaving early (an error,
-    KeyboardInterrupt): the block being computed finishes first, the queued ones are
-    dropped."""
-    if len(pending) < 2:
-        yield from (compute_block(plan, tiling, i) for i in pending)
-        return
-    pool = ThreadPoolExecutor(1, thread_name_prefix="conesurvey-compute")
-    buffers = Buffers(plan, tiling)
-    queued: deque[tuple[Future, dict[str, np.ndarray] | None]] = deque()
-    indices = iter(pending)
-
-    def submit() -> None:
-        for i in itertools.islice(indices, 1):
-            out = buffers.take(busy=[b for _, b in queued if b is not None])
-            queued.append((pool.submit(compute_block, plan, tiling, i, out), out))
-
-    try:
-        for _ in range(AHEAD):
-            submit()
-        while queued:
-            done = queued.popleft()[0].result()
-            submit()
-            yield done
-    finally:
-        for future, _ in queued:
-            future.cancel()
-        pool.shutdown(wait=True)
 
 
 def open_backend(scheduler: str | None = None, workers: int | None = None) -> Any:

@@ -1,4 +1,4 @@
-"""The local backend computes blocks ahead (``backends.AHEAD``): block k + 1 and the ones
+"""The local backend computes blocks ahead (``AHEAD``): block k + 1 and the ones
 after it run on a thread of their own while the run stores and writes block k, errors come out
 in block order, and a run that stops early leaves no compute thread behind. Blocks are
 computed into reused buffers, a set given out again only once nothing refers to it."""
@@ -15,6 +15,7 @@ import runs
 from engine import backends
 from engine.blockbuffers import Buffers
 from engine.grid import Tiling
+from engine.pipeline import AHEAD
 from engine.plan import plan_from_survey
 from engine.surveyfile import parse_survey
 
@@ -60,7 +61,7 @@ def test_the_next_block_is_computed_while_the_caller_holds_this_one(monkeypatch,
     pending = list(range(4, 8))
     blocks = backends.LocalBackend().blocks(None, None, pending)
     assert next(blocks)[0] == 4
-    ahead = pending[: 1 + backends.AHEAD]  # AHEAD blocks after it queued, running in turn
+    ahead = pending[: 1 + AHEAD]  # AHEAD blocks after it queued, running in turn
     assert _wait_for(lambda: started == ahead), started
     assert [i for i, _ in blocks] == pending[1:]
     assert not _compute_threads()
@@ -81,11 +82,11 @@ def test_an_error_comes_out_in_block_order_and_stops_the_compute(monkeypatch, no
 def test_a_run_that_stops_early_waits_for_the_block_in_the_compute(monkeypatch, no_buffers):
     started: list[int] = []
     monkeypatch.setattr(backends, "compute_block", _fake(started))
-    blocks = backends.LocalBackend().blocks(None, None, list(range(backends.AHEAD + 3)))
+    blocks = backends.LocalBackend().blocks(None, None, list(range(AHEAD + 3)))
     next(blocks)
     blocks.close()  # the runner leaving (an error, KeyboardInterrupt)
     assert not _compute_threads()
-    assert backends.AHEAD + 2 not in started  # never queued
+    assert AHEAD + 2 not in started  # never queued
 
 
 # 3 x 20 x 33 x 160 points in 8 blocks of one chunk (3, 20, 33, 20)
@@ -120,7 +121,7 @@ def test_blocks_computed_into_reused_buffers_are_the_fresh_blocks():
                        fresh.values(), strict=True))  # fmt: skip
     finally:
         backends.Buffers = real
-    assert made == [2 + backends.AHEAD]
+    assert made == [2 + AHEAD]
 
 
 def test_a_set_is_given_out_again_only_once_nothing_refers_to_it():

@@ -95,17 +95,17 @@ def decompress_chunk(
 
 
 def chunk_parts(
-    slab: tuple[slice, ...], chunk: tuple[int, ...], values: np.ndarray
+    slab: tuple[slice, ...], chunk: tuple[int, ...], values: np.ndarray, fill: Any = 0
 ) -> Iterator[tuple[tuple[int, ...], np.ndarray]]:
     """(first index, values) of every storage chunk of the block ``values`` at ``slab``, in C
-    order; a chunk at the end of an axis that hangs over it is padded with zeros to the whole
-    chunk, as HDF5 stores it."""
+    order; a chunk at the end of an axis that hangs over it is padded to the whole chunk with
+    ``fill`` (zeros, as HDF5 stores it; Zarr pads with the array's fill value)."""
     for start in chunk_starts(slab, chunk):
         at = zip(start, slab, chunk, strict=True)
         local = tuple(slice(o - s.start, o - s.start + c) for o, s, c in at)
         part = values[local]
         if part.shape != chunk:  # an edge chunk: HDF5 stores it whole
-            full = np.zeros(chunk, values.dtype)
+            full = np.full(chunk, fill, values.dtype)
             full[tuple(slice(0, n) for n in part.shape)] = part
             part = full
         yield start, part

@@ -34,7 +34,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from . import OutputError
-from .atomic import O_CLOEXEC, O_NOFOLLOW, NotRegularFile, Written, fsync_dir, read_regular
+from .atomic import O_CLOEXEC, O_NOFOLLOW, NotRegularFile, Written, read_regular
 
 __all__ = ["DEPTH", "JOURNAL", "Durability", "append_journal", "journal_line", "read_journal"]
 
@@ -161,8 +161,7 @@ class Durability:
                 index, write = self._queue[0]
             try:
                 written = write()
-                written.finish(sync_dir=False)
-                fsync_dir(written.path.parent)
+                written.finish()
                 self._journal(index, written.size, written.digest)
                 with self._cond:
                     self._queue.popleft()

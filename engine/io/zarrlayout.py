@@ -36,6 +36,7 @@ from .atomic import NEW_FILE, O_CLOEXEC, O_NOFOLLOW, fsync_dir, fsync_path, read
 from .cf import typed_flags
 from .contents import block_digest
 from .summary import Summary
+from .zarrchunks import BLOSC, chunk_keys, codecs, encode, fill_value
 
 __all__ = [
     "BLOSC",
@@ -65,9 +66,6 @@ UNFINISHED_TEXT = (
 )
 _DIR_FLAGS = os.O_RDONLY | getattr(os, "O_DIRECTORY", 0) | O_NOFOLLOW | O_CLOEXEC
 _MAX_META_BYTES = 64 << 20
-#: Blosc (lz4, level 5, byte shuffle): 1.57x on survey blocks at ~600 MB/s on one core, where
-#: netCDF's zlib 1 + shuffle gives 1.63x at ~33 MB/s (README, "Scale out: Zarr output").
-BLOSC = {"cname": "lz4", "clevel": 5, "shuffle": "shuffle"}
 
 
 def zarr_module() -> Any:
@@ -77,34 +75,6 @@ def zarr_module() -> Any:
     except ImportError:
         raise OutputError(f"Zarr output needs the zarr package: {install_hint('zarr')}") from None
     return zarr
-
-
-def codecs(complevel: int) -> list[Any]:
-    """The compressors of a data variable: Blosc (:data:`BLOSC`), none for ``complevel`` 0."""
-    if complevel == 0:
-        return []
-    from zarr.codecs import BloscCodec
-
-    return [BloscCodec(**BLOSC)]
-
-
-def fill_value(dtype: np.dtype) -> Any:
-    """Zarr's fill value of a variable (never read: every chunk is written): NaN for floats,
-    netCDF's default fill for integers (not a flag value). It is not a CF ``_FillValue``."""
-    if dtype.kind == "f":
-        return np.nan
-    return {1: -127, 2: -32767, 4: -2147483647, 8: -9223372036854775806}[dtype.itemsize]
-
-
-def chunk_keys(name: str, slab: tuple[slice, ...], chunk: tuple[int, ...]) -> list[str]:
-    """The keys of the chunk files of variable ``name`` that the hyperslab ``slab`` covers
-    (chunk key encoding "default", separator "/")."""
-    ranges = [range(s.start // c, -(-s.stop // c)) for s, c in zip(slab, chunk, strict=True)]
-    out = []
-    for pos in np.ndindex(*(len(r) for r in ranges)):
-        idx = (str(r[p]) for r, p in zip(ranges, pos, strict=True))
-        out.append(f"{name}/c/" + "/".join(idx))
-    return out
 
 
 def files_digest(entries: list[tuple[str, int, str]]) -> str:
@@ -125,30 +95,9 @@ class ChunkWriter:
     complevel: int
 
     def encode(self, slab: tuple[slice, ...], values: dict[str, np.ndarray]) -> dict[str, bytes]:
-        """The chunk files (key -> bytes) of the hyperslab ``slab`` of every variable, encoded
-        by zarr exactly as the store's arrays declare (on zarr's threads: ours as well used
-        more memory and, on the loaded 2-core machine, up to twice the CPU)."""
-        files: dict[str, bytes] = {}
-        for name, dtype in self.arrays:
-            files.update(self._encode(slab, name, dtype, values[name]))
-        return files
-
-    def _encode(self, slab: tuple[slice, ...], name: str, dtype: str, values: np.ndarray):
-        zarr = zarr_module()
-        mem: dict[str, Any] = {}
-        dt = np.dtype(dtype)
-        arr = zarr.create_array(
-            zarr.storage.MemoryStore(mem),
-            name=name,
-            shape=self.shape,
-            chunks=self.chunk,
-            dtype=dt,
-            fill_value=fill_value(dt),
-            compressors=codecs(self.complevel),
-            config={"write_empty_chunks": True},
-        )
-        arr[slab] = values
-        return {k: v.to_bytes() for k, v in mem.items() if "/c/" in k}
+        """The chunk files (key -> bytes) of the hyperslab ``slab`` of every variable
+        (:func:`engine.io.zarrchunks.encode`)."""
+        return encode(slab, self.chunk, self.arrays, values, self.complevel)
 
     def write(self, index: int, slab: tuple[slice, ...], values: dict[str, np.ndarray]) -> dict:
         """Write block ``index`` (its hyperslab ``slab``); returns its receipt. OSError if the
