@@ -32,6 +32,7 @@ import os
 import secrets
 import stat
 from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -280,11 +281,14 @@ class RunStore:
         """OutputError unless every block is journaled and its chunk files hash to its
         receipt (read again just before the commit: a chunk changed since the resume scan
         or since it was written is caught)."""
-        for index in range(self.tiling.nblocks):
-            receipt = self.journal.get(index)
-            if receipt is None:
-                raise OutputError(f"block {index} is not recorded in the journal")
-            if self._digest(index) != (receipt["bytes"], receipt["files"]):
+        missing = [i for i in range(self.tiling.nblocks) if i not in self.journal]
+        if missing:
+            raise OutputError(f"block {missing[0]} is not recorded in the journal")
+        with ThreadPoolExecutor(os.cpu_count() or 1) as pool:  # hashing releases the GIL
+            got = list(pool.map(self._digest, range(self.tiling.nblocks)))
+        for index, digest in enumerate(got):
+            receipt = self.journal[index]
+            if digest != (receipt["bytes"], receipt["files"]):
                 raise OutputError(
                     f"the chunk files of block {index} changed since they were written; "
                     "it will be computed again"
