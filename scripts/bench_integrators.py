@@ -426,7 +426,8 @@ def markdown(o, rows, thr, gl, compiled) -> str:
         f"Integrators, {n} typical orbits, one-period map (r_min -> r_max, doubled) per orbit "
         f"(`python scripts/bench_integrators.py`, {date}; {MACHINE}; load average "
         f"{thr['load before']} before the threads section, {thr['load after']} after; per core "
-        "= CPU time of one thread, best of 3 interleaved rounds):",
+        f"= CPU time of one thread, best of 3 interleaved rounds; 2 threads: wall time, best of "
+        f"{TWO_THREAD_ROUNDS}):",
         "",
         "| goal | engine | peer | ratio | target | |",
         "|---|---|---|---|---|---|",
