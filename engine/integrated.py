@@ -12,6 +12,7 @@ and the energy lost over it is reported too.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numba
@@ -40,6 +41,20 @@ __all__ = [
 #: Step budget per orbit (accepted + rejected steps); beyond it the status is MAX_STEPS.
 DEFAULT_MAX_STEPS = 1_000_000
 _BY_ID = {m.kernel_id: m for m in METHODS.values() if m.integrates}
+#: Each integrator's refused effects as a kernel mask (computed once, not per call).
+_REFUSED = {m.kernel_id: m.refused_mask for m in _BY_ID.values()}
+
+
+@functools.lru_cache(maxsize=64)
+def _checked_method(name: str, scene: Scene) -> Method:
+    return check_method(name, scene, integrator=True)
+
+
+@functools.lru_cache(maxsize=64)
+def _scene_parts(scene: Scene) -> tuple[np.ndarray, int, tuple[str, ...]]:
+    """What a call needs of a scene (its parameter array, effects mask and outputs), once per
+    scene: a call's Python work is time the threads cannot share (the serial share)."""
+    return scene.params(), scene.effects_mask, period_variables(scene)
 
 
 def integrate_points(
@@ -70,7 +85,7 @@ def integrate_points(
     compiling anything.
     """
     m = _BY_ID[method]
-    if effects & m.refused_mask:
+    if effects & _REFUSED[method]:
         out_f[:] = math.nan
         out_n[:] = 0
         out_status[:] = UNSUPPORTED
@@ -154,7 +169,9 @@ def evaluate_integrated(
     within the period ends with "step size fell below 16 eps |t|" (the friction force turns
     discontinuously at zero speed).
     """
-    m = check_method(method, scene, integrator=True)
+    # a (method, scene) checked once; an unhashable method name goes to the check's message
+    m = (_checked_method(method, scene) if isinstance(method, str)
+         else check_method(method, scene, integrator=True))  # fmt: skip
     r = check_rtol(rtol)
     arrays = []
     for name, arr in (("alpha", alpha), ("energy", energy), ("h", h), ("Lz", Lz)):
@@ -189,11 +206,10 @@ def integrate_period(
     out_f = np.empty((len(PERIOD_ROWS), n))
     out_n = np.empty(n, np.int64)
     out_status = np.empty(n, np.int8)
+    params, effects, produced = _scene_parts(scene)
     if n:
-        integrate_points(alpha, energy, h, Lz, scene.params(), method.kernel_id,
-                         scene.effects_mask, rtol, max_steps, out_f, out_n,
-                         out_status)  # fmt: skip
-    produced = period_variables(scene)
+        integrate_points(alpha, energy, h, Lz, params.copy(), method.kernel_id, effects, rtol,
+                         max_steps, out_f, out_n, out_status)  # fmt: skip
     res = {name: out_f[i] for i, name in enumerate(PERIOD_ROWS) if name in produced}
     res["n_steps"] = out_n
     res["status"] = out_status

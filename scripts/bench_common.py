@@ -165,3 +165,39 @@ def spin(n_items: int, n_inner: int) -> float:
             x += math.sin(x + j)
         acc[i] = x
     return acc.sum()
+
+
+@numba.njit(parallel=True, nogil=True, cache=True)
+def spin_vector(n_items: int, n_inner: int) -> float:
+    """:func:`spin` on the vector units: 32 independent multiply-adds a round (8 AVX2
+    instructions, in the first-level cache), bound by the units' throughput like the lanes'
+    step, where :func:`spin` is bound by the latency of one chain. On a virtual machine whose
+    two cores share their vector units with other work on the host, this one loses and
+    :func:`spin` does not."""
+    acc = np.zeros(n_items)
+    for i in numba.prange(n_items):
+        x = np.arange(32.0)
+        for _ in range(n_inner):
+            for k in range(32):
+                x[k] = x[k] * 1.0000001 + 1e-9
+        acc[i] = x.sum()
+    return acc.sum()
+
+
+def matched_inner(control: Callable[[int, int], float], fn: Callable[[], object]) -> int:
+    """The inner length of ``control(64, inner)`` (:func:`spin`, :func:`spin_vector`) that
+    takes as long at 1 thread as ``fn`` (one call of each, after a warm-up call): a control
+    as short as the engine's call pays the same cost of starting the threads."""
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        control(64, 100)
+        t0 = time.perf_counter()
+        control(64, 4_000)
+        t_control = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        fn()
+        t_fn = time.perf_counter() - t0
+    finally:
+        numba.set_num_threads(before)
+    return max(100, int(4_000 * t_fn / t_control))

@@ -4,6 +4,7 @@ the accuracy promise)."""
 
 import math
 
+import numba
 import numpy as np
 import pytest
 from cases import (
@@ -19,6 +20,7 @@ from cases import (
     vmin,
 )
 
+import engine
 from engine.integrated import evaluate_integrated, integrate_points
 from engine.kernels.protocol import MAX_STEPS, NOT_BOUNDED, UNSUPPORTED
 from engine.kernels.symplectic import SYMPLECTIC
@@ -103,8 +105,9 @@ def test_batch_free_fall_escape_and_step_budget():
 
 def test_symplectic_refuses_dissipative_scenes():
     c = dict(HARD["M_1e3"], scene=Scene(M=1e3, c_rr=1e-3))
-    with pytest.raises(ValueError, match="symplectic.*rolling_resistance"):
-        integrate(c, "symplectic")
+    for _ in range(2):  # the check of a (method, scene) is cached: a refusal is not
+        with pytest.raises(ValueError, match="symplectic.*rolling_resistance"):
+            integrate(c, "symplectic")
     with pytest.raises(ValueError, match="symplectic.*attitude"):
         integrate(dict(c, scene=Scene(attitude=True)), "symplectic")
     # the kernel itself answers with a status code
@@ -140,9 +143,32 @@ def test_rtol_is_validated(bad):
 
 def test_method_and_shapes_are_validated():
     c = HARD["M_1e3"]
-    with pytest.raises(ValueError, match="method must be one of"):
-        integrate(c, "euler")
+    for bad in ("euler", ["rk45"]):
+        with pytest.raises(ValueError, match="method must be one of"):
+            integrate(c, bad)
     with pytest.raises(ValueError, match="energy has length 2"):
         evaluate_integrated(np.ones(1), np.ones(2), np.ones(1), np.ones(1), Scene(), "rk45")
     empty = evaluate_integrated(*[np.empty(0)] * 4, Scene(), "rk45")
     assert empty["period"].shape == (0,) and empty["status"].dtype == np.int8
+
+
+@pytest.mark.parametrize("method", ["rk45", "dop853"])
+def test_maps_are_the_same_at_1_and_2_threads(method):
+    """The lanes' workers take different pieces of the points at 1 and 2 threads: every output
+    bit for bit the same, and the same on a second scene (its parameters are not the first's)."""
+    rng = np.random.default_rng(3)
+    a, h, lz = rng.uniform(0.2, 1.4, 90), rng.uniform(-2, 2, 90), rng.uniform(0.05, 2, 90)
+    for sc in (Scene(), Scene(M=2.0, k=0.5)):
+        v = engine.minimum_energy(a, h, lz, sc)
+        e = v + rng.uniform(0.01, 1.0, 90) * np.abs(v)
+        before = numba.get_num_threads()
+        try:
+            numba.set_num_threads(1)
+            one = evaluate_integrated(a, e, h, lz, sc, method, RTOL)
+            numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+            two = evaluate_integrated(a, e, h, lz, sc, method, RTOL)
+        finally:
+            numba.set_num_threads(before)
+        assert np.all(one["status"] == 0)
+        for key in one:
+            np.testing.assert_array_equal(one[key], two[key], err_msg=key)

@@ -12,8 +12,8 @@ is the scalar rest, per lane and only where needed:
 - the events of a step (:func:`.rk_events.step_events` on a scalar copy of the lane: apsides,
   rim, slip) and the result (:func:`.orbit.reduce_period`: half a period for a conservative
   scene, :func:`.orbit.period_apsides`);
-- the queue: a lane whose orbit ends takes the next point from a queue the threads share, so
-  no lane idles until the points run out, and a thread slowed by other work takes fewer.
+- the queue: a lane whose orbit ends takes the next point of its worker's guided piece of a
+  queue the threads share (:func:`.lanes_step.piece_starts`): no lane idles until the end.
 
 Results are those of :func:`.orbit.integrate_points` bit for bit, whichever lane or thread
 computes a point (tests/kernels/test_lanes.py): this is how the RK methods run in a batch, not
@@ -29,11 +29,12 @@ from .._jit import kernel, parallel_kernel
 from .lanes_step import (
     LANES,
     borrow,
-    fetch_add,
     lanes_attempt,
     lanes_control,
     lanes_layout,
+    piece_starts,
     split_owned,
+    take_point,
 )
 from .model import N_PARAMS, rhs, set_alpha
 from .orbit import (
@@ -336,28 +337,26 @@ def lane_workspace(method, effects, n_vec, n_int, n_float):
 
 
 @kernel
-def lanes_worker(method, effects, alpha, energy, hh, Lz, params, rtol, max_steps, queue, out_f,
-                 out_n, out_status):  # fmt: skip
+def lanes_worker(method, effects, alpha, energy, hh, Lz, params, rtol, max_steps, queue, starts,
+                 out_f, out_n, out_status):  # fmt: skip
     """Integrate points LANES at a time, each over one radial period as
     :func:`.orbit.one_period` does (to r_max and doubled for a conservative scene), into out_f
     (rows of :data:`.orbit.PERIOD_ROWS`), out_n (accepted steps), out_status. A lane whose
-    point ends takes the next from ``queue`` (int64[1]: the next point's index, shared by the
-    workers) until every point is taken."""
-    ly = lanes_layout(method, effects)
-    L = LANES
+    point ends takes the next point of the worker's piece, or a piece of ``starts`` from
+    ``queue`` (int64[1], shared: :func:`.lanes_step.take_point`), until none is left."""
+    ly, L = lanes_layout(method, effects), LANES
     owners, W, LY0, LEV, p, K, K2, V, brent, ev_t, ev_kind, ev_y, _, I, LEVK = lane_workspace(
         method, effects, 3, 3, 0)  # fmt: skip
-    ys, yn, buf = V[0], V[1], V[2]
+    ys, yn, buf, nxt, end = V[0], V[1], V[2], 0, 0
     alpha, energy, hh, Lz = borrow(alpha), borrow(energy), borrow(hh), borrow(Lz)
     params, out_f, out_n, out_status = (borrow(params), borrow(out_f), borrow(out_n),
                                         borrow(out_status))  # fmt: skip
-    n_points = alpha.shape[0]
     while True:
         running = 0
         for l in range(L):  # refill idle lanes; points that end at their start are written
             while I[l, ORBIT] < 0:
-                i = fetch_add(queue, 1)
-                if i >= n_points:
+                i, nxt, end = take_point(queue, starts, nxt, end)
+                if i < 0:
                     break
                 status = _lane_start(method, effects, l, i, alpha, energy, hh, Lz, params, rtol,
                                      max_steps, W, I, LY0, LEV, LEVK, p, K, buf, ev_t, ev_kind,
@@ -390,11 +389,12 @@ def integrate_points_lanes(alpha, energy, h, Lz, params, method, effects, rtol, 
                            n_workers, out_f, out_n, out_status):  # fmt: skip
     """:func:`.orbit.integrate_points` for a Runge-Kutta ``method`` (literal, like ``effects``),
     its results bit for bit: ``n_workers`` :func:`lanes_worker` (one per thread:
-    ``numba.get_num_threads()``, which a cached kernel cannot call) taking points from one
-    queue."""
+    ``numba.get_num_threads()``, which a cached kernel cannot call) taking pieces of the
+    points from one queue."""
     literally(method)
     literally(effects)
-    queue = np.zeros(1, np.int64)
-    for _ in prange(max(1, min(n_workers, alpha.shape[0]))):
+    queue, workers = np.zeros(1, np.int64), max(1, min(n_workers, alpha.shape[0]))
+    starts = piece_starts(alpha.shape[0], workers)
+    for _ in prange(workers):
         lanes_worker(method, effects, alpha, energy, h, Lz, params, rtol, max_steps, queue,
-                     out_f, out_n, out_status)  # fmt: skip
+                     starts, out_f, out_n, out_status)  # fmt: skip

@@ -17,7 +17,8 @@ step's divisions are vector instructions and the control has no branch and no po
   at, or out of steps, is flagged for the scalar code of :mod:`.lanes`.
 
 Plus two intrinsics: :func:`borrow` (an array view without reference counting) and
-:func:`fetch_add` (the threads' shared queue of points).
+:func:`fetch_add` (the threads' shared queue), and the guided pieces of points the workers take
+from it (:func:`piece_starts`, :func:`take_point`).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ import functools
 import math
 from typing import NamedTuple
 
+import numpy as np
 from numba.core import cgutils, types
 from numba.extending import intrinsic, overload
 
@@ -315,3 +317,44 @@ def fetch_add(typingctx, counter, value):
         return builder.atomic_rmw("add", ary.data, val, "monotonic")
 
     return types.int64(counter, value), codegen
+
+
+#: Guided pieces of the workers' queue: a piece is 1 / (PIECE_SPLIT x workers) of the points
+#: left, down to single points at the end (:func:`piece_starts`).
+PIECE_SPLIT = 4
+
+
+@kernel
+def piece_starts(n, n_workers):
+    """The pieces the workers take from their shared queue (:func:`take_point`): the first
+    point of each piece of 0..n-1, then n (int64[pieces + 1]). Each piece is 1 / (PIECE_SPLIT
+    ``n_workers``) of the points left (at least one point): a few large pieces first, a few
+    dozen atomic increments a call instead of one per point, each worker's results written
+    into runs of adjacent points (no cache line bounced between the cores per point), then
+    single points at the end, so the workers finish within an orbit of each other as a queue
+    of single points does."""
+    div = PIECE_SPLIT * max(1, n_workers)
+    k, s = 0, 0
+    while s < n:
+        s += max(1, (n - s) // div)
+        k += 1
+    starts = np.empty(k + 1, np.int64)
+    s = 0
+    for j in range(k):
+        starts[j] = s
+        s += max(1, (n - s) // div)
+    starts[k] = n
+    return starts
+
+
+@kernel(inline="always")
+def take_point(queue, starts, nxt, end):
+    """A worker's next point: the next of its piece [nxt, end), or the first of the next piece
+    of ``starts`` (:func:`piece_starts`) taken from ``queue`` (int64[1]: the next piece,
+    shared by the workers). Returns (point, nxt, end); point -1 when every piece is taken."""
+    if nxt >= end:
+        c = fetch_add(queue, 1)
+        if c >= starts.shape[0] - 1:
+            return -1, nxt, end
+        nxt, end = starts[c], starts[c + 1]
+    return nxt, nxt + 1, end

@@ -13,7 +13,14 @@ from cases import BOUNDED_REF, HARD, vmin
 import engine
 from engine._jit import call_specialized
 from engine.kernels.lanes import integrate_points_lanes
-from engine.kernels.lanes_step import LANES, lanes_attempt, lanes_control_fate, layout
+from engine.kernels.lanes_step import (
+    LANES,
+    PIECE_SPLIT,
+    lanes_attempt,
+    lanes_control_fate,
+    layout,
+    piece_starts,
+)
 from engine.kernels.model import RIM, SLIP_CHECK, coefficients
 from engine.kernels.orbit import (
     initial_state,
@@ -183,6 +190,24 @@ def test_results_do_not_depend_on_workers_or_threads():
                     tuple(x[..., :1] for x in one))  # fmt: skip
     finally:
         numba.set_num_threads(before)
+
+
+@pytest.mark.parametrize("n", [0, 1, 7, 37, 2000, 10**6])
+@pytest.mark.parametrize("workers", [1, 2, 3, 16])
+def test_the_workers_pieces_cover_every_point_once_and_shrink_to_single_points(n, workers):
+    """The guided pieces (lanes_step.piece_starts): 0..n-1 in order, each point in one piece;
+    no piece more than 1 / (PIECE_SPLIT workers) of the points left before it (so the workers
+    finish close together), down to single points at the end; few pieces (atomic increments)."""
+    starts = piece_starts(n, workers)
+    assert starts[0] == 0 and starts[-1] == n
+    sizes = np.diff(starts)
+    assert np.all(sizes >= 1)
+    left = n - starts[:-1]
+    assert np.all(sizes <= np.maximum(1, left / (PIECE_SPLIT * workers)))
+    assert np.all(np.diff(sizes) <= 0)
+    if n:
+        assert sizes[-1] == 1
+        assert sizes.size <= PIECE_SPLIT * workers * (2 + math.log(n))
 
 
 def test_empty_batch():
