@@ -36,7 +36,15 @@ from pathlib import Path
 from . import OutputError
 from .atomic import O_CLOEXEC, O_NOFOLLOW, NotRegularFile, Written, read_regular
 
-__all__ = ["DEPTH", "JOURNAL", "Durability", "append_journal", "journal_line", "read_journal"]
+__all__ = [
+    "DEPTH",
+    "JOURNAL",
+    "Durability",
+    "append_journal",
+    "journal_line",
+    "journal_lines",
+    "read_journal",
+]
 
 JOURNAL = "journal"
 _MAX_JOURNAL_BYTES = 1 << 30
@@ -61,17 +69,24 @@ def append_journal(root: Path, index: int, size: int, digest: str) -> None:
         os.close(fd)
 
 
-def read_journal(root: Path, nblocks: int) -> dict[int, tuple[int, str]]:
-    """index -> (size, SHA-256) of the last valid journal line of each block (torn or damaged
-    lines are skipped); {} if there is no journal."""
+def journal_lines(root: Path) -> list[bytes]:
+    """The whole lines of the journal in ``root`` (what follows the last newline is a torn
+    line: left out); [] if there is no journal, OutputError if it is not a readable regular
+    file. A netCDF run's journal and a Zarr run's (:mod:`engine.io.zarrstore`) alike."""
     try:
         data = read_regular(root / JOURNAL, _MAX_JOURNAL_BYTES, follow_links=False)
     except FileNotFoundError:
-        return {}
+        return []
     except (NotRegularFile, ValueError) as exc:
         raise OutputError(f"{root / JOURNAL} is unreadable ({exc})") from None
+    return data.split(b"\n")[:-1]
+
+
+def read_journal(root: Path, nblocks: int) -> dict[int, tuple[int, str]]:
+    """index -> (size, SHA-256) of the last valid journal line of each block (torn or damaged
+    lines are skipped); {} if there is no journal."""
     entries: dict[int, tuple[int, str]] = {}
-    for raw in data.split(b"\n")[:-1]:  # the part after the last newline is torn
+    for raw in journal_lines(root):
         parts = raw.split(b" ")
         if len(parts) != 4 or not all(p.isalnum() and p.isascii() for p in parts):
             continue

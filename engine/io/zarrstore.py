@@ -46,19 +46,15 @@ from .atomic import (
     O_CLOEXEC,
     O_NOFOLLOW,
     O_NONBLOCK,
-    NotRegularFile,
     fsync_dir,
-    read_regular,
 )
 from .blocks import Scan, make_parts_dir, remove_store
+from .journal import JOURNAL, journal_lines
 from .manifest import Manifest, read_manifest, write_manifest
 from .zarrcommit import read_record, undo
 from .zarrlayout import RUN_ATTR, STORE, ChunkWriter, chunk_keys, files_digest, read_meta
 
 __all__ = ["JOURNAL", "RunStore", "parts_state", "read_journal"]
-
-JOURNAL = "journal"
-_MAX_JOURNAL_BYTES = 1 << 30
 
 
 # --- the journal ------------------------------------------------------------------------------
@@ -117,14 +113,8 @@ def _valid_summary(summary: Any) -> bool:
 def read_journal(root: Path, names: list[str], nblocks: int) -> dict[int, dict]:
     """index -> receipt of the last valid journal line of each block (torn, damaged or foreign
     lines are skipped); {} if there is no journal."""
-    try:
-        data = read_regular(root / JOURNAL, _MAX_JOURNAL_BYTES, follow_links=False)
-    except FileNotFoundError:
-        return {}
-    except (NotRegularFile, ValueError) as exc:
-        raise OutputError(f"{root / JOURNAL} is unreadable ({exc})") from None
     out: dict[int, dict] = {}
-    for raw in data.split(b"\n")[:-1]:  # the part after the last newline is torn
+    for raw in journal_lines(root):
         body, _, check = raw.rpartition(b" ")
         try:
             receipt = json.loads(body)
