@@ -306,10 +306,11 @@ def _compute(
     points = tiling.size - sum(tiling.points(i) for i in pending)
     if progress is not None:
         progress(points, tiling.size)
-    stored = [reused]  # blocks durable (journaled) so far
+    stored = reused  # blocks durable (journaled) so far
 
     def landed(index: int) -> None:  # a block file's store: on the thread that made it durable
-        stored[0] += 1
+        nonlocal stored
+        stored += 1
         if on_block is not None:
             on_block(index)
 
@@ -323,7 +324,7 @@ def _compute(
                     clean = store.commit(i, res)
                 except OSError as exc:
                     raise RunFailed(
-                        f"{_cannot_write(exc, store.path(i))}; {stored[0]} of {tiling.nblocks} "
+                        f"{_cannot_write(exc, store.path(i))}; {stored} of {tiling.nblocks} "
                         "blocks are stored"
                     ) from None
                 points += tiling.points(i)
@@ -334,10 +335,10 @@ def _compute(
                 yield i, clean
     except OSError as exc:  # the last blocks' files, made durable as the run ends
         raise RunFailed(
-            f"{_cannot_write(exc, store.root)}; {stored[0]} of {tiling.nblocks} blocks are stored"
+            f"{_cannot_write(exc, store.root)}; {stored} of {tiling.nblocks} blocks are stored"
         ) from None
     except (BackendError, OutputError) as exc:  # OutputError: a writer's (Zarr)
-        raise RunFailed(f"{exc}; {stored[0]} of {tiling.nblocks} blocks are stored") from None
+        raise RunFailed(f"{exc}; {stored} of {tiling.nblocks} blocks are stored") from None
 
 
 def _timed(blocks: Iterator[_Block], ended: list[float]) -> Iterator[_Block]:

@@ -325,8 +325,9 @@ class Written:
 
 
 def _drop_cached(fd: int) -> None:
-    """Let the kernel drop the fsynced file's pages from its cache: the block files of a run
-    are rarely read again (less page reclaim, and a faster delete at the end)."""
+    """Let the kernel drop the fsynced file's pages from its cache: what is written this way
+    (a run's block files above all) is rarely read again soon (less page reclaim, and a
+    faster delete at the end of a run)."""
     advise = getattr(os, "posix_fadvise", None)
     if advise is not None:
         with contextlib.suppress(OSError):

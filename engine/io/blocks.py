@@ -10,14 +10,15 @@ Layout while a run is under way, next to the output ``OUT``::
                                 gets (engine.io.chunkfile; a run whose output is deflated)
     OUT.parts/b00000042.npz     or its values (engine.io.npz; any other compression)
 
-A block is committed in this order: its file is written under a fresh temporary name (``O_EXCL
-| O_NOFOLLOW``), fsynced and renamed into place; then its size and SHA-256 are appended to the
-journal and the journal is fsynced. A block counts only if its file's bytes have the size and
-hash its last journal line records: a file without a journal line (killed between the two
-steps), a truncated, edited or swapped file, or a link in its place is reported and computed
-again (:meth:`BlockStore.scan`, on resume), and every block is hashed again as the merge reads
-it (:meth:`BlockStore.blocks`). A torn last journal line (killed mid-append) fails its line
-check and is ignored. Files that are not the store's are reported and left alone.
+A block is committed in this order: its file is written under a fresh temporary name (``O_EXCL |
+O_NOFOLLOW``), fsynced and renamed into place; then its size and SHA-256 are appended to the journal
+and the journal is fsynced (during a run, on a thread of their own while the run goes on:
+:meth:`BlockStore.behind`, :mod:`engine.io.journal`). A block counts only if its file's bytes have
+the size and hash its last journal line records: a file without a journal line (killed between the
+two steps), a truncated, edited or swapped file, or a link in its place is reported and computed
+again (:meth:`BlockStore.scan`, on resume), and every block is hashed again as the merge reads it
+(:meth:`BlockStore.blocks`). A torn last journal line (killed mid-append) fails its line check and
+is ignored. Files that are not the store's are reported and left alone.
 
 Removing a store (:meth:`BlockStore.remove`) deletes the manifest first: a store without a
 manifest is the debris of a killed cleanup (or of a run killed as it started) and holds nothing

@@ -49,7 +49,8 @@ __all__ = [
 JOURNAL = "journal"
 _MAX_JOURNAL_BYTES = 1 << 30
 
-#: Written block files the thread may be behind by (each is a few tens of MB of page cache).
+#: Blocks the thread may be behind by (each held in memory until its file is written: its
+#: compressed chunks, a few tens of MB on the 10^8-point survey).
 DEPTH = 4
 
 

@@ -43,9 +43,10 @@ def _blosc(dtype: str, complevel: int) -> Any:
         return None
     import numcodecs
     from numcodecs import Blosc
+    from packaging.version import Version
 
     config = {**BLOSC, "shuffle": Blosc.SHUFFLE, "blocksize": 0}
-    if tuple(int(p) for p in numcodecs.__version__.split(".")[:2]) >= (0, 16):
+    if Version(numcodecs.__version__) >= Version("0.16"):  # packaging: a dependency of zarr
         config["typesize"] = np.dtype(dtype).itemsize
     return Blosc(**config)
 

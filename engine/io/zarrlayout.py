@@ -3,12 +3,13 @@
 - the metadata (:func:`make_store`): a Zarr v3 root group, the axes and the variables on fewer
   dims (their values), the data variables with the netCDF file's storage chunks,
   ``dimension_names``, CF attributes from :mod:`engine.schema` (``_FillValue`` NaN on floats
-  as xarray encodes it in Zarr v3; none on integers and axes), Blosc (:data:`BLOSC`);
-- :class:`ChunkWriter`: the chunks of one block, encoded by zarr as the store's arrays declare,
-  each written under a fresh ``O_EXCL | O_NOFOLLOW`` temporary name, fsynced and renamed, every
-  directory opened without following links from one descriptor of the store, after checking
-  the store is still the run's (its root names the run's id); returns the block's receipt
-  (:mod:`engine.io.zarrstore`);
+  as xarray encodes it in Zarr v3; none on integers and axes), Blosc
+  (:data:`engine.io.zarrchunks.BLOSC`);
+- :class:`ChunkWriter`: the chunks of one block, encoded as zarr encodes them for the store's arrays
+  (:mod:`engine.io.zarrchunks`), each written under a fresh ``O_EXCL | O_NOFOLLOW`` temporary name,
+  fsynced and renamed, every directory opened without following links from one descriptor of the
+  store, after checking the store is still the run's (its root names the run's id); returns the
+  block's receipt (:mod:`engine.io.zarrstore`);
 - :class:`ZarrView`: a store seen through the netCDF4 calls :mod:`engine.io.contents` makes,
   so the content checksum is computed and verified the same way in both formats.
 """
@@ -36,19 +37,15 @@ from .atomic import NEW_FILE, O_CLOEXEC, O_NOFOLLOW, fsync_dir, fsync_path, read
 from .cf import typed_flags
 from .contents import block_digest
 from .summary import Summary
-from .zarrchunks import BLOSC, chunk_keys, codecs, encode, fill_value
+from .zarrchunks import codecs, encode, fill_value
 
 __all__ = [
-    "BLOSC",
     "RUN_ATTR",
     "STORE",
     "UNFINISHED_ATTR",
     "ChunkWriter",
     "ZarrView",
-    "chunk_keys",
-    "codecs",
     "fill_attr",
-    "fill_value",
     "json_attr",
     "make_store",
     "read_meta",

@@ -51,8 +51,9 @@ from .atomic import (
 from .blocks import Scan, make_parts_dir, remove_store
 from .journal import JOURNAL, journal_lines
 from .manifest import Manifest, read_manifest, write_manifest
+from .zarrchunks import chunk_keys
 from .zarrcommit import read_record, undo
-from .zarrlayout import RUN_ATTR, STORE, ChunkWriter, chunk_keys, files_digest, read_meta
+from .zarrlayout import RUN_ATTR, STORE, ChunkWriter, files_digest, read_meta
 
 __all__ = ["JOURNAL", "RunStore", "parts_state", "read_journal"]
 
