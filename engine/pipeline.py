@@ -7,7 +7,8 @@ The run (:mod:`engine.runner`) takes one block at a time and stores it. Meanwhil
 hand the last block on; with a writer (a Zarr store's chunks), each block is written on a
 thread of its own up to :data:`AHEAD` blocks behind. Blocks come out in order, errors in block
 order. Leaving early (an error, KeyboardInterrupt): the block being computed or written
-finishes first, the queued ones are dropped.
+finishes first, and the queued ones not yet started are dropped (a queued one the thread took
+up meanwhile finishes too).
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ import runs
 from engine import backends
 from engine.blockbuffers import Buffers
 from engine.grid import Tiling
-from engine.pipeline import AHEAD
+from engine.pipeline import AHEAD, written_behind
 from engine.plan import plan_from_survey
 from engine.surveyfile import parse_survey
 
@@ -153,3 +153,34 @@ def test_a_set_given_to_a_queued_block_is_busy():
     second = buffers.take(busy=[first])  # ...but a queued block will write them
     assert second is not first
     assert buffers.take(busy=[first, second]) is None
+
+
+def test_blocks_are_written_behind_in_order_and_a_failed_write_stops_them():
+    """engine.pipeline.written_behind: each block's write runs on a thread of its own (the
+    blocks after it are taken meanwhile), receipts come out in block order, a failed write
+    raises in its turn, at most AHEAD queued writes run after it, and no writer thread
+    is left behind."""
+    taken: list[int] = []
+    wrote: list[tuple[int, str]] = []
+
+    def blocks():
+        for i in range(6):
+            taken.append(i)
+            yield i, {"v": np.full(2, i)}
+
+    def write(i, arrays):
+        wrote.append((i, threading.current_thread().name))
+        if i == 3:
+            raise OSError(28, "No space left on device")
+        return f"receipt {int(arrays['v'][0])}"
+
+    got = []
+    with pytest.raises(OSError, match="No space"):
+        for i, receipt in written_behind(blocks(), write):
+            got.append((i, receipt))
+    assert got == [(i, f"receipt {i}") for i in range(3)]
+    order = [i for i, _ in wrote]  # in order; a write already queued may still run, no more
+    assert order == list(range(len(order))) and 4 <= len(order) <= 4 + AHEAD
+    assert all(name.startswith("conesurvey-chunks") for _, name in wrote)
+    assert 3 + AHEAD in taken or len(taken) == 6  # blocks were taken while earlier ones wrote
+    assert not [t for t in threading.enumerate() if t.name.startswith("conesurvey-chunks")]
