@@ -146,7 +146,7 @@ def test_a_tampered_source_is_refused_and_nothing_is_written(work, capsys, tampe
 def test_a_damaged_chunk_is_refused(work, capsys):
     """A chunk whose compressed bytes were changed: refused (exit 2) whether the codec notices
     or the checksum does; nothing written."""
-    chunk = work / "run.zarr" / "r_max" / "c" / "0" / "0" / "0" / "1"
+    chunk = work / "run.zarr" / "r_max" / "c.0.0.0.1"
     data = bytearray(chunk.read_bytes())
     data[-5] ^= 0x10
     chunk.write_bytes(bytes(data))

@@ -12,17 +12,39 @@ own), so any Zarr reader decodes them with the codecs the store's metadata decla
 from __future__ import annotations
 
 import functools
+from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
 
 from .deflate import chunk_parts, compress_pool
 
-__all__ = ["BLOSC", "chunk_keys", "codecs", "encode", "fill_value"]
+__all__ = [
+    "BLOSC",
+    "SEPARATOR",
+    "chunk_key",
+    "chunk_key_encoding",
+    "chunk_keys",
+    "codecs",
+    "encode",
+    "fill_value",
+]
 
 #: Blosc (lz4, level 5, byte shuffle): 1.57x on survey blocks at ~600 MB/s on one core, where
 #: netCDF's zlib 1 + shuffle gives 1.63x at ~33 MB/s (README, "Scale out: Zarr output").
 BLOSC = {"cname": "lz4", "clevel": 5, "shuffle": "shuffle"}
+
+#: The separator of the chunk keys of a new store (chunk key encoding "default"): "." keeps a
+#: variable's chunk files in its own directory, ``r_min/c.0.3.2.1``. With "/" (stores made
+#: before 2026-11-27) each chunk file sat in directories of its own, ``r_min/c/0/3/2/1``: three
+#: directories made, opened and fsynced per chunk file, which took the Zarr writer ~60 % of its
+#: time (docs/output.md, "Zarr: one directory per variable"). A resumed store keeps its own.
+SEPARATOR = "."
+
+
+def chunk_key_encoding(separator: str = SEPARATOR) -> dict[str, Any]:
+    """The ``chunk_key_encoding`` of a data variable's metadata (Zarr v3 "default")."""
+    return {"name": "default", "separator": separator}
 
 
 def codecs(complevel: int) -> list[Any]:
@@ -64,15 +86,21 @@ def fill_value(dtype: np.dtype) -> Any:
     return {1: -127, 2: -32767, 4: -2147483647, 8: -9223372036854775806}[dtype.itemsize]
 
 
-def chunk_keys(name: str, slab: tuple[slice, ...], chunk: tuple[int, ...]) -> list[str]:
+def chunk_key(name: str, index: Iterable[int], separator: str = SEPARATOR) -> str:
+    """The key of the chunk of variable ``name`` at chunk ``index`` (encoding "default")."""
+    return f"{name}/c{separator}" + separator.join(str(i) for i in index)
+
+
+def chunk_keys(
+    name: str, slab: tuple[slice, ...], chunk: tuple[int, ...], separator: str = SEPARATOR
+) -> list[str]:
     """The keys of the chunk files of variable ``name`` that the hyperslab ``slab`` covers
-    (chunk key encoding "default", separator "/")."""
+    (chunk key encoding "default" with ``separator``)."""
     ranges = [range(s.start // c, -(-s.stop // c)) for s, c in zip(slab, chunk, strict=True)]
-    out = []
-    for pos in np.ndindex(*(len(r) for r in ranges)):
-        idx = (str(r[p]) for r, p in zip(ranges, pos, strict=True))
-        out.append(f"{name}/c/" + "/".join(idx))
-    return out
+    return [
+        chunk_key(name, (r[p] for r, p in zip(ranges, pos, strict=True)), separator)
+        for pos in np.ndindex(*(len(r) for r in ranges))
+    ]
 
 
 def encode(
@@ -81,17 +109,18 @@ def encode(
     arrays: tuple[tuple[str, str], ...],
     values: dict[str, np.ndarray],
     complevel: int,
+    separator: str = SEPARATOR,
 ) -> dict[str, bytes]:
     """The chunk files (key -> bytes) of the block ``values`` at the hyperslab ``slab`` of
     every variable of ``arrays`` ((name, dtype) pairs), chunks of shape ``chunk``: the bytes
     zarr writes for them (little-endian values, then Blosc as :func:`codecs` declares; an edge
-    chunk padded with the fill value)."""
+    chunk padded with the fill value), keyed with ``separator``."""
     jobs = {}
     pool = compress_pool()
     for name, dtype in arrays:
         dt = np.dtype(dtype)
         codec = _blosc(dt.str, complevel)
         for start, part in chunk_parts(slab, chunk, values[name], fill_value(dt)):
-            key = "/".join(str(s // c) for s, c in zip(start, chunk, strict=True))
-            jobs[f"{name}/c/{key}"] = pool.submit(_chunk_file, part, dt, codec)
+            index = (s // c for s, c in zip(start, chunk, strict=True))
+            jobs[chunk_key(name, index, separator)] = pool.submit(_chunk_file, part, dt, codec)
     return {key: job.result() for key, job in jobs.items()}

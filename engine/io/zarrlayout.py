@@ -4,7 +4,8 @@
   dims (their values), the data variables with the netCDF file's storage chunks,
   ``dimension_names``, CF attributes from :mod:`engine.schema` (``_FillValue`` NaN on floats
   as xarray encodes it in Zarr v3; none on integers and axes), Blosc
-  (:data:`engine.io.zarrchunks.BLOSC`);
+  (:data:`engine.io.zarrchunks.BLOSC`), chunk keys ``name/c.i.j.k.l`` (one directory per
+  variable: :data:`engine.io.zarrchunks.SEPARATOR`);
 - :class:`ChunkWriter`: the chunks of one block, encoded as zarr encodes them for the store's arrays
   (:mod:`engine.io.zarrchunks`), each written under a fresh ``O_EXCL | O_NOFOLLOW`` temporary name,
   fsynced and renamed, every directory opened without following links from one descriptor of the
@@ -37,7 +38,7 @@ from .atomic import NEW_FILE, O_CLOEXEC, O_NOFOLLOW, fsync_dir, fsync_path, read
 from .cf import typed_flags
 from .contents import block_digest
 from .summary import Summary
-from .zarrchunks import codecs, encode, fill_value
+from .zarrchunks import SEPARATOR, chunk_key_encoding, codecs, encode, fill_value
 
 __all__ = [
     "RUN_ATTR",
@@ -90,11 +91,12 @@ class ChunkWriter:
     chunk: tuple[int, ...]
     arrays: tuple[tuple[str, str], ...]
     complevel: int
+    separator: str = SEPARATOR  # of the chunk keys: the store's own (its arrays' metadata)
 
     def encode(self, slab: tuple[slice, ...], values: dict[str, np.ndarray]) -> dict[str, bytes]:
         """The chunk files (key -> bytes) of the hyperslab ``slab`` of every variable
         (:func:`engine.io.zarrchunks.encode`)."""
-        return encode(slab, self.chunk, self.arrays, values, self.complevel)
+        return encode(slab, self.chunk, self.arrays, values, self.complevel, self.separator)
 
     def write(self, index: int, slab: tuple[slice, ...], values: dict[str, np.ndarray]) -> dict:
         """Write block ``index`` (its hyperslab ``slab``); returns its receipt. OSError if the
@@ -163,38 +165,44 @@ def _open_dirs(root_fd: int, parts: list[str], cache: dict[str, int]) -> int:
 
 def _put_files(root_fd: int, files: dict[str, bytes]) -> list[tuple[str, int, str]]:
     """Write every file atomically (temporary name, fsync, rename), then fsync the directories
-    that changed; returns (key, size, SHA-256) of each. The files are written first, then
-    fsynced all at once on :data:`IO_THREADS` threads (the file system commits them together:
-    one fsync after another cost ~8 ms each), then renamed: none is renamed before its fsync."""
+    that changed; returns (key, size, SHA-256) of each. Each file is created, written, fsynced
+    and hashed on one of :data:`IO_THREADS` threads (a file's creation waits ~1 ms for the
+    file system's journal while other files are fsynced: one after another they took most of
+    the writer's time), then the files are renamed in order: none before its fsync."""
     cache: dict[str, int] = {}
-    fds: list[int] = []
+    items = sorted(files.items())
     pending: list[tuple[int, str, str]] = []  # (directory fd, temporary name, name) to rename
     try:
-        for key, data in sorted(files.items()):
+        for key, _ in items:
             *dirs, leaf = key.split("/")
             dfd = _open_dirs(root_fd, dirs, cache)
-            tmp = f".{leaf}.{secrets.token_hex(6)}.tmp"
-            fds.append(os.open(tmp, NEW_FILE, 0o666, dir_fd=dfd))
-            pending.append((dfd, tmp, leaf))
-            view = memoryview(data)
-            while view:
-                view = view[os.write(fds[-1], view) :]
-        _on_threads(os.fsync, fds)
+            pending.append((dfd, f".{leaf}.{secrets.token_hex(6)}.tmp", leaf))
+
+        def put(job: tuple[tuple[int, str, str], tuple[str, bytes]]) -> tuple[str, int, str]:
+            (dfd, tmp, _), (key, data) = job
+            fd = os.open(tmp, NEW_FILE, 0o666, dir_fd=dfd)
+            try:
+                view = memoryview(data)
+                while view:
+                    view = view[os.write(fd, view) :]
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+            return key, len(data), hashlib.sha256(data).hexdigest()
+
+        entries = _on_threads(put, list(zip(pending, items, strict=True)))
         while pending:
             dfd, tmp, leaf = pending[0]
             os.rename(tmp, leaf, src_dir_fd=dfd, dst_dir_fd=dfd)
             pending.pop(0)
         _on_threads(os.fsync, [root_fd, *cache.values()])
     finally:
-        for fd in fds:
-            with contextlib.suppress(OSError):
-                os.close(fd)
-        for dfd, tmp, _ in pending:  # not renamed: an error on the way
+        for dfd, tmp, _ in pending:  # not renamed: an error on the way (or never made)
             with contextlib.suppress(OSError):
                 os.unlink(tmp, dir_fd=dfd)
         for dfd in cache.values():
             os.close(dfd)
-    return [(k, len(data), hashlib.sha256(data).hexdigest()) for k, data in sorted(files.items())]
+    return entries
 
 
 #: Threads that fsync a block's chunk files and hash its variables (work that releases the
@@ -279,6 +287,7 @@ def make_store(
             store, name=name, shape=shape, chunks=tuple(chunks), dtype=dt,
             fill_value=fill_value(dt), compressors=codecs(complevel), dimension_names=vdims,
             attributes=attrs, config={"write_empty_chunks": True},
+            chunk_key_encoding=chunk_key_encoding(SEPARATOR),
         )  # fmt: skip
         if values is not None:
             arr[...] = values

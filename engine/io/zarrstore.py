@@ -51,7 +51,7 @@ from .atomic import (
 from .blocks import Scan, make_parts_dir, remove_store
 from .journal import JOURNAL, journal_lines
 from .manifest import Manifest, read_manifest, write_manifest
-from .zarrchunks import chunk_keys
+from .zarrchunks import SEPARATOR, chunk_keys
 from .zarrcommit import read_record, undo
 from .zarrlayout import RUN_ATTR, STORE, ChunkWriter, files_digest, read_meta
 
@@ -141,6 +141,7 @@ class RunStore:
     complevel: int
     warn: Callable[[str], None] = field(default=lambda msg: None)
     journal: dict[int, dict] = field(default_factory=dict)
+    separator: str = SEPARATOR  # of the chunk keys (a store made before 2026-11-27: "/")
 
     @property
     def store(self) -> Path:
@@ -156,6 +157,7 @@ class RunStore:
             self.tiling.chunk,
             arrays,
             self.complevel,
+            self.separator,
         )
 
     @classmethod
@@ -182,7 +184,7 @@ class RunStore:
             with contextlib.suppress(OSError):
                 remove_store(root)
             raise
-        return cls(root, manifest.tiling, manifest.names, run_id, complevel, warn)
+        return cls(root, manifest.tiling, manifest.names, run_id, complevel, warn, {}, SEPARATOR)
 
     @classmethod
     def open(cls, root: Path, warn: Callable[[str], None] = lambda msg: None) -> RunStore:
@@ -201,11 +203,13 @@ class RunStore:
         for name in os.listdir(store):  # every array's metadata, never through a link
             if name != "zarr.json":
                 read_meta(store / name / "zarr.json")
-        first = next(iter(m.names))
-        codecs = read_meta(store / first / "zarr.json").get("codecs", [])
-        level = 0 if len(codecs) < 2 else 1
+        first = read_meta(store / next(iter(m.names)) / "zarr.json")
+        level = 0 if len(first.get("codecs", [])) < 2 else 1
+        separator = _separator(first)
+        if separator is None:
+            raise OutputError(f"{store}: its chunk key encoding is not conesurvey's")
         journal = read_journal(root, list(m.names), m.tiling.nblocks)
-        return cls(root, m.tiling, m.names, run_id, level, warn, journal)
+        return cls(root, m.tiling, m.names, run_id, level, warn, journal, separator)
 
     def path(self, index: int) -> Path:
         """Where block ``index`` is written (for messages)."""
@@ -213,7 +217,8 @@ class RunStore:
 
     def keys(self, index: int) -> list[str]:
         slab = self.tiling.slices(index)
-        return [k for n in self.names for k in chunk_keys(n, slab, self.tiling.chunk)]
+        chunk = self.tiling.chunk
+        return [k for n in self.names for k in chunk_keys(n, slab, chunk, self.separator)]
 
     def commit(self, index: int, receipt: dict) -> None:
         """Journal the receipt of block ``index`` (its chunks are written and fsynced)."""
@@ -296,6 +301,17 @@ class RunStore:
         """Delete the run's directory: the manifest first (what is left is debris); returns
         the names of a user's files left in it."""
         return remove_store(self.root)
+
+
+def _separator(meta: dict) -> str | None:
+    """The separator of an array's chunk keys ("default" encoding, "/" or "."), None if its
+    metadata names another encoding."""
+    enc = meta.get("chunk_key_encoding", {})
+    if not isinstance(enc, dict) or enc.get("name") != "default":
+        return None
+    conf = enc.get("configuration") or {}
+    sep = conf.get("separator", "/") if isinstance(conf, dict) else None
+    return sep if sep in ("/", ".") else None
 
 
 def parts_state(root: Path) -> dict[str, Any]:

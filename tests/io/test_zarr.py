@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 import shutil
 import subprocess
 import warnings
@@ -132,7 +133,7 @@ def test_the_store_appears_complete_and_nothing_else_is_left(reference, capsys, 
 def test_info_verify_finds_a_changed_chunk(work, reference, capsys):
     store = work / "copy.zarr"
     shutil.copytree(reference / "ref.zarr", store)
-    chunk = store / "period" / "c" / "0" / "0" / "1" / "0"
+    chunk = store / "period" / "c.0.0.1.0"  # chunk (0, 0, 1, 0): keys "default", separator "."
     data = bytearray(chunk.read_bytes())
     data[len(data) // 2] ^= 0x01  # a bit of the compressed values
     chunk.write_bytes(bytes(data))
@@ -196,6 +197,39 @@ def test_killed_run_resumes_verifies_blocks_and_matches(after_kill, reference, c
     assert got[CHECKSUM_ATTR] == ref[CHECKSUM_ATTR]
 
 
+def test_a_run_begun_with_nested_chunk_keys_resumes_in_them(work, reference, capsys, monkeypatch):
+    """A run whose store keeps each chunk in directories of its own (``period/c/0/0/1/0``: the
+    layout before one directory per variable) and was stopped after 3 blocks resumes in that
+    layout: the blocks it computes go beside the stored ones, and the store equals the
+    uninterrupted one."""
+    from engine.io import zarrlayout, zarrstore
+
+    stored = {"n": 0}
+
+    def stop(index: int) -> None:
+        stored["n"] += 1
+        if stored["n"] == 3:
+            raise KeyboardInterrupt  # stands for a kill after 3 stored blocks
+
+    with monkeypatch.context() as old, pytest.raises(KeyboardInterrupt):
+        old.setattr(zarrlayout, "SEPARATOR", "/")
+        old.setattr(zarrstore, "SEPARATOR", "/")
+        run_survey(parse_survey(SURVEY), work / "out.zarr", block_points=int(BLOCK), on_block=stop)
+    parts = work / "out.zarr.parts" / "store.zarr"  # the code of today resumes it
+    meta = json.loads((parts / "period" / "zarr.json").read_text())
+    assert meta["chunk_key_encoding"]["configuration"]["separator"] == "/"
+    status, _, err = cli(capsys, *ARGS)
+    assert status == 0, err
+    store = work / "out.zarr"
+    files = [p.relative_to(store / "period").as_posix() for p in store.glob("period/c/**/*")]
+    files = [f for f in files if (store / "period" / f).is_file()]
+    assert len(files) == NBLOCKS and all(re.fullmatch(r"c(/\d+){4}", f) for f in files), files
+    assert not list(store.glob("period/c.*"))
+    assert_same_dataset(reference / "ref.nc", store)
+    status, out, _ = cli(capsys, "info", "out.zarr", "--verify")
+    assert status == 0 and "complete, verified" in out
+
+
 def test_another_survey_is_refused_and_nothing_changes(after_kill, capsys):
     work = after_kill
     before = {p: p.read_bytes() for p in (work / "out.zarr.parts").rglob("*") if p.is_file()}
@@ -204,6 +238,24 @@ def test_another_survey_is_refused_and_nothing_changes(after_kill, capsys):
     assert status == 2 and "another survey" in err, err
     after = {p: p.read_bytes() for p in (work / "out.zarr.parts").rglob("*") if p.is_file()}
     assert after == before
+
+
+def test_a_store_with_a_foreign_chunk_key_encoding_is_not_resumed(after_kill, capsys):
+    """An unfinished store whose arrays name a chunk key encoding conesurvey does not write
+    ("v2") is refused, saying so, and nothing changes; --overwrite starts again."""
+    work = after_kill
+    for meta in (work / "out.zarr.parts" / "store.zarr").glob("*/zarr.json"):
+        doc = json.loads(meta.read_text())
+        if "chunk_key_encoding" in doc:
+            doc["chunk_key_encoding"] = {"name": "v2", "configuration": {"separator": "."}}
+            meta.write_text(json.dumps(doc))
+    before = {p: p.read_bytes() for p in (work / "out.zarr.parts").rglob("*") if p.is_file()}
+    status, _, err = cli(capsys, *ARGS)
+    assert status == 2 and "chunk key encoding is not conesurvey's" in err, err
+    after = {p: p.read_bytes() for p in (work / "out.zarr.parts").rglob("*") if p.is_file()}
+    assert after == before
+    status, _, err = cli(capsys, *ARGS, "--overwrite")
+    assert status == 0, err
 
 
 def test_an_existing_store_is_kept_without_overwrite(work, reference, capsys):
@@ -249,9 +301,9 @@ def test_a_writer_never_writes_into_another_runs_store(tmp_path, reference):
               for n, dt in run.names.items()}  # fmt: skip
     with pytest.raises(OSError, match="no longer this run's"):
         stale.write(0, tiling.slices(0), values)
-    assert not (root / "store.zarr" / "period" / "c").exists()
+    assert not list((root / "store.zarr" / "period").glob("c*"))
     receipt = run.writer.write(0, tiling.slices(0), values)
-    assert receipt["bytes"] > 0 and (root / "store.zarr" / "period" / "c").is_dir()
+    assert receipt["bytes"] > 0 and (root / "store.zarr" / "period" / "c.0.0.0.0").is_file()
     assert not out.exists()
 
 

@@ -219,7 +219,7 @@ def test_verify_covers_every_arrays_own_metadata(work, capsys, reference, edit):
 
 def test_a_verified_chunk_changed_during_the_rerun_is_caught(work, capsys, reference, partial):
     shutil.copytree(partial, work / "out.zarr.parts")
-    chunk = next(p for p in (work / "out.zarr.parts/store.zarr/period/c").rglob("*") if p.is_file())
+    chunk = next((work / "out.zarr.parts/store.zarr/period").glob("c.*"))
 
     def flip(i: int) -> None:  # after the resume scan, while the missing blocks are computed
         data = bytearray(chunk.read_bytes())
@@ -273,7 +273,7 @@ def _dev_zero(p: Path) -> None:
 @pytest.mark.parametrize("plant", [_fifo, _dev_zero])
 def test_info_never_follows_a_chunk_to_a_fifo_or_a_device(work, reference, plant):
     shutil.copytree(reference, work / "out.zarr")
-    chunk = next(p for p in (work / "out.zarr/orbit_class/c").rglob("*") if p.is_file())
+    chunk = next((work / "out.zarr/orbit_class").glob("c.*"))
     chunk.unlink()
     plant(chunk)
     for args in (("info", "out.zarr"), ("info", "out.zarr", "--verify")):
