@@ -166,9 +166,10 @@ def _open_dirs(root_fd: int, parts: list[str], cache: dict[str, int]) -> int:
 def _put_files(root_fd: int, files: dict[str, bytes]) -> list[tuple[str, int, str]]:
     """Write every file atomically (temporary name, fsync, rename), then fsync the directories
     that changed; returns (key, size, SHA-256) of each. Each file is created, written, fsynced
-    and hashed on one of :data:`IO_THREADS` threads (a file's creation waits ~1 ms for the
-    file system's journal while other files are fsynced: one after another they took most of
-    the writer's time), then the files are renamed in order: none before its fsync."""
+    and hashed on one of :data:`IO_THREADS` threads (making an inode can take ~1 ms: ext4
+    without a journal passes over the inodes deleted in the last minutes; one after another
+    the files took most of the writer's time, docs/output.md "Zarr stores"), then the files
+    are renamed in order: none before its fsync."""
     cache: dict[str, int] = {}
     items = sorted(files.items())
     pending: list[tuple[int, str, str]] = []  # (directory fd, temporary name, name) to rename
