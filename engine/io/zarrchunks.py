@@ -36,9 +36,10 @@ BLOSC = {"cname": "lz4", "clevel": 5, "shuffle": "shuffle"}
 
 #: The separator of the chunk keys of a new store (chunk key encoding "default"): "." keeps a
 #: variable's chunk files in its own directory, ``r_min/c.0.3.2.1``. With "/" (stores made
-#: before 2026-11-27) each chunk file sat in directories of its own, ``r_min/c/0/3/2/1``: three
-#: directories made, opened and fsynced per chunk file, which took the Zarr writer ~60 % of its
-#: time (docs/output.md, "Zarr: one directory per variable"). A resumed store keeps its own.
+#: before 2026-11-27) each chunk file sat in directories of its own, ``r_min/c/0/3/2/1``: up to
+#: three directories made and opened per chunk file, and with the files made one after another
+#: that was ~3/4 of the Zarr writer's time (docs/output.md, "Zarr stores"). A resumed store
+#: keeps its own.
 SEPARATOR = "."
 
 
