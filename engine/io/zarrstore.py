@@ -184,7 +184,8 @@ class RunStore:
             with contextlib.suppress(OSError):
                 remove_store(root)
             raise
-        return cls(root, manifest.tiling, manifest.names, run_id, complevel, warn, {}, SEPARATOR)
+        m = manifest
+        return cls(root, m.tiling, m.names, run_id, complevel, warn, separator=SEPARATOR)
 
     @classmethod
     def open(cls, root: Path, warn: Callable[[str], None] = lambda msg: None) -> RunStore:
@@ -209,7 +210,7 @@ class RunStore:
         if separator is None:
             raise OutputError(f"{store}: its chunk key encoding is not conesurvey's")
         journal = read_journal(root, list(m.names), m.tiling.nblocks)
-        return cls(root, m.tiling, m.names, run_id, level, warn, journal, separator)
+        return cls(root, m.tiling, m.names, run_id, level, warn, journal, separator=separator)
 
     def path(self, index: int) -> Path:
         """Where block ``index`` is written (for messages)."""
