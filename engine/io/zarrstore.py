@@ -204,11 +204,19 @@ class RunStore:
         for name in os.listdir(store):  # every array's metadata, never through a link
             if name != "zarr.json":
                 read_meta(store / name / "zarr.json")
-        first = read_meta(store / next(iter(m.names)) / "zarr.json")
+        metas = {name: read_meta(store / name / "zarr.json") for name in m.names}
+        first = metas[next(iter(m.names))]
         level = 0 if len(first.get("codecs", [])) < 2 else 1
-        separator = _separator(first)
-        if separator is None:
-            raise OutputError(f"{store}: its chunk key encoding is not conesurvey's")
+        separators = {name: _separator(meta) for name, meta in metas.items()}
+        if None in separators.values():
+            name = next(n for n, sep in separators.items() if sep is None)
+            raise OutputError(f"{store}: the chunk key encoding of {name} is not conesurvey's")
+        if len(set(separators.values())) > 1:  # one separator per run: keys() assumes it
+            raise OutputError(
+                f"{store}: its arrays do not share one chunk key separator "
+                f"({', '.join(f'{n} {s!r}' for n, s in separators.items())})"
+            )
+        separator = separators[next(iter(m.names))]
         journal = read_journal(root, list(m.names), m.tiling.nblocks)
         return cls(root, m.tiling, m.names, run_id, level, warn, journal, separator=separator)
 

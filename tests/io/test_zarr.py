@@ -251,11 +251,31 @@ def test_a_store_with_a_foreign_chunk_key_encoding_is_not_resumed(after_kill, ca
             meta.write_text(json.dumps(doc))
     before = {p: p.read_bytes() for p in (work / "out.zarr.parts").rglob("*") if p.is_file()}
     status, _, err = cli(capsys, *ARGS)
-    assert status == 2 and "chunk key encoding is not conesurvey's" in err, err
+    assert status == 2 and "chunk key encoding of" in err and "is not conesurvey's" in err, err
     after = {p: p.read_bytes() for p in (work / "out.zarr.parts").rglob("*") if p.is_file()}
     assert after == before
     status, _, err = cli(capsys, *ARGS, "--overwrite")
     assert status == 0, err
+
+
+def test_a_store_whose_arrays_disagree_on_the_chunk_key_separator_is_not_resumed(
+    after_kill, capsys
+):
+    """One data variable of an unfinished store edited to nested keys ("/") while the others
+    keep "." is refused (a resume would write and look for that variable's chunks where they
+    are not), saying which arrays disagree, and nothing changes."""
+    work = after_kill
+    meta = work / "out.zarr.parts" / "store.zarr" / "period" / "zarr.json"
+    doc = json.loads(meta.read_text())
+    assert doc["chunk_key_encoding"]["configuration"]["separator"] == "."
+    doc["chunk_key_encoding"]["configuration"]["separator"] = "/"
+    meta.write_text(json.dumps(doc))
+    before = {p: p.read_bytes() for p in (work / "out.zarr.parts").rglob("*") if p.is_file()}
+    status, _, err = cli(capsys, *ARGS)
+    assert status == 2 and "do not share one chunk key separator" in err, err
+    assert "period '/'" in err and "r_min '.'" in err, err
+    after = {p: p.read_bytes() for p in (work / "out.zarr.parts").rglob("*") if p.is_file()}
+    assert after == before
 
 
 def test_an_existing_store_is_kept_without_overwrite(work, reference, capsys):
