@@ -47,7 +47,8 @@ class Summary:
 
     @property
     def ranges(self) -> dict[str, tuple[float, float, str]]:
-        """(min, max, units) of each float variable over its finite values."""
-        return {
-            n: (lo, self._hi[n], variable_attrs(n).get("units", "")) for n, lo in self._lo.items()
-        }
+        """(min, max, units) of each float variable over its finite values, in the order of
+        :data:`engine.schema.RESULTS` (the same for a netCDF and a Zarr run)."""
+        order = {name: i for i, name in enumerate(RESULTS)}  # the schema's, in every format
+        names = sorted(self._lo, key=lambda n: order.get(n, len(order)))
+        return {n: (self._lo[n], self._hi[n], variable_attrs(n).get("units", "")) for n in names}

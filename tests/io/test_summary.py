@@ -24,3 +24,15 @@ def test_ranges_skip_nan_and_infinities_and_all_nan_variables():
     assert ranges["r_max"][:2] == (-1.0, 3.0)
     assert "period" not in ranges
     assert ranges["apsidal_angle"][:2] == (1.5, 2.5)
+
+
+def test_ranges_come_in_the_order_of_the_schema_whatever_order_the_blocks_bring():
+    """A Zarr run hands its blocks' variables over in another order than a netCDF run (the
+    variables on fewer dims first); the summary lists them in one order either way."""
+    names = ["V_min", "r_circ", "mu_required", "r_min", "period", "r_max"]
+    orders = []
+    for order in (names, names[::-1]):
+        s = Summary()
+        s.add({n: np.array([1.0, 2.0]) for n in order})
+        orders.append(list(s.ranges))
+    assert orders[0] == orders[1] == ["r_min", "r_max", "r_circ", "period", "mu_required", "V_min"]
