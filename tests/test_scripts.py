@@ -24,7 +24,7 @@ TINY = {
     "bench_fates.py": ([], "2-thread speedup of the fate map"),
     "bench_integrators.py": ([], "heyoka"),
     "bench_slide.py": ([], "2-thread speedup"),
-    "bench_storage.py": ([], "bytes written per second / disk"),
+    "bench_storage.py": ([], "Zarr / netCDF wall time, same round"),
     "bytes_per_variable.py": ([], "bytes/point"),
     "energy_drift.py": (["--out", "{tmp}/drift.png"], "wrote"),
     "fate_figures.py": (["--out", "{tmp}"], ""),

@@ -37,6 +37,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
+from .directio import DirectWriter
+
 __all__ = [
     "NOT_SUPPORTED",
     "NotRegularFile",
@@ -125,10 +127,12 @@ def fsync_path(path: Path) -> None:
 
 
 @contextlib.contextmanager
-def flushing(path: Path, every: float = FLUSH_SECONDS) -> Iterator[None]:
+def flushing(path: Path, every: float = FLUSH_SECONDS, *, drop: bool = False) -> Iterator[None]:
     """While inside, the file ``path`` (being written by someone else) is flushed to the disk
     every ``every`` seconds on a thread of its own, so that the final :func:`fsync_path`
-    finds little left to write and the disk works while the data is computed. Best effort:
+    finds little left to write and the disk works while the data is computed. With ``drop``,
+    the pages each flush wrote are then given back to the kernel (:func:`_drop_cached`): a
+    file written once keeps a few seconds of itself in the cache, not all of it. Best effort:
     an error of these flushes is ignored (the final fsync is the one that counts)."""
     try:
         fd = os.open(path, os.O_RDONLY | O_NOFOLLOW | O_CLOEXEC)
@@ -143,6 +147,8 @@ def flushing(path: Path, every: float = FLUSH_SECONDS) -> Iterator[None]:
                 sync(fd)
             except OSError:
                 return
+            if drop:
+                _drop_cached(fd)
 
     thread = threading.Thread(target=flush, name="conesurvey-flush", daemon=True)
     thread.start()
@@ -269,14 +275,23 @@ def write_unsynced(
     mode: int = 0o666,
     overwrite: bool = True,
     sequential: bool = False,
+    direct: bool = False,
 ) -> Written:
     """The first half of :func:`write_atomic`: ``path``'s bytes written and hashed under a new
     temporary name, not yet durable nor in place; :meth:`Written.finish` does the rest (the
-    descriptor stays open until then). On any error the temporary file is removed."""
+    descriptor stays open until then). On any error the temporary file is removed. With
+    ``direct`` (and ``sequential``), written past the page cache where the file system takes
+    it (:class:`engine.io.directio.DirectWriter`): for a file that is not read back soon."""
     if overwrite:
         refuse_special(path)
     fd, tmp = create_new(path.parent, path.name, mode)
     try:
+        if direct and sequential:
+            sink = DirectWriter(fd)
+            hashed = _Hashed(sink)  # type: ignore[arg-type]
+            write(hashed)  # type: ignore[arg-type]
+            sink.close()
+            return Written(fd, tmp, path, hashed.size, hashed.sha.hexdigest(), overwrite)
         with os.fdopen(fd, "w+b", closefd=False) as f:
             hashed = _Hashed(f)
             write(hashed if sequential else f)  # type: ignore[arg-type]

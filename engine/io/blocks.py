@@ -196,10 +196,13 @@ class BlockStore:
         path, sequential = self.path(index), bool(codec)
         if self._behind is not None:  # written, made durable and journaled on its thread
             self._behind.submit(
-                index, lambda: write_unsynced(path, fill, mode=0o600, sequential=sequential)
+                index,
+                lambda: write_unsynced(
+                    path, fill, mode=0o600, sequential=sequential, direct=sequential
+                ),
             )
             return block
-        written = write_unsynced(path, fill, mode=0o600, sequential=sequential)
+        written = write_unsynced(path, fill, mode=0o600, sequential=sequential, direct=sequential)
         written.finish()
         self._journaled(index, written.size, written.digest)
         return block

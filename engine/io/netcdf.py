@@ -213,7 +213,7 @@ def merge(
         try:
             with replacing(out, overwrite=overwrite, tmp_dir=store.root) as tmp:
                 try:
-                    with flushing(tmp):  # the disk writes while the blocks are computed
+                    with flushing(tmp, drop=True):  # the disk writes while blocks are computed
                         summary = _write_file(
                             tmp, store, plan, attrs, codecs, families, pending, blocks,
                             warn or _warn,

@@ -1,0 +1,136 @@
+"""DirectWriter: the bytes of a file written past the page cache are exactly those given, in
+whatever pieces; its whole pages go with O_DIRECT where the file system takes it (the
+descriptor's flags say so), the rest through the cache; a refusal at any point falls back to
+the cache from where it stands, and any other error is raised."""
+
+from __future__ import annotations
+
+import errno
+import fcntl
+import os
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from engine.io import directio
+from engine.io.atomic import write_unsynced
+from engine.io.directio import ALIGN, STAGE, DirectWriter
+
+#: Sizes around the edges that matter: a page, the staging buffer.
+EDGES = [0, 1, ALIGN - 1, ALIGN, ALIGN + 1, STAGE - 1, STAGE, STAGE + 1]
+
+
+def _takes_direct(directory) -> bool:
+    """Whether the file system of ``directory`` opens files with O_DIRECT (tmpfs may not)."""
+    path = directory / "probe"
+    if directio.O_DIRECT == 0:  # not Linux
+        return False
+    try:
+        os.close(os.open(path, os.O_WRONLY | os.O_CREAT | directio.O_DIRECT, 0o600))
+    except OSError:
+        return False
+    finally:
+        path.unlink(missing_ok=True)
+    return True
+
+
+def _write(path, pieces: list[bytes]) -> DirectWriter:
+    fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_TRUNC, 0o600)
+    try:
+        w = DirectWriter(fd)
+        if w.direct:  # the kernel's flags, not ours
+            assert fcntl.fcntl(fd, fcntl.F_GETFL) & directio.O_DIRECT
+        for piece in pieces:
+            assert w.write(piece) == len(piece)
+        w.close()
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+    return w
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.one_of(st.sampled_from(EDGES), st.integers(0, 3 * ALIGN)), max_size=12))
+def test_the_file_holds_exactly_what_was_written(tmp_path_factory, sizes):
+    where = tmp_path_factory.mktemp("direct")
+    pieces = [os.urandom(n) for n in sizes]
+    w = _write(where / "f", pieces)
+    data = b"".join(pieces)
+    assert (where / "f").read_bytes() == data
+    whole = len(data) - len(data) % ALIGN
+    assert w.direct_bytes == (whole if _takes_direct(where) else 0)
+
+
+def test_a_file_system_that_refuses_o_direct_gets_the_same_bytes(tmp_path, monkeypatch):
+    real = fcntl.fcntl
+
+    def refuse(fd, cmd, arg=0):
+        if cmd == fcntl.F_SETFL and arg & directio.O_DIRECT:
+            raise OSError(errno.EINVAL, "Invalid argument")
+        return real(fd, cmd, arg)
+
+    monkeypatch.setattr(directio.fcntl, "fcntl", refuse)
+    pieces = [os.urandom(n) for n in (STAGE + 5, 3, ALIGN)]
+    w = _write(tmp_path / "f", pieces)
+    assert not w.direct and w.direct_bytes == 0
+    assert (tmp_path / "f").read_bytes() == b"".join(pieces)
+
+
+def test_a_direct_write_refused_midway_goes_on_through_the_cache(tmp_path, monkeypatch):
+    """The second direct write refused (as a disk with larger blocks would): that write and
+    the rest go through the cache, the file is whole. O_DIRECT is only pretended here (its
+    flag not set), so that this runs on any file system."""
+    real, calls = os.pwrite, []
+
+    def second_refused(fd, data, offset):
+        calls.append(offset)
+        if len(calls) == 2:
+            raise OSError(errno.EINVAL, "Invalid argument")
+        return real(fd, data, offset)
+
+    monkeypatch.setattr(DirectWriter, "_set_direct", lambda self, on: on)
+    monkeypatch.setattr(directio.os, "pwrite", second_refused)
+    pieces = [os.urandom(STAGE), os.urandom(STAGE + 7)]
+    fd = os.open(tmp_path / "f", os.O_RDWR | os.O_CREAT, 0o600)
+    try:
+        w = DirectWriter(fd)
+        for piece in pieces:
+            w.write(piece)
+        w.close()
+    finally:
+        os.close(fd)
+    assert w.direct_bytes == STAGE and not w.direct
+    assert calls == [0, STAGE, STAGE, 2 * STAGE]  # the refused write again, then the tail
+    assert (tmp_path / "f").read_bytes() == b"".join(pieces)
+
+
+def test_a_full_disk_is_raised_not_fallen_back_from(tmp_path, monkeypatch):
+    def full(fd, data, offset):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(directio.os, "pwrite", full)
+    fd = os.open(tmp_path / "f", os.O_RDWR | os.O_CREAT, 0o600)
+    try:
+        w = DirectWriter(fd)
+        with pytest.raises(OSError) as info:
+            w.write(os.urandom(STAGE))
+        assert info.value.errno == errno.ENOSPC
+    finally:
+        os.close(fd)
+
+
+def test_write_unsynced_direct_has_the_size_and_digest_of_a_cached_write(tmp_path):
+    pieces = [b"header", os.urandom(STAGE + 123), os.urandom(ALIGN)]
+
+    def fill(f):
+        for piece in pieces:
+            f.write(piece)
+
+    got = {}
+    for direct in (False, True):
+        written = write_unsynced(tmp_path / f"{direct}.bin", fill, sequential=True, direct=direct)
+        written.finish()
+        got[direct] = (written.size, written.digest, (tmp_path / f"{direct}.bin").read_bytes())
+    assert got[True] == got[False]
+    assert got[True][2] == b"".join(pieces)
