@@ -2,6 +2,7 @@
 
 Usage: python scripts/bench_storage.py [SURVEY.toml] [--alpha A] [--dir DIR] [--zarr]
                                        [--rounds R] [--workers N [N ...]]
+       python scripts/bench_storage.py --page-cache [--rounds R] [--dir DIR]
        python scripts/bench_storage.py --tiny   (a 10,240-point survey, seconds)
 
 Default survey: ``surveys/large_1e8.toml``; ``--alpha 0.8`` runs its 10^7-point slice (the
@@ -16,6 +17,10 @@ alpha axis replaced by that one value). In one process, one after the other:
    ``/proc/self/io``), the output's size, points/s;
 3. **the disk**: a plain write of as many bytes (at most 2 GiB) in 64 MiB pieces, fsynced,
    with ``O_DIRECT`` where the file system takes it: MB/s, what the disk here takes.
+
+``--page-cache`` times only the three ways of writing 2 GiB (through the page cache, through it
+and given back as written, past it), ``--rounds`` times interleaved (docs/output.md, "The page
+cache").
 
 Then the ratios that make the goals reproducible on any machine: each run's points/s over the
 compute's (1.0: writing costs the run nothing), its CPU over the compute's, the bytes it
@@ -155,6 +160,50 @@ def disk(where: Path, nbytes: int) -> float:
         path.unlink()
 
 
+def _free_mb() -> float:
+    """MemFree [MB] (Linux), NaN elsewhere."""
+    try:
+        text = Path("/proc/meminfo").read_text()
+    except OSError:
+        return float("nan")
+    m = re.search(r"^MemFree:\s+(\d+) kB$", text, re.M)
+    return int(m.group(1)) / 1e3 if m else float("nan")
+
+
+def page_cache(where: Path, rounds: int, nbytes: int = 2 << 30) -> None:
+    """Print, for each way of writing ``nbytes`` in 64 MiB pieces (fsynced at the end), its
+    wall time, the system time and GB/s, ``rounds`` times interleaved: through the page cache;
+    through it, given back every 256 MiB (``fdatasync`` + ``POSIX_FADV_DONTNEED``, as a netCDF
+    run's output); past it (``O_DIRECT``, as the block files). The free memory before each says
+    what the cache could take (docs/output.md, "The page cache")."""
+    from engine.io.directio import DirectWriter
+
+    piece = os.urandom(1 << 20) * 64
+    for r in range(rounds):
+        for how in ("cache", "given back", "O_DIRECT"):
+            path = where / f"bench_storage_{r}_{how[0]}.tmp"
+            free, t0, s0 = _free_mb(), time.perf_counter(), resource.getrusage(0).ru_stime
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+            try:
+                sink = DirectWriter(fd) if how == "O_DIRECT" else None
+                for i in range(nbytes // len(piece)):
+                    sink.write(piece) if sink else os.write(fd, piece)
+                    if how == "given back" and i % 4 == 3:
+                        os.fdatasync(fd)
+                        os.posix_fadvise(fd, 0, 0, os.POSIX_FADV_DONTNEED)
+                if sink:
+                    sink.close()
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+            wall, sys_s = time.perf_counter() - t0, resource.getrusage(0).ru_stime - s0
+            print(f"write {nbytes / 1e9:.2f} GB, {how:>10}: {wall:.2f} s wall, {sys_s:.2f} s "
+                  f"system, {nbytes / 1e9 / wall:.2f} GB/s (free memory before: "
+                  f"{free:,.0f} MB)")  # fmt: skip
+    for path in where.glob("bench_storage_*.tmp"):  # kept until all are done, as the runs
+        path.unlink()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("survey", nargs="?", type=Path, default=ROOT / "surveys" / "large_1e8.toml")
@@ -164,6 +213,9 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=1, help="runs of each format (interleaved)")
     ap.add_argument("--workers", type=int, nargs="*", default=[], help="dask LocalCluster sizes")
     ap.add_argument("--tiny", action="store_true", help="a 10,240-point survey (a smoke test)")
+    ap.add_argument("--page-cache", action="store_true",
+                    help="only time 2 GiB written through, given back from and past the page "
+                         "cache, --rounds times")  # fmt: skip
     args = ap.parse_args()
     if args.rounds < 1:
         ap.error(f"--rounds must be at least 1, not {args.rounds}")
@@ -175,6 +227,13 @@ def main() -> None:
     survey = parse_survey(text)
     where = Path(tempfile.mkdtemp(prefix="bench_storage_", dir=args.dir))
     print(f"load average before: {load()}; {os.cpu_count()} cores; writing in {where}")
+    if args.page_cache:
+        try:
+            page_cache(where, args.rounds, (64 << 20) if args.tiny else (2 << 30))
+        finally:
+            shutil.rmtree(where, ignore_errors=True)
+        print(f"load average after: {load()}")
+        return
     try:
         wall, cpu, points = compute_alone(survey)
         rate = points / wall

@@ -4,6 +4,7 @@ functions. heyoka and Chromium may be absent: the scripts then say so and run th
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -92,3 +93,21 @@ def test_the_benchmarks_timing_loop_interleaves_and_keeps_the_best():
     seconds, results = first_calls({"x": lambda: 42})
     assert results == {"x": 42} and seconds["x"] >= 0.0
     assert (verdict(2.0, 2.0), verdict(1.9, 2.0)) == ("met", "MISSED")
+
+
+def test_bench_storage_times_the_three_ways_through_the_page_cache(tmp_path):
+    """``bench_storage.py --page-cache``: the rows docs/output.md ("The page cache") quotes,
+    each once in --tiny (64 MiB), the files it wrote removed."""
+    args = ["--page-cache", "--tiny", "--dir", str(tmp_path)]
+    res = subprocess.run(
+        [sys.executable, str(SCRIPTS / "bench_storage.py"), *args],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-3000:]
+    for how in ("cache", "given back", "O_DIRECT"):
+        assert re.search(rf"{how}: [\d.]+ s wall, [\d.]+ s system, [\d.]+ GB/s", res.stdout), (
+            res.stdout
+        )
+    assert not list(tmp_path.rglob("*.tmp")), "a timed file was left behind"
