@@ -141,7 +141,7 @@ def disk(where: Path, nbytes: int) -> float:
     """MB/s of a plain write of ``nbytes`` (64 MiB pieces, fsynced) into a file in ``where``,
     past the page cache where the file system takes it (``O_DIRECT``, as the block files are
     written: what the disk takes, not what filling the cache costs)."""
-    from engine.io.directio import DirectWriter
+    from engine.io.pagecache import DirectWriter
 
     piece = os.urandom(1 << 20) * 64
     todo = max(len(piece), nbytes)
@@ -176,7 +176,7 @@ def page_cache(where: Path, rounds: int, nbytes: int = 2 << 30) -> None:
     through it, given back every 256 MiB (``fdatasync`` + ``POSIX_FADV_DONTNEED``, as a netCDF
     run's output); past it (``O_DIRECT``, as the block files). The free memory before each says
     what the cache could take (docs/output.md, "The page cache")."""
-    from engine.io.directio import DirectWriter
+    from engine.io.pagecache import DirectWriter
 
     piece = os.urandom(1 << 20) * 64
     for r in range(rounds):

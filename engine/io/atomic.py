@@ -31,20 +31,18 @@ import hashlib
 import os
 import secrets
 import stat
-import threading
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
-from .directio import DirectWriter
+from .pagecache import DirectWriter, drop_cached
 
 __all__ = [
     "NOT_SUPPORTED",
     "NotRegularFile",
     "create_new",
     "fsync_path",
-    "flushing",
     "fsync_dir",
     "exists_error",
     "not_regular",
@@ -69,8 +67,6 @@ O_CLOEXEC = getattr(os, "O_CLOEXEC", 0)
 O_NONBLOCK = getattr(os, "O_NONBLOCK", 0)
 #: Flags of a file created by this package: new, never through a link.
 NEW_FILE = os.O_RDWR | os.O_CREAT | os.O_EXCL | O_NOFOLLOW | O_CLOEXEC | getattr(os, "O_BINARY", 0)
-#: How often a file being written is flushed to the disk meanwhile (:func:`flushing`) [s].
-FLUSH_SECONDS = 1.0
 #: Suffix of every temporary file (a killed run may leave some; they are never reused).
 TMP_SUFFIX = ".tmp"
 
@@ -123,40 +119,6 @@ def fsync_path(path: Path) -> None:
     try:
         os.fsync(fd)
     finally:
-        os.close(fd)
-
-
-@contextlib.contextmanager
-def flushing(path: Path, every: float = FLUSH_SECONDS, *, drop: bool = False) -> Iterator[None]:
-    """While inside, the file ``path`` (being written by someone else) is flushed to the disk
-    every ``every`` seconds on a thread of its own, so that the final :func:`fsync_path`
-    finds little left to write and the disk works while the data is computed. With ``drop``,
-    the pages each flush wrote are then given back to the kernel (:func:`_drop_cached`): a
-    file written once keeps a few seconds of itself in the cache, not all of it. Best effort:
-    an error of these flushes is ignored (the final fsync is the one that counts)."""
-    try:
-        fd = os.open(path, os.O_RDONLY | O_NOFOLLOW | O_CLOEXEC)
-    except OSError:
-        yield
-        return
-    stop, sync = threading.Event(), getattr(os, "fdatasync", os.fsync)
-
-    def flush() -> None:
-        while not stop.wait(every):
-            try:
-                sync(fd)
-            except OSError:
-                return
-            if drop:
-                _drop_cached(fd)
-
-    thread = threading.Thread(target=flush, name="conesurvey-flush", daemon=True)
-    thread.start()
-    try:
-        yield
-    finally:
-        stop.set()
-        thread.join()
         os.close(fd)
 
 
@@ -281,7 +243,7 @@ def write_unsynced(
     temporary name, not yet durable nor in place; :meth:`Written.finish` does the rest (the
     descriptor stays open until then). On any error the temporary file is removed. With
     ``direct`` (and ``sequential``), written past the page cache where the file system takes
-    it (:class:`engine.io.directio.DirectWriter`): for a file that is not read back soon."""
+    it (:class:`engine.io.pagecache.DirectWriter`): for a file that is not read back soon."""
     if overwrite:
         refuse_special(path)
     fd, tmp = create_new(path.parent, path.name, mode)
@@ -328,7 +290,7 @@ class Written:
         try:
             try:
                 os.fsync(self.fd)
-                _drop_cached(self.fd)
+                drop_cached(self.fd)
             finally:
                 os.close(self.fd)
                 self.fd = -1
@@ -337,16 +299,6 @@ class Written:
             with contextlib.suppress(OSError):
                 self.tmp.unlink(missing_ok=True)
             raise
-
-
-def _drop_cached(fd: int) -> None:
-    """Let the kernel drop the fsynced file's pages from its cache: what is written this way
-    (a run's block files above all) is rarely read again soon (less page reclaim, and a
-    faster delete at the end of a run)."""
-    advise = getattr(os, "posix_fadvise", None)
-    if advise is not None:
-        with contextlib.suppress(OSError):
-            advise(fd, 0, 0, os.POSIX_FADV_DONTNEED)
 
 
 class _Hashed:

@@ -39,7 +39,7 @@ import numpy as np
 from ..grid import storage_chunks
 from ..schema import FINGERPRINT_ATTR, axis_attrs, variable_attrs, variable_dims
 from . import WriteError, deflate
-from .atomic import flushing, fsync_path, replacing
+from .atomic import fsync_path, replacing
 from .blocks import BlockStore
 from .cf import CONVENTIONS, cf_attrs, cf_dataset, history_line, typed_flags
 from .codecs import (
@@ -52,10 +52,10 @@ from .codecs import (
     variable_keywords,
 )
 from .contents import CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher
-from .deflate import DirectChunks
 from .feed import feed
 from .manifest import survey_families
 from .netcdf_info import read_fingerprint, read_info
+from .pagecache import flushing
 from .space import free_bytes, output_bytes
 from .summary import Summary
 
@@ -300,7 +300,7 @@ def _direct(nc: Any, tmp: Path, store: BlockStore, warn: Callable[[str], None]) 
     cannot open the file or finds the filters other than defined."""
     nc.close()
     try:
-        return DirectChunks(tmp, store.names)
+        return deflate.DirectChunks(tmp, store.names)
     except (OSError, ValueError) as exc:
         warn(f"zlib is compressed by netCDF4 on one thread, slower: h5py cannot write ({exc})")
         return None
@@ -366,7 +366,7 @@ def _fill(
     hasher: ContentHasher,
     pending: Collection[int],
     incoming: Iterable[tuple[int, dict[str, np.ndarray]]],
-    direct: DirectChunks | None = None,
+    direct: deflate.DirectChunks | None = None,
 ) -> Summary:
     """Write every block on a writer thread while ``incoming`` computes the ``pending`` ones
     (:func:`engine.io.feed.feed`): a block whose file holds the chunks this file stores

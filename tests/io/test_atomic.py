@@ -2,13 +2,10 @@
 
 from __future__ import annotations
 
-import ctypes
 import errno
 import hashlib
-import mmap
 import os
 import re
-import time
 
 import pytest
 
@@ -205,66 +202,3 @@ def test_a_failed_finish_leaves_no_tmp(tmp_path, monkeypatch):
     with pytest.raises(OSError, match="No space"):
         written.finish()
     assert listing(tmp_path) == []
-
-
-def test_flushing_flushes_the_file_while_it_is_written(tmp_path, monkeypatch):
-    path = tmp_path / "out.nc.tmp"
-    path.write_bytes(b"")
-    flushed: list[int] = []
-    monkeypatch.setattr(atomic.os, "fdatasync", lambda fd: flushed.append(os.fstat(fd).st_ino))
-    with atomic.flushing(path, every=0.01):
-        with open(path, "ab") as f:
-            f.write(b"x" * 1000)
-        time.sleep(0.3)
-    n = len(flushed)
-    assert n >= 2 and set(flushed) == {path.stat().st_ino}
-    time.sleep(0.05)
-    assert len(flushed) == n  # stopped with the context
-
-
-def test_flushing_ignores_a_failed_flush(tmp_path, monkeypatch):
-    path = tmp_path / "out.nc.tmp"
-    path.write_bytes(b"")
-
-    def fails(fd):
-        raise OSError(errno.EIO, "I/O error")
-
-    monkeypatch.setattr(atomic.os, "fdatasync", fails)
-    with atomic.flushing(path, every=0.01):
-        time.sleep(0.05)  # the final fsync of the file is the one that reports errors
-
-
-def _resident_share(path) -> float:
-    """The share of ``path``'s pages in the page cache now (Linux ``mincore`` on a mapping of
-    the file, which reads nothing)."""
-    libc = ctypes.CDLL(None, use_errno=True)
-    libc.mmap.restype = ctypes.c_void_p
-    libc.mmap.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int, ctypes.c_int,
-                          ctypes.c_int, ctypes.c_long]  # fmt: skip
-    size = path.stat().st_size
-    pages = -(-size // mmap.PAGESIZE)
-    vec = (ctypes.c_ubyte * pages)()
-    with open(path, "rb") as f:
-        addr = libc.mmap(None, size, mmap.PROT_READ, mmap.MAP_SHARED, f.fileno(), 0)
-        assert addr not in (None, ctypes.c_void_p(-1).value), ctypes.get_errno()
-        try:
-            ok = libc.mincore(ctypes.c_void_p(addr), ctypes.c_size_t(size), vec)
-            assert ok == 0, ctypes.get_errno()
-        finally:
-            libc.munmap(ctypes.c_void_p(addr), ctypes.c_size_t(size))
-    return sum(v & 1 for v in vec) / pages
-
-
-@pytest.mark.parametrize("drop", [False, True])
-def test_flushing_with_drop_gives_the_flushed_pages_back(tmp_path, drop):
-    """A file written once (the netCDF output) keeps only its last second or so in the cache
-    when flushed with ``drop``; without it, all of it stays (the check that the measure sees
-    pages at all)."""
-    path = tmp_path / "out.nc.tmp"
-    path.write_bytes(b"")
-    with atomic.flushing(path, every=0.01, drop=drop):
-        with open(path, "ab") as f:
-            f.write(os.urandom(8 << 20))
-        time.sleep(0.3)
-        share = _resident_share(path)
-    assert share < 0.05 if drop else share > 0.95

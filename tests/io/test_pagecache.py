@@ -1,21 +1,25 @@
-"""DirectWriter: the bytes of a file written past the page cache are exactly those given, in
-whatever pieces; its whole pages go with O_DIRECT where the file system takes it (the
+"""The page cache. DirectWriter: the bytes of a file written past the cache are exactly those
+given, in whatever pieces; its whole pages go with O_DIRECT where the file system takes it (the
 descriptor's flags say so), the rest through the cache; a refusal at any point falls back to
-the cache from where it stands, and any other error is raised."""
+the cache from where it stands, and any other error is raised. flushing: a file being written is
+flushed every so often, and with ``drop`` its flushed pages leave the cache (``mincore``)."""
 
 from __future__ import annotations
 
+import ctypes
 import errno
 import fcntl
+import mmap
 import os
+import time
 
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from engine.io import directio
+from engine.io import pagecache
 from engine.io.atomic import write_unsynced
-from engine.io.directio import ALIGN, STAGE, DirectWriter
+from engine.io.pagecache import ALIGN, STAGE, DirectWriter
 
 #: Sizes around the edges that matter: a page, the staging buffer.
 EDGES = [0, 1, ALIGN - 1, ALIGN, ALIGN + 1, STAGE - 1, STAGE, STAGE + 1]
@@ -24,10 +28,10 @@ EDGES = [0, 1, ALIGN - 1, ALIGN, ALIGN + 1, STAGE - 1, STAGE, STAGE + 1]
 def _takes_direct(directory) -> bool:
     """Whether the file system of ``directory`` opens files with O_DIRECT (tmpfs may not)."""
     path = directory / "probe"
-    if directio.O_DIRECT == 0:  # not Linux
+    if pagecache.O_DIRECT == 0:  # not Linux
         return False
     try:
-        os.close(os.open(path, os.O_WRONLY | os.O_CREAT | directio.O_DIRECT, 0o600))
+        os.close(os.open(path, os.O_WRONLY | os.O_CREAT | pagecache.O_DIRECT, 0o600))
     except OSError:
         return False
     finally:
@@ -40,7 +44,7 @@ def _write(path, pieces: list[bytes]) -> DirectWriter:
     try:
         w = DirectWriter(fd)
         if w.direct:  # the kernel's flags, not ours
-            assert fcntl.fcntl(fd, fcntl.F_GETFL) & directio.O_DIRECT
+            assert fcntl.fcntl(fd, fcntl.F_GETFL) & pagecache.O_DIRECT
         for piece in pieces:
             assert w.write(piece) == len(piece)
         w.close()
@@ -66,11 +70,11 @@ def test_a_file_system_that_refuses_o_direct_gets_the_same_bytes(tmp_path, monke
     real = fcntl.fcntl
 
     def refuse(fd, cmd, arg=0):
-        if cmd == fcntl.F_SETFL and arg & directio.O_DIRECT:
+        if cmd == fcntl.F_SETFL and arg & pagecache.O_DIRECT:
             raise OSError(errno.EINVAL, "Invalid argument")
         return real(fd, cmd, arg)
 
-    monkeypatch.setattr(directio.fcntl, "fcntl", refuse)
+    monkeypatch.setattr(pagecache.fcntl, "fcntl", refuse)
     pieces = [os.urandom(n) for n in (STAGE + 5, 3, ALIGN)]
     w = _write(tmp_path / "f", pieces)
     assert not w.direct and w.direct_bytes == 0
@@ -90,7 +94,7 @@ def test_a_direct_write_refused_midway_goes_on_through_the_cache(tmp_path, monke
         return real(fd, data, offset)
 
     monkeypatch.setattr(DirectWriter, "_set_direct", lambda self, on: on)
-    monkeypatch.setattr(directio.os, "pwrite", second_refused)
+    monkeypatch.setattr(pagecache.os, "pwrite", second_refused)
     pieces = [os.urandom(STAGE), os.urandom(STAGE + 7)]
     fd = os.open(tmp_path / "f", os.O_RDWR | os.O_CREAT, 0o600)
     try:
@@ -109,7 +113,7 @@ def test_a_full_disk_is_raised_not_fallen_back_from(tmp_path, monkeypatch):
     def full(fd, data, offset):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
-    monkeypatch.setattr(directio.os, "pwrite", full)
+    monkeypatch.setattr(pagecache.os, "pwrite", full)
     fd = os.open(tmp_path / "f", os.O_RDWR | os.O_CREAT, 0o600)
     try:
         w = DirectWriter(fd)
@@ -134,3 +138,66 @@ def test_write_unsynced_direct_has_the_size_and_digest_of_a_cached_write(tmp_pat
         got[direct] = (written.size, written.digest, (tmp_path / f"{direct}.bin").read_bytes())
     assert got[True] == got[False]
     assert got[True][2] == b"".join(pieces)
+
+
+def test_flushing_flushes_the_file_while_it_is_written(tmp_path, monkeypatch):
+    path = tmp_path / "out.nc.tmp"
+    path.write_bytes(b"")
+    flushed: list[int] = []
+    monkeypatch.setattr(pagecache.os, "fdatasync", lambda fd: flushed.append(os.fstat(fd).st_ino))
+    with pagecache.flushing(path, every=0.01):
+        with open(path, "ab") as f:
+            f.write(b"x" * 1000)
+        time.sleep(0.3)
+    n = len(flushed)
+    assert n >= 2 and set(flushed) == {path.stat().st_ino}
+    time.sleep(0.05)
+    assert len(flushed) == n  # stopped with the context
+
+
+def test_flushing_ignores_a_failed_flush(tmp_path, monkeypatch):
+    path = tmp_path / "out.nc.tmp"
+    path.write_bytes(b"")
+
+    def fails(fd):
+        raise OSError(errno.EIO, "I/O error")
+
+    monkeypatch.setattr(pagecache.os, "fdatasync", fails)
+    with pagecache.flushing(path, every=0.01):
+        time.sleep(0.05)  # the final fsync of the file is the one that reports errors
+
+
+def _resident_share(path) -> float:
+    """The share of ``path``'s pages in the page cache now (Linux ``mincore`` on a mapping of
+    the file, which reads nothing)."""
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.mmap.restype = ctypes.c_void_p
+    libc.mmap.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int, ctypes.c_int,
+                          ctypes.c_int, ctypes.c_long]  # fmt: skip
+    size = path.stat().st_size
+    pages = -(-size // mmap.PAGESIZE)
+    vec = (ctypes.c_ubyte * pages)()
+    with open(path, "rb") as f:
+        addr = libc.mmap(None, size, mmap.PROT_READ, mmap.MAP_SHARED, f.fileno(), 0)
+        assert addr not in (None, ctypes.c_void_p(-1).value), ctypes.get_errno()
+        try:
+            ok = libc.mincore(ctypes.c_void_p(addr), ctypes.c_size_t(size), vec)
+            assert ok == 0, ctypes.get_errno()
+        finally:
+            libc.munmap(ctypes.c_void_p(addr), ctypes.c_size_t(size))
+    return sum(v & 1 for v in vec) / pages
+
+
+@pytest.mark.parametrize("drop", [False, True])
+def test_flushing_with_drop_gives_the_flushed_pages_back(tmp_path, drop):
+    """A file written once (the netCDF output) keeps only its last second or so in the cache
+    when flushed with ``drop``; without it, all of it stays (the check that the measure sees
+    pages at all)."""
+    path = tmp_path / "out.nc.tmp"
+    path.write_bytes(b"")
+    with pagecache.flushing(path, every=0.01, drop=drop):
+        with open(path, "ab") as f:
+            f.write(os.urandom(8 << 20))
+        time.sleep(0.3)
+        share = _resident_share(path)
+    assert share < 0.05 if drop else share > 0.95

@@ -1,4 +1,6 @@
-"""Writing a file past the page cache (``O_DIRECT``), for files written once and not read back.
+"""How the files of a run use the page cache: files written once and not read back go past it
+(``O_DIRECT``: :class:`DirectWriter`), and a file written over minutes is flushed every second
+and its pages given back (:func:`flushing`, :func:`drop_cached`).
 
 A streamed netCDF run writes each block's chunks twice: into the output, and into the block
 file it resumes from (:mod:`engine.io.blocks`), which a run that is not killed never reads.
@@ -22,13 +24,21 @@ caller's fsync, as for any file (``O_DIRECT`` bypasses the cache, not the disk's
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import fcntl
 import mmap
 import os
 import threading
+from collections.abc import Iterator
+from pathlib import Path
 
-__all__ = ["ALIGN", "DirectWriter"]
+__all__ = ["ALIGN", "FLUSH_SECONDS", "DirectWriter", "drop_cached", "flushing"]
+
+#: How often a file being written is flushed to the disk meanwhile (:func:`flushing`) [s].
+FLUSH_SECONDS = 1.0
+O_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
+O_CLOEXEC = getattr(os, "O_CLOEXEC", 0)
 
 #: Alignment of a direct write's offset, length and memory [bytes]: the page size, a multiple
 #: of every disk's logical block size in use (512 or 4096).
@@ -124,3 +134,47 @@ class DirectWriter:
             if self.direct:
                 self.direct = self._set_direct(False)
             self._flush(self.fill)
+
+
+def drop_cached(fd: int) -> None:
+    """Let the kernel drop the fsynced file's pages from its cache: what is written this way
+    (a run's block files above all) is rarely read again soon (less page reclaim, and a
+    faster delete at the end of a run)."""
+    advise = getattr(os, "posix_fadvise", None)
+    if advise is not None:
+        with contextlib.suppress(OSError):
+            advise(fd, 0, 0, os.POSIX_FADV_DONTNEED)
+
+
+@contextlib.contextmanager
+def flushing(path: Path, every: float = FLUSH_SECONDS, *, drop: bool = False) -> Iterator[None]:
+    """While inside, the file ``path`` (being written by someone else) is flushed to the disk
+    every ``every`` seconds on a thread of its own, so that the final :func:`fsync_path`
+    finds little left to write and the disk works while the data is computed. With ``drop``,
+    the pages each flush wrote are then given back to the kernel (:func:`drop_cached`): a
+    file written once keeps a few seconds of itself in the cache, not all of it. Best effort:
+    an error of these flushes is ignored (the final fsync is the one that counts)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | O_NOFOLLOW | O_CLOEXEC)
+    except OSError:
+        yield
+        return
+    stop, sync = threading.Event(), getattr(os, "fdatasync", os.fsync)
+
+    def flush() -> None:
+        while not stop.wait(every):
+            try:
+                sync(fd)
+            except OSError:
+                return
+            if drop:
+                drop_cached(fd)
+
+    thread = threading.Thread(target=flush, name="conesurvey-flush", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()
+        os.close(fd)
