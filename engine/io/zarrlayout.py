@@ -25,7 +25,7 @@ import os
 import secrets
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -37,18 +37,21 @@ from . import OutputError
 from .atomic import NEW_FILE, O_CLOEXEC, O_NOFOLLOW, fsync_dir, fsync_path, read_regular
 from .cf import typed_flags
 from .contents import block_digest
+from .pagecache import drop_cached
 from .summary import Summary
 from .zarrchunks import SEPARATOR, chunk_key_encoding, codecs, encode, fill_value
 
 __all__ = [
     "RUN_ATTR",
     "STORE",
+    "Stamp",
     "UNFINISHED_ATTR",
     "ChunkWriter",
     "ZarrView",
     "fill_attr",
     "json_attr",
     "make_store",
+    "stamp",
     "read_meta",
     "zarr_module",
 ]
@@ -92,6 +95,15 @@ class ChunkWriter:
     arrays: tuple[tuple[str, str], ...]
     complevel: int
     separator: str = SEPARATOR  # of the chunk keys: the store's own (its arrays' metadata)
+    #: Where the writer of the run's own process puts each block's file stamps (block ->
+    #: key -> :data:`Stamp`), its files then leaving the cache; None in a writer that
+    #: travelled to another process (its files are hashed again at the commit).
+    stamps: dict[int, dict[str, Stamp]] | None = field(default=None, compare=False)
+
+    def __reduce__(self) -> tuple:
+        """Pickled without ``stamps``: a dask worker's writes are checked by their hashes."""
+        fields = (self.root, self.run_id, self.shape, self.chunk, self.arrays, self.complevel)
+        return (ChunkWriter, (*fields, self.separator))
 
     def encode(self, slab: tuple[slice, ...], values: dict[str, np.ndarray]) -> dict[str, bytes]:
         """The chunk files (key -> bytes) of the hyperslab ``slab`` of every variable
@@ -107,10 +119,13 @@ class ChunkWriter:
         )
         files = self.encode(slab, clean)
         fd = self._open_store()
+        own = None if self.stamps is None else {}
         try:
-            entries = _put_files(fd, files)
+            entries = _put_files(fd, files, own)
         finally:
             os.close(fd)
+        if self.stamps is not None and own is not None:
+            self.stamps[index] = own
         stats = Summary()
         stats.add(clean)
         return {
@@ -163,13 +178,17 @@ def _open_dirs(root_fd: int, parts: list[str], cache: dict[str, int]) -> int:
     return fd
 
 
-def _put_files(root_fd: int, files: dict[str, bytes]) -> list[tuple[str, int, str]]:
+def _put_files(
+    root_fd: int, files: dict[str, bytes], stamps: dict[str, Stamp] | None = None
+) -> list[tuple[str, int, str]]:
     """Write every file atomically (temporary name, fsync, rename), then fsync the directories
     that changed; returns (key, size, SHA-256) of each. Each file is created, written, fsynced
     and hashed on one of :data:`IO_THREADS` threads (making an inode can take ~1 ms: ext4
     without a journal passes over the inodes deleted in the last minutes; one after another
     the files took most of the writer's time, docs/output.md "Zarr stores"), then the files
-    are renamed in order: none before its fsync."""
+    are renamed in order: none before its fsync. With ``stamps``, each file's :func:`stamp`
+    once it is in place goes there, and its pages leave the cache (the commit checks it by
+    its stamp, not by reading it again)."""
     cache: dict[str, int] = {}
     items = sorted(files.items())
     pending: list[tuple[int, str, str]] = []  # (directory fd, temporary name, name) to rename
@@ -179,6 +198,8 @@ def _put_files(root_fd: int, files: dict[str, bytes]) -> list[tuple[str, int, st
             dfd = _open_dirs(root_fd, dirs, cache)
             pending.append((dfd, f".{leaf}.{secrets.token_hex(6)}.tmp", leaf))
 
+        opened: dict[str, int] = {}  # key -> descriptor kept open until its stamp
+
         def put(job: tuple[tuple[int, str, str], tuple[str, bytes]]) -> tuple[str, int, str]:
             (dfd, tmp, _), (key, data) = job
             fd = os.open(tmp, NEW_FILE, 0o666, dir_fd=dfd)
@@ -187,15 +208,24 @@ def _put_files(root_fd: int, files: dict[str, bytes]) -> list[tuple[str, int, st
                 while view:
                     view = view[os.write(fd, view) :]
                 os.fsync(fd)
+                if stamps is not None:
+                    drop_cached(fd)
+                    opened[key] = fd
             finally:
-                os.close(fd)
+                if key not in opened:
+                    os.close(fd)
             return key, len(data), hashlib.sha256(data).hexdigest()
 
-        entries = _on_threads(put, list(zip(pending, items, strict=True)))
-        while pending:
-            dfd, tmp, leaf = pending[0]
-            os.rename(tmp, leaf, src_dir_fd=dfd, dst_dir_fd=dfd)
-            pending.pop(0)
+        try:
+            entries = _on_threads(put, list(zip(pending, items, strict=True)))
+            for (dfd, tmp, leaf), (key, _) in zip(list(pending), items, strict=True):
+                os.rename(tmp, leaf, src_dir_fd=dfd, dst_dir_fd=dfd)
+                pending.pop(0)
+                if stamps is not None:  # after the rename, which changes the change time
+                    stamps[key] = stamp(os.fstat(opened[key]))
+        finally:
+            for fd in opened.values():
+                os.close(fd)
         _on_threads(os.fsync, [root_fd, *cache.values()])
     finally:
         for dfd, tmp, _ in pending:  # not renamed: an error on the way (or never made)
@@ -204,6 +234,17 @@ def _put_files(root_fd: int, files: dict[str, bytes]) -> list[tuple[str, int, st
         for dfd in cache.values():
             os.close(dfd)
     return entries
+
+
+#: What identifies a file's contents without reading them: device, inode, size, modification
+#: and change times [ns]. Every write changes the change time, which no unprivileged process
+#: can set back (Linux >= 6.13 gives a write right after a look a later one, not the same tick).
+Stamp = tuple[int, int, int, int, int]
+
+
+def stamp(st: os.stat_result) -> Stamp:
+    """The :data:`Stamp` of a file's ``stat``."""
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
 
 
 #: Threads that fsync a block's chunk files and hash its variables (work that releases the

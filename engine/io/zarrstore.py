@@ -53,7 +53,7 @@ from .journal import JOURNAL, journal_lines
 from .manifest import Manifest, read_manifest, write_manifest
 from .zarrchunks import SEPARATOR, chunk_keys
 from .zarrcommit import read_record, undo
-from .zarrlayout import RUN_ATTR, STORE, ChunkWriter, files_digest, read_meta
+from .zarrlayout import RUN_ATTR, STORE, ChunkWriter, Stamp, files_digest, read_meta, stamp
 
 __all__ = ["JOURNAL", "RunStore", "parts_state", "read_journal"]
 
@@ -142,6 +142,9 @@ class RunStore:
     warn: Callable[[str], None] = field(default=lambda msg: None)
     journal: dict[int, dict] = field(default_factory=dict)
     separator: str = SEPARATOR  # of the chunk keys (a store made before 2026-11-27: "/")
+    #: The stamps of the chunk files this process wrote or verified, by block (the commit
+    #: checks those blocks by their stamps instead of reading them again).
+    stamps: dict[int, dict[str, Stamp]] = field(default_factory=dict)
 
     @property
     def store(self) -> Path:
@@ -158,6 +161,7 @@ class RunStore:
             arrays,
             self.complevel,
             self.separator,
+            self.stamps,
         )
 
     @classmethod
@@ -247,7 +251,10 @@ class RunStore:
         itemsize = max(np.dtype(dt).itemsize for dt in self.names.values())
         return itemsize * math.prod(self.tiling.chunk) + 1024
 
-    def _digest(self, index: int) -> tuple[int, str] | None:
+    def _digest(self, index: int, stamps: dict[str, Stamp] | None = None) -> tuple[int, str] | None:
+        """(bytes, files digest) of block ``index``'s chunk files as they are now, None if one is
+        missing, not a regular file or too large; with ``stamps``, each file's stamp (taken
+        before it is read: a change while it is read shows) goes there."""
         entries = []
         for key in self.keys(index):
             try:  # never through a link, never blocking on a FIFO
@@ -259,17 +266,35 @@ class RunStore:
                 if not stat.S_ISREG(st.st_mode) or st.st_size > self.receipt_limit:
                     return None
                 data = f.read()
+            if stamps is not None:
+                stamps[key] = stamp(st)
             entries.append((key, len(data), hashlib.sha256(data).hexdigest()))
         return sum(n for _, n, _ in entries), files_digest(entries)
+
+    def _unchanged(self, index: int) -> bool:
+        """Whether every chunk file of block ``index`` still has the stamp it had when this
+        process wrote or verified it (False where it has none)."""
+        stamps = self.stamps.get(index)
+        if stamps is None or set(stamps) != set(self.keys(index)):
+            return False
+        try:
+            return all(
+                stamp(os.stat(self.store / key, follow_symlinks=False)) == s
+                for key, s in stamps.items()
+            )
+        except OSError:
+            return False
 
     def scan(self) -> Scan:
         """Hash the chunk files of every journaled block against its receipt (changes
         nothing); blocks not journaled are simply written again."""
         found = Scan()
         for index, receipt in sorted(self.journal.items()):
-            got = self._digest(index)
+            stamps: dict[str, Stamp] = {}
+            got = self._digest(index, stamps)
             if got == (receipt["bytes"], receipt["files"]):
                 found.good.add(index)
+                self.stamps[index] = stamps
             else:
                 why = "missing" if got is None else "its checksum does not match the journal"
                 found.bad[f"block {index}"] = f"chunk files {why}"
@@ -283,15 +308,18 @@ class RunStore:
             self.warn(f"{name} of {self.store} is corrupt ({why}); recomputing")
 
     def check_files(self) -> None:
-        """OutputError unless every block is journaled and its chunk files hash to its
-        receipt (read again just before the commit: a chunk changed since the resume scan
-        or since it was written is caught)."""
+        """OutputError unless every block is journaled and its chunk files are what its
+        receipt says, just before the commit: a chunk changed since the resume scan or since
+        it was written is caught. The files this process wrote or verified are checked by
+        their stamps (a write changes a file's change time); the others, and any whose stamp
+        changed, are read and hashed again."""
         missing = [i for i in range(self.tiling.nblocks) if i not in self.journal]
         if missing:
             raise OutputError(f"block {missing[0]} is not recorded in the journal")
+        todo = [i for i in range(self.tiling.nblocks) if not self._unchanged(i)]
         with ThreadPoolExecutor(os.cpu_count() or 1) as pool:  # hashing releases the GIL
-            got = list(pool.map(self._digest, range(self.tiling.nblocks)))
-        for index, digest in enumerate(got):
+            got = dict(zip(todo, pool.map(self._digest, todo), strict=True))
+        for index, digest in got.items():
             receipt = self.journal[index]
             if digest != (receipt["bytes"], receipt["files"]):
                 raise OutputError(

@@ -232,6 +232,59 @@ def test_a_verified_chunk_changed_during_the_rerun_is_caught(work, capsys, refer
     resumed(work, capsys, reference)
 
 
+def test_a_chunk_this_run_wrote_and_then_changed_is_caught(work, capsys, reference):
+    """A chunk of block 0, written by this very run, changed (same size) while its last block
+    is computed: the commit, which checks the files this run wrote by their stamps instead of
+    reading them, sees the change and refuses; the next run recomputes the block."""
+    flipped = []
+
+    def flip(i: int) -> None:  # block 7's chunks are written: block 0's long before
+        if i == 7:
+            chunk = next((work / "out.zarr.parts/store.zarr/period").glob("c.*"))
+            data = bytearray(chunk.read_bytes())
+            data[-1] ^= 0xFF
+            chunk.write_bytes(bytes(data))
+            flipped.append(chunk)
+
+    with pytest.raises(RunFailed, match="changed since they were written"):
+        run_survey(parse_survey(SURVEY), work / "out.zarr", block_points=BLOCK, on_block=flip)
+    assert flipped and not (work / "out.zarr").exists()
+    resumed(work, capsys, reference)
+
+
+def test_the_commit_reads_no_chunk_this_process_wrote_or_verified(work, partial, monkeypatch):
+    """Resumed from 3 stored blocks: the scan reads those 3 once, the 5 blocks computed here
+    are checked at the commit by their stamps; no chunk file is read a second time."""
+    from engine.io import zarrstore
+
+    shutil.copytree(partial, work / "out.zarr.parts")
+    real, read = zarrstore.RunStore._digest, []
+
+    def counted(self, index, stamps=None):
+        read.append(index)
+        return real(self, index, stamps)
+
+    monkeypatch.setattr(zarrstore.RunStore, "_digest", counted)
+    run_survey(parse_survey(SURVEY), work / "out.zarr", block_points=BLOCK)
+    assert sorted(read) == [0, 1, 2], read
+
+
+def test_a_writer_sent_to_another_process_keeps_no_stamps():
+    """A dask worker's writer (pickled) records no stamps and leaves its files in the cache:
+    the commit hashes those blocks again (a worker's files are not this process's)."""
+    import pickle
+
+    from engine.io.zarrlayout import ChunkWriter
+
+    writer = ChunkWriter("/s.zarr", "run", (2, 2), (1, 2), (("r_min", "<f8"),), 1, ".", {})
+    sent = pickle.loads(pickle.dumps(writer))
+    assert writer.stamps == {} and sent.stamps is None
+    assert (sent.root, sent.run_id, sent.shape, sent.chunk, sent.arrays, sent.complevel) == (
+        "/s.zarr", "run", (2, 2), (1, 2), (("r_min", "<f8"),), 1,
+    )  # fmt: skip
+    assert sent.separator == "."
+
+
 # --- 4. links, FIFOs and devices in a store -----------------------------------------------------
 
 
