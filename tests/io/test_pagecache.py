@@ -26,17 +26,23 @@ EDGES = [0, 1, ALIGN - 1, ALIGN, ALIGN + 1, STAGE - 1, STAGE, STAGE + 1]
 
 
 def _takes_direct(directory) -> bool:
-    """Whether the file system of ``directory`` opens files with O_DIRECT (tmpfs may not)."""
+    """Whether the file system of ``directory`` takes a direct write of one aligned page (tmpfs
+    and some others may refuse the flag or the write)."""
     path = directory / "probe"
     if pagecache.O_DIRECT == 0:  # not Linux
         return False
+    page = mmap.mmap(-1, ALIGN)  # page-aligned memory
     try:
-        os.close(os.open(path, os.O_WRONLY | os.O_CREAT | pagecache.O_DIRECT, 0o600))
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | pagecache.O_DIRECT, 0o600)
+        try:
+            return os.write(fd, page) == ALIGN
+        finally:
+            os.close(fd)
     except OSError:
         return False
     finally:
+        page.close()
         path.unlink(missing_ok=True)
-    return True
 
 
 def _write(path, pieces: list[bytes]) -> DirectWriter:
