@@ -175,7 +175,7 @@ def test_where_h5py_cannot_open_the_file_netcdf4_writes_it_with_a_notice(
     def refuse(path, names):
         raise OSError("unable to open file (file signature not found)")
 
-    monkeypatch.setattr("engine.io.netcdf.DirectChunks", refuse)
+    monkeypatch.setattr("engine.io.deflate.DirectChunks", refuse)
     notices: list[str] = []
     run_survey(parse_survey(SURVEY), tmp_path / "a.nc", block_points=70_000, warn=notices.append)
     assert len(notices) == 1 and "h5py cannot write" in notices[0], notices
