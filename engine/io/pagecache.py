@@ -26,12 +26,16 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import fcntl
 import mmap
 import os
 import threading
 from collections.abc import Iterator
 from pathlib import Path
+
+try:
+    import fcntl
+except ImportError:  # Windows: no O_DIRECT either; every file goes through the cache
+    fcntl = None  # type: ignore[assignment]
 
 __all__ = ["ALIGN", "FLUSH_SECONDS", "DirectWriter", "drop_cached", "flushing"]
 
@@ -50,6 +54,14 @@ O_DIRECT = getattr(os, "O_DIRECT", 0)
 REFUSED = frozenset({errno.EINVAL, errno.ENOTSUP, errno.EOPNOTSUPP})
 
 _stages = threading.local()  # one staging buffer per thread, reused: its pages stay resident
+
+
+def _pwrite(fd: int, data: memoryview, offset: int) -> int:
+    """``os.pwrite``, or a seek and a write where there is none (Windows)."""
+    if hasattr(os, "pwrite"):
+        return os.pwrite(fd, data, offset)
+    os.lseek(fd, offset, os.SEEK_SET)
+    return os.write(fd, data)
 
 
 def _stage() -> mmap.mmap:
@@ -71,7 +83,7 @@ class DirectWriter:
         self.fill = 0  # bytes staged in buf
         self.offset = 0  # bytes in the file
         self.direct_bytes = 0
-        self.direct = O_DIRECT != 0 and self._set_direct(True)
+        self.direct = O_DIRECT != 0 and fcntl is not None and self._set_direct(True)
 
     def _set_direct(self, on: bool) -> bool:
         flags = fcntl.fcntl(self.fd, fcntl.F_GETFL)
@@ -112,7 +124,7 @@ class DirectWriter:
     def _write(self, view: memoryview) -> int:
         while True:
             try:
-                n = os.pwrite(self.fd, view, self.offset)
+                n = _pwrite(self.fd, view, self.offset)
             except OSError as exc:  # a direct write refused (misaligned here): the cache
                 if not (self.direct and exc.errno in REFUSED):
                     raise

@@ -207,3 +207,20 @@ def test_flushing_with_drop_gives_the_flushed_pages_back(tmp_path, drop):
         time.sleep(0.3)
         share = _resident_share(path)
     assert share < 0.05 if drop else share > 0.95
+
+
+def test_without_fcntl_or_pwrite_the_file_goes_through_the_cache(tmp_path, monkeypatch):
+    """As on Windows (no ``fcntl``, no ``os.pwrite``): no direct write, the same bytes."""
+    monkeypatch.setattr(pagecache, "fcntl", None)
+    monkeypatch.delattr(pagecache.os, "pwrite")
+    pieces = [os.urandom(n) for n in (STAGE + 3, ALIGN - 1, 5)]
+    fd = os.open(tmp_path / "f", os.O_RDWR | os.O_CREAT, 0o600)
+    try:
+        w = DirectWriter(fd)
+        for piece in pieces:
+            w.write(piece)
+        w.close()
+    finally:
+        os.close(fd)
+    assert not w.direct and w.direct_bytes == 0
+    assert (tmp_path / "f").read_bytes() == b"".join(pieces)
