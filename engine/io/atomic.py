@@ -36,7 +36,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
-from .pagecache import DirectWriter, drop_cached
+from .pagecache import O_CLOEXEC, O_NOFOLLOW, DirectWriter, drop_cached
 
 __all__ = [
     "NOT_SUPPORTED",
@@ -62,8 +62,6 @@ NOT_SUPPORTED = frozenset(
 )
 #: Whether directories can be opened (and fsynced) on this operating system.
 DIRECTORIES_OPEN = os.name != "nt"
-O_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
-O_CLOEXEC = getattr(os, "O_CLOEXEC", 0)
 O_NONBLOCK = getattr(os, "O_NONBLOCK", 0)
 #: Flags of a file created by this package: new, never through a link.
 NEW_FILE = os.O_RDWR | os.O_CREAT | os.O_EXCL | O_NOFOLLOW | O_CLOEXEC | getattr(os, "O_BINARY", 0)

@@ -4,14 +4,11 @@ and its pages given back (:func:`flushing`, :func:`drop_cached`).
 
 A streamed netCDF run writes each block's chunks twice: into the output, and into the block
 file it resumes from (:mod:`engine.io.blocks`), which a run that is not killed never reads.
-Through the page cache, every byte of a block file is copied into a cache page the kernel
-must find, fill and later write back; on a virtual machine whose memory the host takes back
-when it is free (virtio-balloon free page reporting), the first write of each such page costs
-the host a fault as well. Measured on this project's 2-core VM, 2 GiB in 64 MiB writes,
-fsynced: 0.26-0.33 GB/s and 5-7 s of system time through the page cache into memory freed
-minutes before, 1.2-1.5 GB/s once the cache holds pages already used; 1.03-1.09 GB/s and 0.1 s
-of system time with ``O_DIRECT``, whatever the memory did before (docs/output.md, "Block files
-past the page cache").
+Through the page cache, every byte is copied into a cache page; on a virtual machine whose
+host takes back free memory (virtio-balloon free page reporting, as on this project's 2-core
+VM) that copy costs several times more when it lands in memory freed minutes before than in a
+page the cache recycles. docs/output.md ("The page cache") has the measurements, which
+``scripts/bench_storage.py --page-cache`` prints.
 
 :class:`DirectWriter` is the ``write`` of such a file: it copies what it is given into one
 page-aligned buffer (the same pages every time) and writes the buffer with ``O_DIRECT`` in
@@ -41,6 +38,7 @@ __all__ = ["ALIGN", "FLUSH_SECONDS", "DirectWriter", "drop_cached", "flushing"]
 
 #: How often a file being written is flushed to the disk meanwhile (:func:`flushing`) [s].
 FLUSH_SECONDS = 1.0
+#: Open flags where the system has them (0 elsewhere); engine.io.atomic takes them from here.
 O_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
 O_CLOEXEC = getattr(os, "O_CLOEXEC", 0)
 
@@ -149,9 +147,9 @@ class DirectWriter:
 
 
 def drop_cached(fd: int) -> None:
-    """Let the kernel drop the fsynced file's pages from its cache: what is written this way
-    (a run's block files above all) is rarely read again soon (less page reclaim, and a
-    faster delete at the end of a run)."""
+    """Let the kernel drop the file's clean (flushed) pages from its cache: for what is not
+    read again soon (the netCDF output as it is written, a Zarr chunk file this process
+    stamped, the last page of a block file), so that the next writes reuse those pages."""
     advise = getattr(os, "posix_fadvise", None)
     if advise is not None:
         with contextlib.suppress(OSError):

@@ -124,8 +124,8 @@ class ChunkWriter:
             entries = _put_files(fd, files, own)
         finally:
             os.close(fd)
-        if self.stamps is not None and own is not None:
-            self.stamps[index] = own
+        if own is not None:
+            self.stamps[index] = own  # type: ignore[index]
         stats = Summary()
         stats.add(clean)
         return {

@@ -45,11 +45,13 @@ def _takes_direct(directory) -> bool:
         path.unlink(missing_ok=True)
 
 
-def _write(path, pieces: list[bytes]) -> DirectWriter:
+def _write(path, pieces: list[bytes], *, flags: bool = True) -> DirectWriter:
+    """``pieces`` written to ``path`` by a DirectWriter; with ``flags``, its ``direct`` checked
+    against the descriptor's flags (not where O_DIRECT is only pretended)."""
     fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_TRUNC, 0o600)
     try:
         w = DirectWriter(fd)
-        if w.direct:  # the kernel's flags, not ours
+        if flags and w.direct:  # the kernel's flags, not ours
             assert fcntl.fcntl(fd, fcntl.F_GETFL) & pagecache.O_DIRECT
         for piece in pieces:
             assert w.write(piece) == len(piece)
@@ -102,14 +104,7 @@ def test_a_direct_write_refused_midway_goes_on_through_the_cache(tmp_path, monke
     monkeypatch.setattr(DirectWriter, "_set_direct", lambda self, on: on)
     monkeypatch.setattr(pagecache.os, "pwrite", second_refused)
     pieces = [os.urandom(STAGE), os.urandom(STAGE + 7)]
-    fd = os.open(tmp_path / "f", os.O_RDWR | os.O_CREAT, 0o600)
-    try:
-        w = DirectWriter(fd)
-        for piece in pieces:
-            w.write(piece)
-        w.close()
-    finally:
-        os.close(fd)
+    w = _write(tmp_path / "f", pieces, flags=False)
     assert w.direct_bytes == STAGE and not w.direct
     assert calls == [0, STAGE, STAGE, 2 * STAGE]  # the refused write again, then the tail
     assert (tmp_path / "f").read_bytes() == b"".join(pieces)
@@ -214,13 +209,6 @@ def test_without_fcntl_or_pwrite_the_file_goes_through_the_cache(tmp_path, monke
     monkeypatch.setattr(pagecache, "fcntl", None)
     monkeypatch.delattr(pagecache.os, "pwrite")
     pieces = [os.urandom(n) for n in (STAGE + 3, ALIGN - 1, 5)]
-    fd = os.open(tmp_path / "f", os.O_RDWR | os.O_CREAT, 0o600)
-    try:
-        w = DirectWriter(fd)
-        for piece in pieces:
-            w.write(piece)
-        w.close()
-    finally:
-        os.close(fd)
+    w = _write(tmp_path / "f", pieces)
     assert not w.direct and w.direct_bytes == 0
     assert (tmp_path / "f").read_bytes() == b"".join(pieces)
