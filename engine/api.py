@@ -12,8 +12,8 @@ from .checks import check_numbers, check_values
 from .evaluation import bad_inputs, evaluate_block, evaluate_flat
 from .families import family_values, minimum_energy_flat
 from .grid import BLOCK_POINTS, Tiling
+from .kernels.cone import radial_energy as _radial_energy
 from .kernels.geometry import CIRCULAR_TOL
-from .kernels.model import radial_energy as _radial_energy
 from .methods import DEFAULT_RTOL
 from .plan import RunPlan, map_plan, survey_plan
 from .scene import Scene

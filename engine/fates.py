@@ -15,7 +15,7 @@ from .integrated import fate_points
 from .kernels.effects import REVOLUTIONS
 from .kernels.fate import FATE_ROWS
 from .kernels.geometry import BOUNDED, CIRCULAR, HYPERBOLIC, RADIAL
-from .kernels.model import P_THETA_MAX
+from .kernels.layouts import P_THETA_MAX
 from .methods import Method, check_method
 from .scene import Scene
 from .schema import FATE_KINDS

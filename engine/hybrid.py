@@ -20,7 +20,7 @@ from .kernels.hybrid import (
     hybrid_fate_points,
 )
 from .kernels.lanes_hybrid import hybrid_fate_points_lanes
-from .kernels.model import P_THETA_MAX
+from .kernels.layouts import P_THETA_MAX
 from .methods import check_method
 from .scene import Scene
 

@@ -57,6 +57,12 @@ def _scene_parts(scene: Scene) -> tuple[np.ndarray, int, tuple[str, ...]]:
     return scene.params(), scene.effects_mask, period_variables(scene)
 
 
+def points(*columns: np.ndarray) -> np.ndarray:
+    """The points array of the kernels: one row per input (the model's columns: the cone's
+    alpha, calE, h, L_z and a fate map's r_start), one column per point (float64, C order)."""
+    return np.ascontiguousarray(np.stack([np.asarray(c, np.float64) for c in columns]))
+
+
 def integrate_points(
     alpha: np.ndarray,
     energy: np.ndarray,
@@ -90,14 +96,14 @@ def integrate_points(
         out_n[:] = 0
         out_status[:] = UNSUPPORTED
         return
+    X = points(alpha, energy, h, Lz)
     if m.family == "runge-kutta":  # several orbits at once on the SIMD lanes
-        args = (alpha, energy, h, Lz, params, method, effects, rtol, max_steps,
-                numba.get_num_threads(), out_f, out_n, out_status)  # fmt: skip
-        call_specialized(_lanes_kernel, args, (5, 6))
+        args = (X, params, method, effects, rtol, max_steps, numba.get_num_threads(), out_f,
+                out_n, out_status)  # fmt: skip
+        call_specialized(_lanes_kernel, args, (2, 3))
         return
-    args = (alpha, energy, h, Lz, params, method, effects, rtol, max_steps, out_f, out_n,
-            out_status)  # fmt: skip
-    call_specialized(_integrate_points_kernel, args, (5, 6))
+    args = (X, params, method, effects, rtol, max_steps, out_f, out_n, out_status)
+    call_specialized(_integrate_points_kernel, args, (2, 3))
 
 
 def fate_points(
@@ -122,12 +128,13 @@ def fate_points(
     in parallel: a Runge-Kutta ``method`` runs several orbits at once on the SIMD lanes
     (:mod:`engine.kernels.lanes_fate`, the same results bit for bit; ``lanes=False`` runs one
     orbit per thread, for comparison), other methods one orbit per thread."""
-    args = (alpha, energy, h, Lz, r_start, params, method, effects, rtol, t_horizon, max_steps)
+    args = (points(alpha, energy, h, Lz, r_start), params, method, effects, rtol, t_horizon,
+            max_steps)  # fmt: skip
     if lanes and _BY_ID[method].family == "runge-kutta":
         args += (numba.get_num_threads(), out_fate, out_f, out_n)
-        call_specialized(_fate_lanes_kernel, args, (6, 7))
+        call_specialized(_fate_lanes_kernel, args, (2, 3))
         return
-    call_specialized(_fate_points_kernel, args + (out_fate, out_f, out_n), (6, 7))
+    call_specialized(_fate_points_kernel, args + (out_fate, out_f, out_n), (2, 3))
 
 
 def evaluate_integrated(

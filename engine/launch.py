@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from .kernels.model import coefficients_sc, invariants_of, radial_energy
+from .kernels.cone import coefficients_sc, invariants_of, radial_energy
 from .scene import Scene
 
 __all__ = ["invariants", "launch_state"]

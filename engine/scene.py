@@ -15,8 +15,10 @@ from typing import Any
 
 import numpy as np
 
+from .kernels.cone import set_alpha
 from .kernels.effects import EFFECTS, mask_of
-from .kernels.model import PARAM_SLOTS, make_params
+from .kernels.layouts import SLOTS
+from .kernels.model import make_params
 
 __all__ = ["Scene"]
 
@@ -133,17 +135,17 @@ class Scene:
         return mask_of(self.effects)
 
     def params(self, alpha: float = math.pi / 4) -> np.ndarray:
-        """The float64 parameter array of the kernels (layout ``engine.kernels.model.P_*``) on a
+        """The float64 parameter array of the kernels (layout ``engine.kernels.layouts``) on a
         cone of half-aperture ``alpha`` [rad] (batch kernels replace alpha per point)."""
         slots, values = [], []
         for effect in EFFECTS:
             value = getattr(self, effect.scene_field)
             for slot in effect.params:
-                slots.append(PARAM_SLOTS[slot])
+                slots.append(SLOTS[slot])
                 values.append(math.inf if value is None else float(value))
-        return make_params(
-            alpha, self.M, self.g, self.k, self.a, np.array(slots, np.int64), np.array(values)
-        )
+        p = make_params(self.M, self.g, self.k, self.a, np.array(slots, np.int64), np.array(values))
+        set_alpha(p, alpha)
+        return p
 
     @property
     def mu_or_inf(self) -> float:
@@ -169,3 +171,15 @@ class Scene:
             else:
                 out[f"scene_{f.name}"] = v
         return out
+
+
+def _check_fields() -> None:
+    """Every effect of the effects table has its Scene field (a row without one fails here, at
+    import, not when a scene is first made)."""
+    names = {f.name for f in fields(Scene)}
+    missing = [f"{e.name} ({e.scene_field})" for e in EFFECTS if e.scene_field not in names]
+    if missing:
+        raise ValueError(f"effects without a Scene field: {', '.join(missing)}")
+
+
+_check_fields()

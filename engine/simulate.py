@@ -10,18 +10,18 @@ import xarray as xr
 
 from ._jit import call_specialized
 from ._version import __version__
-from .kernels.fate import REST_SPEED
-from .kernels.geometry import BOUNDED, CIRCULAR, CIRCULAR_TOL, CLASS_NAMES, HYPERBOLIC, ideal_orbit
-from .kernels.model import (
-    ATTITUDE,
-    P_V_REST,
+from .kernels.cone import (
     coefficients,
     contact_forces_of,
     contact_velocity,
     invariants,
     invariants_of,
 )
-from .kernels.orbit import initial_state, orbit_start, tolerance_scales
+from .kernels.cone_starts import initial_state, orbit_start, tolerance_scales
+from .kernels.fate import REST_SPEED
+from .kernels.geometry import BOUNDED, CIRCULAR, CIRCULAR_TOL, CLASS_NAMES, HYPERBOLIC, ideal_orbit
+from .kernels.layouts import P_V_REST
+from .kernels.model import ATTITUDE
 from .kernels.protocol import (
     BUFFER_FULL,
     FAILURE,

@@ -17,9 +17,11 @@ import xarray as xr
 from ._jit import call_specialized
 from ._version import __version__
 from .hybrid import HYBRID_STATE, hybrid_setup
+from .kernels.cone import set_alpha
 from .kernels.hybrid import HYBRID_FATE_NAMES, hybrid_story
 from .kernels.hybrid_step import ARMED_KEPT, HYBRID_EVENT_NAMES
-from .kernels.model import N_PARAMS, P_K, P_M, set_alpha
+from .kernels.layouts import P_K, P_M
+from .kernels.model import N_PARAMS
 from .kernels.protocol import (
     AT_VERTEX,
     BUFFER_FULL,

@@ -10,9 +10,9 @@ import numpy as np
 
 from .fates import Horizon, require_horizon
 from .hybrid import HYBRID_STATE, MAX_STEPS, hybrid_fates, hybrid_setup
+from .kernels.cone import set_alpha
 from .kernels.hybrid import HYBRID_FATE_NAMES, HYBRID_ROWS, hybrid_story
 from .kernels.hybrid_step import HYBRID_EVENT_NAMES
-from .kernels.model import set_alpha
 from .launch import invariants
 from .methods import check_method, check_rtol
 from .scene import Scene

@@ -34,11 +34,13 @@ import numpy as np
 from numba import prange
 
 from engine._jit import call_specialized, parallel_kernel
-from engine.integrated import integrate_points
-from engine.kernels.model import ATTITUDE, RIM, ROLLING_RESISTANCE, SLIP_CHECK, set_alpha
-from engine.kernels.orbit import initial_state as generic_initial_state
+from engine.integrated import integrate_points, points
+from engine.kernels.cone import P_COT, P_GC, P_SIN, set_alpha
+from engine.kernels.cone_starts import initial_state as generic_initial_state
+from engine.kernels.cone_starts import orbit_start, tolerance_scales
+from engine.kernels.layouts import P_KK
+from engine.kernels.model import ATTITUDE, RIM, ROLLING_RESISTANCE, SLIP_CHECK
 from engine.kernels.orbit import integrate_points as scalar_points
-from engine.kernels.orbit import orbit_start, tolerance_scales
 from engine.kernels.protocol import EPS, brent_next, brent_start, brent_update
 from engine.kernels.rk import ERR_FLOOR, MIN_FACTOR, SAFETY, initial_step
 from engine.kernels.tableaux import RK_TABLEAUX
@@ -94,10 +96,10 @@ def _hand_one(p, energy, hh, Lz, rtol, max_steps):
     y0 = generic_initial_state(p, 0, r1, energy, hh, Lz)
     y0[2] = 0.0
     sc = tolerance_scales(p, 0, y0, energy, hh, Lz, r1, r2, rc)
-    s = p[1]
-    cot = p[3]
-    kk = p[7]
-    gc = p[8]
+    s = p[P_SIN]
+    cot = p[P_COT]
+    kk = p[P_KK]
+    gc = p[P_GC]
     a0 = rtol * sc[0]
     a1 = rtol * sc[1]
     a2 = rtol * sc[2]
@@ -299,9 +301,9 @@ def main() -> None:
         out_f = np.empty((5, n))
         out_n = np.empty(n, np.int64)
         out_s = np.empty(n, np.int8)
-        call = (alpha, energy, hh, Lz, base.params(), RK45, 0, args.rtol, max_steps, out_f, out_n,
-                out_s)  # fmt: skip
-        call_specialized(scalar_points, call, (5, 6))
+        call = (points(alpha, energy, hh, Lz), base.params(), RK45, 0, args.rtol, max_steps,
+                out_f, out_n, out_s)  # fmt: skip
+        call_specialized(scalar_points, call, (2, 3))
         return out_f, out_n, out_s
 
     def run_hand():

@@ -28,7 +28,7 @@ import engine
 from engine.integrated import fate_points
 from engine.kernels.fate import FATE_NAMES, FATE_ROWS
 from engine.kernels.lanes_step import LANES, lanes_attempt, lanes_control_fate, layout
-from engine.kernels.model import P_THETA_MAX, state_size_of
+from engine.kernels.layouts import P_THETA_MAX, state_size_of
 from engine.methods import METHODS
 
 SCENE = engine.Scene(c_rr=0.02, rim=4.0)

@@ -47,7 +47,7 @@ import numpy as np
 
 import engine
 from engine._jit import call_specialized
-from engine.integrated import evaluate_integrated
+from engine.integrated import evaluate_integrated, points
 from engine.kernels.lanes import integrate_points_lanes
 from engine.kernels.lanes_step import LANES, lanes_attempt, layout
 from engine.methods import METHODS
@@ -96,9 +96,9 @@ class EngineKernel:
         self.status = np.empty(n, np.int8)
 
     def __call__(self) -> np.ndarray:
-        args = (*self.args_in, self.params, self.method, 0, self.rtol, 1_000_000, self.workers,
-                self.f, self.steps, self.status)  # fmt: skip
-        call_specialized(integrate_points_lanes, args, (5, 6))
+        args = (points(*self.args_in), self.params, self.method, 0, self.rtol, 1_000_000,
+                self.workers, self.f, self.steps, self.status)  # fmt: skip
+        call_specialized(integrate_points_lanes, args, (2, 3))
         return self.f[1]
 
 

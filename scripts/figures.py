@@ -38,7 +38,7 @@ import xarray as xr  # noqa: E402
 import engine  # noqa: E402
 import engine.accessor  # noqa: E402,F401  (registers ds.cone)
 import engine.plot  # noqa: E402
-from engine.kernels.model import coefficients, potential  # noqa: E402
+from engine.kernels.cone import coefficients, potential  # noqa: E402
 from engine.kernels.roots import circular_radius, turning_points  # noqa: E402
 
 DPI = 100

@@ -21,7 +21,7 @@ from collections.abc import Callable
 import numpy as np
 
 import engine
-from engine.kernels.model import coefficients
+from engine.kernels.cone import coefficients
 from engine.kernels.orbit import initial_state, orbit_start, tolerance_scales
 from engine.kernels.roots import circular_radius
 

@@ -16,7 +16,7 @@ import numpy as np
 
 import engine
 from engine.integrated import evaluate_integrated
-from engine.kernels.model import coefficients
+from engine.kernels.cone import coefficients
 from engine.scene import Scene
 
 METHODS = ("rk45", "dop853", "symplectic")

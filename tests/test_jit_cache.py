@@ -13,18 +13,18 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "engine"
 
-#: Compile (or load) model.coefficients, which calls model.coefficients_sc; print (hits, misses).
+#: Compile (or load) cone.coefficients, which calls cone.coefficients_sc; print (hits, misses).
 PROBE = """
-from engine.kernels import model
-A, B, C = model.coefficients(0.5, 1.0, 1.0, 1.0, 9.81, 0.4)
-st = model.coefficients.stats
+from engine.kernels import cone
+A, B, C = cone.coefficients(0.5, 1.0, 1.0, 1.0, 9.81, 0.4)
+st = cone.coefficients.stats
 print(sum(st.cache_hits.values()), sum(st.cache_misses.values()), repr(C))
 """
 
 
 def _copy(dest: Path) -> Path:
     shutil.copytree(PKG, dest / "engine", ignore=shutil.ignore_patterns("__pycache__"))
-    return dest / "engine" / "kernels" / "model.py"
+    return dest / "engine" / "kernels" / "cone.py"
 
 
 def _probe(where: Path, cache: Path) -> tuple[int, int, str]:

@@ -1,8 +1,12 @@
 """Pure numba kernels: functions of floats and arrays, no Python objects, no globals that change.
 
-- :mod:`.model`      one copy of each formula: coefficients A, B, C, the effective potential,
-                     invariants, contact forces, the parameter array, effect bits and the
-                     scene's right-hand side with the effects compiled in by flags;
+- :mod:`.model`      the model interface: what the drivers ask of the physics, the registry of
+                     models (the cone first), the right-hand side with the effects compiled in;
+- :mod:`.layouts`    the parameter array's slots and the state vector, declared once;
+- :mod:`.effects`    the effects table; :mod:`.forces` the effects' forces and couples;
+- :mod:`.cone`       the cone: one copy of each of its formulas (A, B, C, V, the invariants, the
+                     contact forces, its equations of motion); :mod:`.cone_starts` where its
+                     runs start;
 - :mod:`.roots`      circular radius and turning points;
 - :mod:`.carlson`    Carlson's symmetric elliptic integrals R_F, R_D, R_J, R_C and Bulirsch's cel;
 - :mod:`.geometry`   classification and closed-form orbit geometry, one point and a parallel batch;
@@ -15,5 +19,5 @@
 - :mod:`.lanes`      the batch of the Runge-Kutta methods on the SIMD lanes (bit for bit the run
                      kernel's results);
 - :mod:`.symplectic` time-transformed leapfrog with Yoshida compositions, on the same protocol;
-- :mod:`.orbit`      start state, tolerances, one radial period, the parallel batch over points.
+- :mod:`.orbit`      the run kernels by method id, one radial period, the parallel batch.
 """

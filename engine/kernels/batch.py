@@ -43,7 +43,7 @@ from .geometry import (
     scene_point,
     well_or_nan,
 )
-from .model import P_G, P_M, P_MU, P_RIM_SLANT
+from .layouts import P_G, P_M, P_MU, P_RIM_SLANT
 from .roots import (
     RC_STEPS,
     TP_STEPS,

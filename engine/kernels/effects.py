@@ -12,8 +12,9 @@ integrator follow each orbit to its fate), the variable lists, the terminal even
 the :data:`CAPABILITIES` it has; an effect needing one it lacks is refused with the method's
 reason for lacking it).
 
-A new effect is one row here plus its terms in the right-hand side and its parameter slot
-(``.model``) and its :class:`engine.Scene` field; docs/architecture.md "Adding an effect".
+A new effect is one row here (its parameter slots named here, laid out by :mod:`.layouts`), its
+forces and couples in :mod:`.forces` (every model and mode asks them) and its
+:class:`engine.Scene` field; docs/architecture.md "A new effect".
 
 Gravity (g = 0 is free fall) and the spin coupling (k = 0) are parameters, not effects. This
 module is plain data (no numba): the kernels read its masks as compile-time constants.
@@ -50,9 +51,12 @@ class Effect(NamedTuple):
     bit: int
     scene_field: str
     switch: str
-    #: Parameter slots (names of ``.model`` ``P_*`` constants) the scene field's value fills
-    #: (None -> +inf).
+    #: Parameter slots (names; :mod:`.layouts` gives each its index) the scene field's value
+    #: fills (None -> +inf).
     params: tuple[str, ...]
+    #: Acts through a force on the centre or a couple on the sphere: its terms are in
+    #: :mod:`.forces`, which every model asks in every mode.
+    forces: bool
     #: Does work on the sphere: the state carries the work done (the last component), the energy
     #: balance E + W is checked, and an integrator follows each orbit to its fate.
     dissipative: bool
@@ -74,7 +78,8 @@ EFFECTS: tuple[Effect, ...] = (
         bit=1,
         scene_field="c_rr",
         switch="coefficient",
-        params=("P_CRR",),
+        params=("c_rr",),
+        forces=True,
         dissipative=True,
         events=("rest", "vertex"),
         needs=("dissipative forces",),
@@ -86,7 +91,8 @@ EFFECTS: tuple[Effect, ...] = (
         bit=2,
         scene_field="rim",
         switch="limit",
-        params=("P_RIM_SLANT",),
+        params=("rim",),
+        forces=False,
         dissipative=False,
         events=("spill", "vertex"),  # any orbit of small L_z enters the vertex region
         needs=("terminal events",),
@@ -98,7 +104,8 @@ EFFECTS: tuple[Effect, ...] = (
         bit=4,
         scene_field="mu",
         switch="limit",
-        params=("P_MU",),
+        params=("mu",),
+        forces=False,
         dissipative=False,
         events=("slip", "vertex"),
         needs=("terminal events",),
@@ -111,6 +118,7 @@ EFFECTS: tuple[Effect, ...] = (
         scene_field="attitude",
         switch="flag",
         params=(),
+        forces=False,
         dissipative=False,
         events=(),
         needs=("rigid-body state",),
@@ -128,6 +136,7 @@ EFFECTS: tuple[Effect, ...] = (
         scene_field="mu_k",
         switch="limit",
         params=(),
+        forces=False,
         dissipative=True,
         events=(),
         needs=("dissipative forces", "sliding contact"),
@@ -156,6 +165,7 @@ EFFECTS: tuple[Effect, ...] = (
         scene_field="c_spin",
         switch="coefficient",
         params=(),
+        forces=False,
         dissipative=True,
         events=(),
         needs=("dissipative forces", "sliding contact"),
@@ -203,6 +213,8 @@ def needing_any(capabilities) -> int:
 ALL_EFFECTS = mask_where(lambda e: True)
 #: The effects that do work on the sphere.
 DISSIPATIVE = mask_where(lambda e: e.dissipative)
+#: The effects that act through forces and couples (:mod:`.forces`).
+FORCE_EFFECTS = mask_where(lambda e: e.forces)
 #: The effects the rolling kernels compile in (the others need the hybrid kernels).
 ROLLING_EFFECTS = mask_where(lambda e: "sliding contact" not in e.needs)
 #: Run option (not a scene effect): stop after ``P_THETA_MAX`` radians of azimuth (fate maps);

@@ -24,29 +24,35 @@ import numpy as np
 from numba import literally, prange
 
 from .._jit import kernel, parallel_kernel
+from .cone_starts import holds_at_rest as holds_at_rest  # the hybrid stories' (the cone's)
 from .effects import DISSIPATIVE
+from .fate_codes import (
+    FAILED,
+    FATE_NAMES,
+    FATE_REST,
+    FATE_ROWS,
+    FATE_SLIPPED,
+    FATE_SPILLED,
+    FATE_VERTEX,
+    NO_ORBIT,
+    REST_SPEED,
+    ROLLING,
+    RUNS,
+)
+from .layouts import state_size
 from .model import (
-    P_COT,
-    P_CRR,
-    P_G,
-    P_GC,
-    P_INV_M1K,
-    P_M,
-    P_R_VERTEX,
-    P_RIM,
-    P_SIN,
-    P_V_REST,
     ROLLING_RESISTANCE,
     SLIP_CHECK,
     dissipated_power,
-    invariants,
+    energy,
+    fate_start,
     kinetic_energy,
     motion_rates,
-    set_alpha,
+    set_point,
     slip_margin,
-    state_size,
 )
-from .orbit import initial_state, orbit_start, run, tolerance_scales
+from .model import holds_at_rest as model_holds_at_rest
+from .orbit import run
 from .protocol import (
     APOCENTRE,
     AT_VERTEX,
@@ -61,21 +67,11 @@ from .protocol import (
     event_buffers,
 )
 
-#: What happened to an orbit (int8, CF flag_values 0..6).
-NO_ORBIT = 0
-ROLLING = 1
-FATE_SPILLED = 2
-FATE_SLIPPED = 3
-FATE_REST = 4
-FATE_VERTEX = 5
-FAILED = 6
-FATE_NAMES = ("no_orbit", "rolling", "spilled", "slipped", "rest", "vertex", "failed")
-#: Rows of the float output of :func:`fate_points`.
-FATE_ROWS = ("fate_time", "fate_r", "fate_theta", "revolutions", "energy_lost", "invariant_drift")
-#: The rest threshold in units of rtol times the orbit's speed scale.
-REST_SPEED = 10.0
 #: Restarts from rest (a sphere that rolls down again) before a run is called failed.
 MAX_RESTARTS = 10_000
+#: The fate vocabulary (:mod:`.fate_codes`), where the kernels and the API found it.
+__all__ = ["FAILED", "FATE_NAMES", "FATE_REST", "FATE_ROWS", "FATE_SLIPPED", "FATE_SPILLED",
+           "FATE_VERTEX", "NO_ORBIT", "REST_SPEED", "ROLLING", "holds_at_rest"]  # fmt: skip
 
 
 @kernel
@@ -93,13 +89,6 @@ def fate_of_status(status):
     if status == RESTED:
         return FATE_REST
     return FAILED
-
-
-@kernel
-def holds_at_rest(p):
-    """Whether rolling resistance can hold a sphere at rest on this cone's slope: the slope's
-    pull g cos(alpha) against the most the resistance gives, c_rr N = c_rr M g sin(alpha)."""
-    return p[P_COT] <= p[P_CRR]
 
 
 @kernel
@@ -122,13 +111,13 @@ def come_to_rest(y, p, effects):
         dt = speed / decel if decel > 0.0 else 0.0
         half = 0.5 * dt
         if effects & DISSIPATIVE:
-            y[state_size(effects) - 1] += dissipated_power(y[0], u, v, p, effects) * half
+            y[state_size(effects) - 1] += dissipated_power(y[0], u, v, y[4], p, effects) * half
         y[0] += u * half
         y[1] += rates[1] * half
         y[4] += rates[4] * half
         y[2] = 0.0
         y[3] = 0.0
-    if not holds_at_rest(p):
+    if not model_holds_at_rest(p, effects):
         return dt, OK
     if effects & SLIP_CHECK:
         if slip_margin(y, p, effects) > 0.0:
@@ -238,47 +227,11 @@ def fate_run(method, effects, p, y0, orbit, rtol, atol, t_horizon, max_steps):
 
 
 @kernel
-def fate_start(effects, p, energy, h, Lz, r_start, rtol):
-    """Where the fate run of the orbit (calE, h, L_z) from ``r_start`` starts (:func:`fate_of`),
-    with the rest threshold set in p: (result, y0, t0 [s], work0 [J], atol). ``result`` is
-    :func:`fate_of`'s tuple where the orbit ends at its start (fate >= 0; y0 and atol empty),
-    fate -1 where it runs from y0 at t0 (a radial orbit: the edge of the vertex region, reached
-    with the work work0 of the resistance)."""
-    nan = math.nan
-    none = np.empty(0)
-    if not (r_start >= 0.0 and math.isfinite(energy) and math.isfinite(Lz)):
-        return (NO_ORBIT, nan, nan, nan, nan, nan, nan, 0), none, 0.0, 0.0, none
-    if r_start > p[P_RIM]:  # beyond the rim: the closed form's off_cone
-        return (NO_ORBIT, nan, nan, nan, nan, nan, nan, 0), none, 0.0, 0.0, none
-    ok, r1, r2, rc = orbit_start(p, energy, h, Lz)
-    if not ok:
-        r1 = r_start
-        r2 = math.inf
-    t0 = 0.0
-    work0 = 0.0
-    if r_start == 0.0:  # a radial orbit from the vertex: to the edge of its region
-        y0, t0, work0 = _leave_vertex(p, effects, energy, h)
-        if t0 < 0.0:
-            return (FATE_VERTEX, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0), none, 0.0, 0.0, none
-        r1 = y0[0]
-    else:
-        y0 = initial_state(p, effects, r_start, energy, h, Lz)
-        y0[2] = 0.0  # a turning point: the start of a map's orbit, or a launch with u0 = 0
-        if r_start <= p[P_R_VERTEX]:  # inside the vertex region: at its r_min it leaves
-            if motion_rates(y0[0], 0.0, y0[3], y0[4], p, effects)[2] <= 0.0:
-                return (FATE_VERTEX, 0.0, r_start, 0.0, 0.0, 0.0, 0.0, 0), none, 0.0, 0.0, none
-    sc = tolerance_scales(p, effects, y0, energy, h, Lz, min(r1, y0[0]), r2, rc)
-    p[P_V_REST] = REST_SPEED * rtol * max(sc[2], abs(y0[3]))
-    atol = sc * rtol
-    return (-1, nan, nan, nan, nan, nan, nan, 0), y0, t0, work0, atol
-
-
-@kernel
 def fate_result(effects, p, y0, t0, work0, fate, t, y, steps):
     """:func:`fate_of`'s result tuple of a run from y0 (started at t0 [s] with the work work0
     [J] done) that ended with ``fate`` at state y, t [s] after its start, in ``steps``."""
-    E0 = invariants(y0, p)[0] + work0  # the energy at the start (the vertex for radial orbits)
-    E1 = invariants(y, p)[0]
+    E0 = energy(y0, p, effects) + work0  # the energy at the start (the vertex for radial orbits)
+    E1 = energy(y, p, effects)
     work = y[state_size(effects) - 1] if effects & DISSIPATIVE else 0.0
     scale = max(abs(E0), kinetic_energy(y0, p))
     drift = abs(E1 + work - E0) / scale
@@ -286,60 +239,48 @@ def fate_result(effects, p, y0, t0, work0, fate, t, y, steps):
 
 
 @kernel
-def fate_of(method, effects, p, energy, h, Lz, r_start, rtol, t_horizon, max_steps):
-    """The fate of the orbit (calE, h, L_z) started at rest radially (u = 0) at ``r_start`` [m]
-    (its r_min, or a launch radius), theta = 0, t = 0; a radial orbit's r_min is the vertex,
-    which it leaves (module docstring).
+def fate_of(method, effects, p, X, i, rtol, t_horizon, max_steps):
+    """The fate of point i (the columns ``X[:, i]`` of the points array, p holding its
+    geometry), started where the model starts it (the cone's: at rest radially (u = 0) at
+    r_start, its r_min or a launch radius, theta = 0, t = 0; a radial orbit's r_min is the
+    vertex, which it leaves: module docstring).
 
     Returns (fate, time [s], r [m], theta [rad], revolutions, energy lost [J], drift of the
     energy balance E + W [1], W the work of the dissipative forces, steps).
     """
-    res, y0, t0, work0, atol = fate_start(effects, p, energy, h, Lz, r_start, rtol)
-    if res[0] >= 0:
-        return res
-    fate, t, y, steps = fate_run(method, effects, p, y0, (energy, h, Lz), rtol, atol,
-                                 t_horizon - t0, max_steps)  # fmt: skip
+    start, r, y0, t0, work0, atol, orbit = fate_start(effects, p, X, i, rtol)
+    if start != RUNS:
+        return ended_at_start(start, r)
+    fate, t, y, steps = fate_run(method, effects, p, y0, orbit, rtol, atol, t_horizon - t0,
+                                 max_steps)  # fmt: skip
     return fate_result(effects, p, y0, t0, work0, fate, t, y, steps)
 
 
 @kernel
-def _leave_vertex(p, effects, energy, h):
-    """The state where a radial orbit (L_z = 0, radial energy ``energy``) leaving the vertex
-    reaches the edge of the vertex region, the time it took and the work of the resistance on
-    the way: along the generatrix (v = 0, N = M g sin(alpha)) the deceleration is constant,
-    g cos(alpha)/(1+k) + c_rr g sin(alpha)/(1+k). Time -1: it never gets there."""
-    r_v = p[P_R_VERTEX]
-    y = initial_state(p, effects, r_v, energy, h, 0.0)
-    decel = p[P_GC]
-    work = 0.0
-    if effects & ROLLING_RESISTANCE:
-        resistance = p[P_CRR] * p[P_M] * p[P_G] * p[P_SIN]  # c_rr N [N]
-        decel += resistance * p[P_INV_M1K]
-        work = resistance * r_v
-        y[state_size(effects) - 1] = work
-    u0 = math.sqrt(2.0 * energy / p[P_M]) if energy > 0.0 else 0.0
-    u2 = u0 * u0 - 2.0 * decel * r_v
-    if not u2 > 0.0:
-        return y, -1.0, 0.0
-    y[2] = math.sqrt(u2)
-    return y, (u0 - y[2]) / decel, work
+def ended_at_start(fate, r):
+    """:func:`fate_of`'s result tuple of a point whose fate is decided at its start: no orbit
+    (NaN numbers), or the vertex at radius r at t = 0."""
+    if fate == NO_ORBIT:
+        nan = math.nan
+        return NO_ORBIT, nan, nan, nan, nan, nan, nan, 0
+    return fate, 0.0, r, 0.0, 0.0, 0.0, 0.0, 0
 
 
 @parallel_kernel
-def fate_points(alpha, energy, h, Lz, r_start, params, method, effects, rtol, t_horizon,
-                max_steps, out_fate, out_f, out_n):  # fmt: skip
-    """:func:`fate_of` for every point, in parallel (``method``, ``effects``: literal ints).
+def fate_points(X, params, method, effects, rtol, t_horizon, max_steps, out_fate, out_f, out_n):
+    """:func:`fate_of` for every point (the columns of the points array X: the model's inputs,
+    the cone's (alpha, calE, h, L_z, r_start)), in parallel (``method``, ``effects``: literal
+    ints).
 
     Writes ``out_fate`` int8[n], ``out_f`` float64[6, n] (rows :data:`FATE_ROWS`) and
     ``out_n`` int64[n] steps.
     """
     literally(method)
     literally(effects)
-    for i in prange(alpha.shape[0]):
+    for i in prange(X.shape[1]):
         p = params.copy()
-        set_alpha(p, alpha[i])
-        res = fate_of(method, effects, p, energy[i], h[i], Lz[i], r_start[i], rtol, t_horizon,
-                      max_steps)  # fmt: skip
+        set_point(p, X, i, effects)
+        res = fate_of(method, effects, p, X, i, rtol, t_horizon, max_steps)
         store_fate(out_fate, out_f, out_n, i, res)
 
 

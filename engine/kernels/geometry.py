@@ -27,6 +27,7 @@ import numpy as np
 
 from .._jit import kernel
 from .carlson import cel_pair
+from .cone import coefficients, coefficients_sc, rim_on_centre_cone, set_alpha
 from .ending import (
     critical_cube,
     critical_ratio,
@@ -35,19 +36,8 @@ from .ending import (
     mu_required_of,
     time_and_azimuth,
 )
-from .model import (
-    P_G,
-    P_K,
-    P_M,
-    P_MU,
-    P_RADIUS,
-    P_RIM_SLANT,
-    PARAM_SLOTS,
-    coefficients,
-    coefficients_sc,
-    make_params,
-    rim_on_centre_cone,
-)
+from .layouts import P_G, P_K, P_M, P_MU, P_RADIUS, P_RIM_SLANT, SLOTS
+from .model import make_params
 from .roots import circular_radius, free_fall_r_min, turning_points, turning_points_in, well
 
 #: Orbit classes, stored as int8 ``orbit_class`` (CF flag_values, names CLASS_NAMES).
@@ -120,13 +110,14 @@ FamilyHead = namedtuple("FamilyHead", [f for f in FAMILY_FIELDS if f not in ("r_
 
 def scene_params(M: float, g: float, k: float, a: float = 0.0, rim: float = math.inf,
                  mu: float = math.inf) -> np.ndarray:  # fmt: skip
-    """The parameter array (``.model.P_*`` layout, as ``engine.Scene.params`` builds it) of a
+    """The parameter array (``.layouts`` layout, as ``engine.Scene.params`` builds it) of a
     scene given by the closed form's numbers: the sphere's M, g, k, a, the rim (the real cone's
     slant length; +inf: none) and the friction limit mu (+inf: no slip check). The closed-form
     kernels read these six from it; alpha is per point (its slots are not read)."""
-    slots = np.array([PARAM_SLOTS["P_RIM_SLANT"], PARAM_SLOTS["P_MU"]], np.int64)
-    return make_params(math.pi / 4, float(M), float(g), float(k), float(a), slots,
-                       np.array([rim, mu], np.float64))  # fmt: skip
+    slots = np.array([SLOTS["rim"], SLOTS["mu"]], np.int64)
+    p = make_params(float(M), float(g), float(k), float(a), slots, np.array([rim, mu], np.float64))
+    set_alpha(p, math.pi / 4)
+    return p
 
 
 def ideal_cone(p: np.ndarray) -> np.ndarray:

@@ -20,8 +20,9 @@ import numpy as np
 from numba import literally, prange
 
 from .._jit import kernel, parallel_kernel
+from .cone import set_alpha
 from .fate import fate_run
-from .model import set_alpha, state_size
+from .layouts import state_size
 from .rk_codegen import tableau
 from .sliding import MODE_ROLLING, N_HYBRID, N_HYBRID_PARAMS
 from .story_parts import (

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 
 from .._jit import kernel
-from .model import P_V_REST
+from .layouts import P_V_REST
 from .protocol import EPS
 from .rk import step_decide, step_error
 from .rk_codegen import controller, tableau

@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 
 from .._jit import kernel
+from .cone import P_COS, P_SIN, invariants_of, radial_energy
 from .hybrid_rk import (
     ADV_OK,
     ADV_REACHED,
@@ -33,21 +34,7 @@ from .hybrid_rk import (
     stalled,
     step_controller,
 )
-from .model import (
-    P_COS,
-    P_CRR,
-    P_G,
-    P_K,
-    P_M,
-    P_MU,
-    P_R_VERTEX,
-    P_RIM,
-    P_SIN,
-    P_THETA_MAX,
-    P_V_REST,
-    invariants_of,
-    radial_energy,
-)
+from .layouts import P_CRR, P_G, P_K, P_M, P_MU, P_R_VERTEX, P_RIM, P_THETA_MAX, P_V_REST
 from .rk_codegen import tableau
 from .sliding import (
     H_C_SPIN,

@@ -7,8 +7,8 @@ line of the step is one vector instruction over the lanes (AVX2: 4 doubles): ~60
 and step. :mod:`.lanes_step` generates the vectorised step and step-size control; this module
 is the scalar rest, per lane and only where needed:
 
-- the start of an orbit (:func:`.orbit.orbit_start`, :func:`.orbit.initial_state`,
-  :func:`.orbit.tolerance_scales`, :func:`.rk.initial_step`: as :func:`.orbit.one_period`);
+- the start of an orbit (the model's :func:`.model.period_start`, :func:`.rk.initial_step`:
+  as :func:`.orbit.one_period`);
 - the events of a step (:func:`.rk_events.step_events` on a scalar copy of the lane: apsides,
   rim, slip) and the result (:func:`.orbit.reduce_period`: half a period for a conservative
   scene, :func:`.orbit.period_apsides`);
@@ -36,14 +36,11 @@ from .lanes_step import (
     split_owned,
     take_point,
 )
-from .model import N_PARAMS, rhs, set_alpha
+from .model import N_PARAMS, period_start, rhs, set_point
 from .orbit import (
-    initial_state,
-    orbit_start,
     period_apsides,
     reduce_period,
     store_period,
-    tolerance_scales,
 )
 from .protocol import (
     BUFFER_FULL,
@@ -65,28 +62,24 @@ ORBIT, N_APS, N_EV = 0, 1, 2
 
 
 @kernel(inline="always")
-def _lane_start(method, effects, l, i, alpha, energy, hh, Lz, params, rtol, max_steps, W, I,
-                LY0, LEV, LEVK, p, K, buf, ev_t, ev_kind, ev_y):  # fmt: skip
-    """Start point i in lane l the way :func:`.orbit.one_period` starts it. Returns OK when it
-    runs, else the status it ends with at once (its parameters are then in p, its events in
-    ev_*)."""
+def _lane_start(method, effects, l, i, X, params, rtol, max_steps, W, I, LY0, LEV, LEVK, p, K, buf,
+                ev_t, ev_kind, ev_y):  # fmt: skip
+    """Start point i (``X[:, i]``) in lane l the way :func:`.orbit.one_period` starts it.
+    Returns OK when it runs, else the status it ends with at once (its parameters are then in
+    p, its events in ev_*)."""
     ly = lanes_layout(method, effects)
     L = LANES
     for k in range(N_PARAMS):
         p[k] = params[k]
-    set_alpha(p, alpha[i])
+    set_point(p, X, i, effects)
     I[l, ORBIT] = i
     I[l, N_APS] = 0
     I[l, N_EV] = 0
     for s in (ly.T, ly.REJECTED, ly.N_ACC, ly.N_REJ, ly.ACTIVE, ly.POLISH):
         W[s * L + l] = 0.0
-    ok, r1, r2, rc = orbit_start(p, energy[i], hh[i], Lz[i])
+    ok, y0, atol, orbit = period_start(effects, p, X, i, rtol)
     if not ok:
         return NOT_BOUNDED
-    y0 = initial_state(p, effects, r1, energy[i], hh[i], Lz[i])
-    y0[2] = 0.0
-    atol = tolerance_scales(p, effects, y0, energy[i], hh[i], Lz[i], r1, r2, rc)
-    atol *= rtol
     for j in range(ly.n):
         LY0[l, j] = y0[j]
     return lane_begin(method, effects, l, y0, atol, p, rtol, max_steps, W, I, LEV, LEVK, K, buf,
@@ -337,8 +330,8 @@ def lane_workspace(method, effects, n_vec, n_int, n_float):
 
 
 @kernel
-def lanes_worker(method, effects, alpha, energy, hh, Lz, params, rtol, max_steps, queue, starts,
-                 out_f, out_n, out_status):  # fmt: skip
+def lanes_worker(method, effects, X, params, rtol, max_steps, queue, starts, out_f, out_n,
+                 out_status):  # fmt: skip
     """Integrate points LANES at a time, each over one radial period as
     :func:`.orbit.one_period` does (to r_max and doubled for a conservative scene), into out_f
     (rows of :data:`.orbit.PERIOD_ROWS`), out_n (accepted steps), out_status. A lane whose
@@ -348,7 +341,7 @@ def lanes_worker(method, effects, alpha, energy, hh, Lz, params, rtol, max_steps
     owners, W, LY0, LEV, p, K, K2, V, brent, ev_t, ev_kind, ev_y, _, I, LEVK = lane_workspace(
         method, effects, 3, 3, 0)  # fmt: skip
     ys, yn, buf, nxt, end = V[0], V[1], V[2], 0, 0
-    alpha, energy, hh, Lz = borrow(alpha), borrow(energy), borrow(hh), borrow(Lz)
+    X = borrow(X)
     params, out_f, out_n, out_status = (borrow(params), borrow(out_f), borrow(out_n),
                                         borrow(out_status))  # fmt: skip
     while True:
@@ -358,9 +351,8 @@ def lanes_worker(method, effects, alpha, energy, hh, Lz, params, rtol, max_steps
                 i, nxt, end = take_point(queue, starts, nxt, end)
                 if i < 0:
                     break
-                status = _lane_start(method, effects, l, i, alpha, energy, hh, Lz, params, rtol,
-                                     max_steps, W, I, LY0, LEV, LEVK, p, K, buf, ev_t, ev_kind,
-                                     ev_y)  # fmt: skip
+                status = _lane_start(method, effects, l, i, X, params, rtol, max_steps, W, I,
+                                     LY0, LEV, LEVK, p, K, buf, ev_t, ev_kind, ev_y)  # fmt: skip
                 if status != OK:
                     _lane_finish(method, effects, l, status, W, I, LY0, p, ev_t, ev_kind, ev_y,
                                  out_f, out_n, out_status)  # fmt: skip
@@ -385,16 +377,16 @@ def lanes_worker(method, effects, alpha, energy, hh, Lz, params, rtol, max_steps
 
 
 @parallel_kernel
-def integrate_points_lanes(alpha, energy, h, Lz, params, method, effects, rtol, max_steps,
-                           n_workers, out_f, out_n, out_status):  # fmt: skip
+def integrate_points_lanes(X, params, method, effects, rtol, max_steps, n_workers, out_f, out_n,
+                           out_status):  # fmt: skip
     """:func:`.orbit.integrate_points` for a Runge-Kutta ``method`` (literal, like ``effects``),
     its results bit for bit: ``n_workers`` :func:`lanes_worker` (one per thread:
     ``numba.get_num_threads()``, which a cached kernel cannot call) taking pieces of the
     points from one queue."""
     literally(method)
     literally(effects)
-    queue, workers = np.zeros(1, np.int64), max(1, min(n_workers, alpha.shape[0]))
-    starts = piece_starts(alpha.shape[0], workers)
+    queue, workers = np.zeros(1, np.int64), max(1, min(n_workers, X.shape[1]))
+    starts = piece_starts(X.shape[1], workers)
     for _ in prange(workers):
-        lanes_worker(method, effects, alpha, energy, h, Lz, params, rtol, max_steps, queue,
-                     starts, out_f, out_n, out_status)  # fmt: skip
+        lanes_worker(method, effects, X, params, rtol, max_steps, queue, starts, out_f, out_n,
+                     out_status)  # fmt: skip

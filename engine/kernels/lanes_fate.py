@@ -2,8 +2,8 @@
 results bit for bit.
 
 Each lane follows one orbit to its fate the way :func:`.fate.fate_of` does, with the same
-pieces: its start (:func:`.fate.fate_start`: the rest threshold, a radial orbit's way out of
-the vertex region), a start at rest (:func:`.fate.starts_at_rest`), runs as
+pieces: its start (the model's :func:`.model.fate_start`: the rest threshold, a radial
+orbit's way out of the vertex region), a start at rest (:func:`.fate.starts_at_rest`), runs as
 :func:`.rk.rk_run` takes them (:func:`.lanes.lane_begin`, the vectorised step and a step-size
 control that looks for no apsides and clips the last step to the horizon as rk_run clips it to
 t_end: :func:`.lanes_step.lanes_control_fate`), what follows a run (:func:`.fate.after_run`: a
@@ -20,15 +20,15 @@ from numba import literally, prange
 
 from .._jit import kernel, parallel_kernel
 from .fate import (
-    FAILED,
     MAX_RESTARTS,
     after_run,
+    ended_at_start,
     fate_of_status,
     fate_result,
-    fate_start,
     starts_at_rest,
     store_fate,
 )
+from .fate_codes import FAILED, RUNS
 from .lanes import (
     ORBIT,
     lane_advance,
@@ -45,7 +45,7 @@ from .lanes_step import (
     lanes_control_fate,
     lanes_layout,
 )
-from .model import N_PARAMS, set_alpha
+from .model import N_PARAMS, fate_start, set_point
 from .protocol import BUFFER_FULL, OK, TERMINAL_EFFECTS, terminal_between
 from .rk import clip_step, step_allowed
 from .rk_events import rk_dense, step_events
@@ -128,24 +128,23 @@ def _run_ended(method, effects, l, status, t_run, y, rtol, max_steps, W, I, F, L
 
 
 @kernel(inline="always")
-def _lane_start(method, effects, l, i, alpha, energy, hh, Lz, r_start, params, rtol, t_horizon,
-                max_steps, W, I, F, LY0, LEV, LEVK, p, K, buf, y, ev_t, ev_kind, ev_y, out_fate,
-                out_f, out_n):  # fmt: skip
-    """Start point i in lane l as :func:`.fate.fate_of` starts it. Returns True when it runs;
-    False when its point is written (it ended at its start)."""
+def _lane_start(method, effects, l, i, X, params, rtol, t_horizon, max_steps, W, I, F, LY0, LEV,
+                LEVK, p, K, buf, y, ev_t, ev_kind, ev_y, out_fate, out_f, out_n):  # fmt: skip
+    """Start point i (``X[:, i]``) in lane l as :func:`.fate.fate_of` starts it. Returns True
+    when it runs; False when its point is written (it ended at its start)."""
     ly = lanes_layout(method, effects)
     L = LANES
     for k in range(N_PARAMS):
         p[k] = params[k]
-    set_alpha(p, alpha[i])
+    set_point(p, X, i, effects)
     I[l, ORBIT] = i
     I[l, RESTARTS] = 0
     W[ly.N_ACC * L + l] = 0.0
     W[ly.N_REJ * L + l] = 0.0
     W[ly.ACTIVE * L + l] = 0.0
-    res, y0, t0, work0, atol = fate_start(effects, p, energy[i], hh[i], Lz[i], r_start[i], rtol)
-    if res[0] >= 0:
-        store_fate(out_fate, out_f, out_n, i, res)
+    start, r, y0, t0, work0, atol, orbit = fate_start(effects, p, X, i, rtol)
+    if start != RUNS:
+        store_fate(out_fate, out_f, out_n, i, ended_at_start(start, r))
         I[l, ORBIT] = -1
         return False
     for j in range(ly.n):
@@ -157,23 +156,8 @@ def _lane_start(method, effects, l, i, alpha, energy, hh, Lz, r_start, params, r
     F[l, F_HORIZON] = t_horizon - t0
     ended, status = starts_at_rest(effects, y, p)
     if ended:
-        _finish(
-            method,
-            effects,
-            l,
-            fate_of_status(status),
-            0.0,
-            y,
-            0,
-            W,
-            I,
-            F,
-            LY0,
-            p,
-            out_fate,
-            out_f,
-            out_n,
-        )
+        _finish(method, effects, l, fate_of_status(status), 0.0, y, 0, W, I, F, LY0, p, out_fate,
+                out_f, out_n)  # fmt: skip
         return False
     status = lane_run_from(method, effects, l, y, F[l, F_HORIZON] - 0.0, atol, p, rtol, max_steps,
                            W, I, LEV, LEVK, K, buf, ev_t, ev_kind, ev_y)  # fmt: skip
@@ -227,8 +211,8 @@ def _lane_flagged(method, effects, l, max_steps, W, p, K, K2, ys, yn, y, buf, br
 
 
 @kernel
-def lanes_fate_worker(method, effects, alpha, energy, hh, Lz, r_start, params, rtol, t_horizon,
-                      max_steps, queue, out_fate, out_f, out_n):  # fmt: skip
+def lanes_fate_worker(method, effects, X, params, rtol, t_horizon, max_steps, queue, out_fate,
+                      out_f, out_n):  # fmt: skip
     """Follow points LANES at a time to their fates (:func:`.fate.fate_of`), into out_fate,
     out_f (rows :data:`.fate.FATE_ROWS`) and out_n (steps); a lane whose point has its fate
     takes the next from ``queue`` (int64[1], shared by the workers)."""
@@ -237,10 +221,9 @@ def lanes_fate_worker(method, effects, alpha, energy, hh, Lz, r_start, params, r
     owners, W, LY0, LEV, p, K, K2, V, brent, ev_t, ev_kind, ev_y, F, I, LEVK = lane_workspace(
         method, effects, 5, 4, 4)  # fmt: skip
     ys, yn, y, at, buf = V[0], V[1], V[2], V[3], V[4]
-    alpha, energy, hh, Lz, r_start = (borrow(alpha), borrow(energy), borrow(hh), borrow(Lz),
-                                      borrow(r_start))  # fmt: skip
-    params, out_fate, out_f, out_n = borrow(params), borrow(out_fate), borrow(out_f), borrow(out_n)
-    n_points = alpha.shape[0]
+    X, params = borrow(X), borrow(params)
+    out_fate, out_f, out_n = borrow(out_fate), borrow(out_f), borrow(out_n)
+    n_points = X.shape[1]
     while True:
         running = 0
         for l in range(L):  # refill idle lanes; points that end at their start are written
@@ -248,9 +231,9 @@ def lanes_fate_worker(method, effects, alpha, energy, hh, Lz, r_start, params, r
                 i = fetch_add(queue, 1)
                 if i >= n_points:
                     break
-                _lane_start(method, effects, l, i, alpha, energy, hh, Lz, r_start, params, rtol,
-                            t_horizon, max_steps, W, I, F, LY0, LEV, LEVK, p, K, buf, y, ev_t,
-                            ev_kind, ev_y, out_fate, out_f, out_n)  # fmt: skip
+                _lane_start(method, effects, l, i, X, params, rtol, t_horizon, max_steps, W, I,
+                            F, LY0, LEV, LEVK, p, K, buf, y, ev_t, ev_kind, ev_y, out_fate,
+                            out_f, out_n)  # fmt: skip
             running += I[l, ORBIT] >= 0
         if running == 0:
             break
@@ -271,17 +254,17 @@ def lanes_fate_worker(method, effects, alpha, energy, hh, Lz, r_start, params, r
 
 
 @parallel_kernel
-def fate_points_lanes(alpha, energy, h, Lz, r_start, params, method, effects, rtol, t_horizon,
-                      max_steps, n_workers, out_fate, out_f, out_n):  # fmt: skip
+def fate_points_lanes(X, params, method, effects, rtol, t_horizon, max_steps, n_workers, out_fate,
+                      out_f, out_n):  # fmt: skip
     """:func:`.fate.fate_points` for a Runge-Kutta ``method`` (literal, like ``effects``), its
     results bit for bit: ``n_workers`` :func:`lanes_fate_worker` (one per thread) taking points
     from one queue."""
     literally(method)
     literally(effects)
     queue = np.zeros(1, np.int64)
-    for _ in prange(max(1, min(n_workers, alpha.shape[0]))):
-        lanes_fate_worker(method, effects, alpha, energy, h, Lz, r_start, params, rtol, t_horizon,
-                          max_steps, queue, out_fate, out_f, out_n)  # fmt: skip
+    for _ in prange(max(1, min(n_workers, X.shape[1]))):
+        lanes_fate_worker(method, effects, X, params, rtol, t_horizon, max_steps, queue, out_fate,
+                          out_f, out_n)  # fmt: skip
 
 
 @kernel(inline="always")

@@ -40,11 +40,12 @@ import numpy as np
 from numba import literally, prange
 
 from .._jit import kernel, parallel_kernel
+from .cone import set_alpha
 from .fate import FAILED, MAX_RESTARTS, after_run, fate_of_status, starts_at_rest
 from .lanes import ORBIT, lane_params, lane_workspace
 from .lanes_fate import lane_flagged_run, lane_run_from
 from .lanes_step import LANES, borrow, fetch_add, lanes_attempt, lanes_control_fate, lanes_layout
-from .model import N_PARAMS, set_alpha
+from .model import N_PARAMS
 from .protocol import OK
 from .rk_codegen import tableau
 from .sliding import MODE_ROLLING, N_HYBRID, N_HYBRID_PARAMS

@@ -33,7 +33,8 @@ from numba.extending import intrinsic, overload
 
 from .._jit import kernel
 from .branchless import keep, pick
-from .model import N_PARAMS, rates5, rates6, rates9, rates10, state_size_of
+from .layouts import state_size_of
+from .model import N_PARAMS, rates5, rates6, rates9, rates10
 from .protocol import OK, TERMINAL_EFFECTS, terminal_between
 from .rk import clip_step, step_allowed, step_decide, step_error
 from .rk_codegen import GEN_OPTS, literal_int, rk_method_id, unrolled_step_lines

@@ -1,177 +1,151 @@
-"""The model: one copy of each formula of docs/physics.md, as numba kernels.
+"""The model interface: what the drivers (Runge-Kutta steps, SIMD lanes, events, fate stories)
+ask of the physics, and the registry of models that answer.
 
-- the radial problem: coefficients A, B, C of V(r) = A/r^2 + B/r + C r, V and its derivatives,
-  the radial energy;
-- the invariants E, L_z, h and the contact forces (F, N) of a state;
-- the scene's right-hand side, with the effects compiled in or out.
+A model is one kernel module (the cone, :mod:`.cone`, is the first) that declares in one place
+its parameter slots (``SLOTS``, after the shared ones of :mod:`.layouts`), its rolling equations
+of motion, its invariants, its contact (normal force, the friction rolling needs), its event
+functions and where its runs start; its row in :data:`MODELS` says which capabilities it offers
+(:data:`MODEL_CAPABILITIES`) and why it lacks the others, so a method that needs one it lacks is
+refused with that reason (``engine.methods``), never run wrongly.
 
-A scene's structure is an ``effects`` bit mask (the bits of the effects table, :mod:`.effects`:
-:data:`ROLLING_RESISTANCE`, :data:`RIM`, :data:`SLIP_CHECK`, :data:`ATTITUDE`) that reaches
-every kernel as a numba *literal* integer (the entry points call ``numba.literally(effects)``),
-so each effect set is its own compiled, disk-cached specialisation and an effect that is off
-costs no branch, no state and no time: the tests ``effects & FLAG`` fold to constants and LLVM
-drops the dead code. Gravity (g = 0 is free fall) and the spin coupling (k = 0) are runtime
-parameters. All physical parameters travel in one float64 array (layout ``P_*`` below, built
-by :func:`make_params`), so sweeping a grid never recompiles.
+The model reaches the kernels inside the ``effects`` literal, above the effect bits:
+``effects = effect bits | model id << MODEL_SHIFT`` (:func:`scene_key`). Each (model, effect
+set) is its own compiled, disk-cached specialisation, and each function below picks the
+model's own kernel at compile time: a model costs the others nothing. The cone is id 0, so a
+cone scene's key is its effect bits.
 
-State y (length :func:`state_size`): r [m], theta [rad], u = rdot [m/s], v = r sin(alpha)
-thetadot [m/s], w = a omega_nu [m/s]; with :data:`ATTITUDE` also the unit quaternion
-(q0, q1, q2, q3) (scalar first) rotating body axes to the fixed frame (identity at t = 0); with
-a dissipative effect (:data:`DISSIPATIVE`) last the work done by the dissipative forces [J].
-
-The scalar formulas (:func:`invariants_of`, :func:`contact_forces_of`, :func:`radial_energy`)
-use arithmetic only, so their ``.py_func`` also evaluates them on numpy arrays (trajectories).
+The state y, the same for every model (its length :func:`state_size`): the meridian coordinate
+(the cone's r) [m], theta [rad], u [m/s] along the meridian, v [m/s] along the parallel, w = a
+omega_nu [m/s]; with ``ATTITUDE`` the unit quaternion (q0, q1, q2, q3) (body axes to the fixed
+frame, identity at t = 0); with a dissipative effect last the work the effects took [J].
 """
 
 from __future__ import annotations
 
-import math
+import inspect
+from typing import NamedTuple
 
 import numpy as np
+from numba.core import errors, types
+from numba.extending import overload
 from numba.np.unsafe.ndarray import to_fixed_tuple
 
 from .._jit import kernel
-from .effects import DISSIPATIVE, EFFECT_BITS, EFFECTS
+from . import cone, cone_starts
+from .effects import DISSIPATIVE, EFFECT_BITS, REVOLUTIONS
+from .layouts import (
+    ATTITUDE,
+    MODEL_BASE,
+    P_G,
+    P_INV_M1K,
+    P_K,
+    P_KK,
+    P_M,
+    P_R_VERTEX,
+    P_RADIUS,
+    P_RIM,
+    P_THETA_MAX,
+    P_V_REST,
+    state_size,
+)
 
-# Effect bits (combine with |), from the effects table. Gravity and spin coupling are parameters.
+# Effect bits (combine with |), from the effects table.
 ROLLING_RESISTANCE = EFFECT_BITS["rolling_resistance"]
 RIM = EFFECT_BITS["rim"]
 SLIP_CHECK = EFFECT_BITS["slip_check"]
-ATTITUDE = EFFECT_BITS["attitude"]
 
-# Parameter array layout.
-P_ALPHA = 0  # half-aperture [rad]
-P_SIN = 1  # sin(alpha)
-P_COS = 2  # cos(alpha)
-P_COT = 3  # cot(alpha)
-P_M = 4  # mass [kg]
-P_G = 5  # gravity [m s-2]
-P_K = 6  # inertia factor I/(M a^2)
-P_KK = 7  # k / (1 + k)
-P_GC = 8  # g cos(alpha) / (1 + k) [m s-2]
-P_RADIUS = 9  # sphere radius a [m]
-P_RIM = 10  # the rim on the centre's cone: slant length of the centre there [m] (inf: none)
-P_MU = 11  # friction coefficient (inf: no slip check)
-P_CRR = 12  # rolling-resistance coefficient
-P_INV_M1K = 13  # 1 / (M (1 + k)) [kg-1]
-P_RIM_SLANT = 14  # the rim as a user measures it: slant length of the real cone [m] (inf: none)
-P_R_VERTEX = 15  # the vertex region: r below this [m] ends a run (VERTEX_FRACTION a)
-P_V_REST = 16  # speed [m/s] below which rolling resistance has stopped the sphere (per orbit)
-P_THETA_MAX = 17  # azimuth [rad] after which a fate run stops (inf: none; REVOLUTIONS runs)
-N_PARAMS = 18
-#: Parameter slot name -> index (the slots an effect's row names in ``params``).
-PARAM_SLOTS = {name: value for name, value in globals().items() if name.startswith("P_")}
-assert all(s in PARAM_SLOTS for e in EFFECTS for s in e.params), "unknown parameter slot"
+#: The model id's place in the ``effects`` literal (above the effect bits and run options).
+MODEL_SHIFT = 20
+assert REVOLUTIONS < 1 << MODEL_SHIFT, "run options must stay below the model id"
 
-#: The vertex region, in units of the sphere's radius a: the centre within this of its lowest
-#: point (r = 0, where the sphere touches the cone all around and the single-contact model ends).
+#: What a model may offer -> what that means. Each model declares every one, offered or
+#: lacked with a reason.
+MODEL_CAPABILITIES: dict[str, str] = {
+    "closed form": "orbits in closed form (complete elliptic integrals)",
+    "invariant grids": "maps over (alpha, E, h, L_z): an orbit identified by its invariants",
+    "separable split": "a separable radial Hamiltonian (the symplectic integrator's split)",
+    "sliding contact": "the sliding model: a slip becomes a transition (mu_k, c_spin)",
+}
+
+
+class Model(NamedTuple):
+    """A model's row: its name, its id in the ``effects`` literal, its kernel modules (the
+    physics: ``SLOTS``, the equations, invariants and contact; the starts: where its runs
+    start from a point of a map) and the capabilities it offers; ``lacks`` names each other
+    one with the reason."""
+
+    name: str
+    id: int
+    physics: object
+    starts: object
+    offers: tuple[str, ...]
+    lacks: tuple[tuple[str, str], ...]
+
+
+#: Every model, by id.
+MODELS: tuple[Model, ...] = (Model("cone", 0, cone, cone_starts, tuple(MODEL_CAPABILITIES), ()),)
+#: Model id -> row (what the functions below dispatch on).
+MODEL_ROWS = {m.id: m for m in MODELS}
+#: The cone's id.
+CONE = 0
+
+
+def check_models(models: tuple[Model, ...]) -> None:
+    """Refuse (ValueError) a registry whose ids are not the rows' positions, a row that does not
+    declare every capability once (offered, or lacked with a reason), or a name used twice."""
+    for position, m in enumerate(models):
+        if m.id != position:
+            raise ValueError(f"model {m.name!r}: id {m.id} must be its position {position}")
+        declared = [*m.offers, *(c for c, _ in m.lacks)]
+        if sorted(declared) != sorted(MODEL_CAPABILITIES):
+            raise ValueError(
+                f"model {m.name!r} must declare each of {sorted(MODEL_CAPABILITIES)} once, "
+                f"offered or lacked with a reason; it declares {declared}"
+            )
+        if any(not why.strip() for _, why in m.lacks):
+            raise ValueError(f"model {m.name!r}: a lacked capability needs its reason")
+    if len({m.name for m in models}) != len(models):
+        raise ValueError("model names must be unique")
+
+
+check_models(MODELS)
+
+#: Length of the parameter array: the shared and effect slots, then the largest model's own.
+N_PARAMS = MODEL_BASE + max(len(m.physics.SLOTS) for m in MODELS)
+#: The vertex region (the inner end of a surface), in units of the sphere's radius a.
 VERTEX_FRACTION = 1e-2
 
-N_BASE = 5
+
+def scene_key(model: int, effects: int) -> int:
+    """The ``effects`` literal of a model and an effect set (module docstring)."""
+    return int(effects) | (int(model) << MODEL_SHIFT)
 
 
-# ------------------------------------------------------------------------ the radial problem
-@kernel
-def coefficients(alpha, h, Lz, M, g, k):
-    """A [J m^2], B [J m], C [J/m] of V(r) = A/r^2 + B/r + C r."""
-    return coefficients_sc(math.sin(alpha), math.cos(alpha), h, Lz, M, g, k)
-
-
-@kernel
-def coefficients_sc(s, c, h, Lz, M, g, k):
-    """:func:`coefficients` from s = sin(alpha), c = cos(alpha) (arithmetic only)."""
-    s2 = s * s
-    kk = k / (1.0 + k)
-    cot = c / s
-    A = Lz * Lz / (2.0 * M * s2) * (1.0 + kk * cot * cot)
-    B = kk * h * Lz * c / s2
-    C = M * g * c / (1.0 + k)
-    return A, B, C
-
-
-@kernel
-def radial_energy(E, h, M, k):
-    """Radial energy calE [J] from the total energy E [J] and spin invariant h [m/s]."""
-    return E / (1.0 + k) - k / (2.0 * (1.0 + k)) * M * h * h
-
-
-@kernel
-def potential(r, A, B, C):
-    """Effective potential V(r) = A/r^2 + B/r + C r [J]."""
-    return A / (r * r) + B / r + C * r
-
-
-@kernel
-def potential_d1(r, A, B, C):
-    """V'(r) [J/m]."""
-    return -2.0 * A / (r * r * r) - B / (r * r) + C
-
-
-# ----------------------------------------------------------------- invariants and forces
-@kernel
-def invariants_of(r, u, v, w, s, c, M, g, k):
-    """(E [J], L_z [kg m^2/s], h [m/s]) of the state (r, u, v, w) on a cone with sin(alpha) = s,
-    cos(alpha) = c."""
-    Lz = M * r * v * s
-    h = w - Lz * c / (M * r * s * s)
-    E = 0.5 * (1.0 + k) * M * (u * u + v * v) + 0.5 * k * M * w * w + M * g * r * c
-    return E, Lz, h
-
-
-@kernel
-def contact_forces_of(r, v, w, s, c, cot, M, g, kk):
-    """(F [N], N [N]): the friction along e1 that rolling needs, and the normal force (> 0 on
-    the inside of the cone); cot = cot(alpha), kk = k/(1+k)."""
-    kappa = cot / r
-    N = M * (g * s + v * v * kappa)
-    F = kk * M * (g * c + kappa * v * w)
-    return F, N
+def model_of_key(effects: int) -> int:
+    """The model id of an ``effects`` literal."""
+    return int(effects) >> MODEL_SHIFT
 
 
 # ------------------------------------------------------------------------ the scene's params
 @kernel
-def make_params(alpha, M, g, k, a, slots, values):
-    """The float64 parameter array (``P_*`` layout) of a scene on a cone of half-aperture alpha:
-    the sphere's M, g, k, a, then ``values[i]`` into slot ``slots[i]`` (the effects' slots,
-    :attr:`.effects.Effect.params`; the rim slot defaults to +inf, the others to 0)."""
+def make_params(M, g, k, a, slots, values):
+    """The float64 parameter array (layout :mod:`.layouts`, length :data:`N_PARAMS`) of a
+    sphere M, g, k, a: then ``values[i]`` into slot ``slots[i]`` (the effects' slots); no rim
+    until the model sets one, and the model's own slots 0 until it sets them."""
     p = np.zeros(N_PARAMS)
     p[P_M] = M
     p[P_G] = g
     p[P_K] = k
     p[P_KK] = k / (1.0 + k)
     p[P_RADIUS] = a
-    p[P_RIM_SLANT] = math.inf
-    p[P_MU] = math.inf
     for i in range(slots.shape[0]):
         p[slots[i]] = values[i]
     p[P_INV_M1K] = 1.0 / (M * (1.0 + k))
     p[P_R_VERTEX] = VERTEX_FRACTION * a
+    p[P_RIM] = np.inf
     p[P_V_REST] = 0.0
-    p[P_THETA_MAX] = math.inf
-    set_alpha(p, alpha)
+    p[P_THETA_MAX] = np.inf
     return p
-
-
-@kernel
-def set_alpha(p, alpha):
-    """Update the alpha-dependent entries of ``p`` in place (for batch kernels over alpha)."""
-    s = math.sin(alpha)
-    c = math.cos(alpha)
-    p[P_ALPHA] = alpha
-    p[P_SIN] = s
-    p[P_COS] = c
-    p[P_COT] = c / s
-    p[P_GC] = p[P_G] * c / (1.0 + p[P_K])
-    p[P_RIM] = rim_on_centre_cone(p[P_RIM_SLANT], p[P_RADIUS], c / s)
-
-
-@kernel
-def rim_on_centre_cone(rim, a, cot):
-    """The rim's slant length on the centre's cone [m]: where the centre is when the contact
-    point reaches the real cone's edge at slant length ``rim`` from the real vertex. The contact
-    point sits a cot(alpha) farther from the real vertex than the centre is from its own
-    (docs/physics.md "Geometry and state"). inf stays inf."""
-    return rim - a * cot
 
 
 @kernel
@@ -181,71 +155,116 @@ def param_tuple(p):
     return to_fixed_tuple(p, N_PARAMS)
 
 
-def state_size_of(effects: int) -> int:
-    """Length of the state vector of an effect set: r, theta, u, v, w; then the attitude
-    quaternion (4) with ATTITUDE; then the work done by the dissipative forces [J] with a
-    dissipative effect (:data:`DISSIPATIVE`; always the last component)."""
-    return N_BASE + (4 if effects & ATTITUDE else 0) + (1 if effects & DISSIPATIVE else 0)
+# ------------------------------------------------------------------ the model's kernels
+_JIT_ONLY = "runs inside numba kernels only"
+_OPTS = {"error_model": "numpy", "fastmath": False, "nogil": True}
 
 
-@kernel
-def state_size(effects):
-    """:func:`state_size_of` inside kernels."""
-    n = N_BASE
-    if effects & ATTITUDE:
-        n += 4
-    if effects & DISSIPATIVE:
-        n += 1
-    return n
+def _model(effects) -> Model:
+    if not isinstance(effects, types.IntegerLiteral):
+        raise errors.TypingError("effects must be a numba literal here (use numba.literally)")
+    model = int(effects.literal_value) >> MODEL_SHIFT
+    if model not in MODEL_ROWS:
+        raise errors.TypingError(f"no model with id {model}")
+    return MODEL_ROWS[model]
 
 
-# ------------------------------------------------------------------------ right-hand side
-@kernel
+def _interface(stub, part: str, takes_effects: bool = True):
+    """Make ``stub`` (a function of the interface, jit-only) call the model's own kernel of
+    the same name, picked at compile time from the literal ``effects``: the model row's
+    ``part`` module ("physics" or "starts"); without ``takes_effects`` the model's kernel does
+    not take the ``effects`` argument."""
+    names = list(inspect.signature(stub).parameters)
+    args = ", ".join(names)
+    call = ", ".join(n for n in names if takes_effects or n != "effects")
+    at = names.index("effects")
+    src = f"def typer({args}):\n    return pick(({args})[{at}])\n"
+    body = f"def impl({args}):\n    return f({call})\n"
+
+    def pick(effects):
+        namespace = {"f": getattr(getattr(_model(effects), part), stub.__name__)}
+        exec(compile(body, f"<conesurvey model {stub.__name__}>", "exec"), namespace)  # noqa: S102
+        return namespace["impl"]
+
+    namespace = {"pick": pick}
+    exec(compile(src, f"<conesurvey model {stub.__name__} typer>", "exec"), namespace)  # noqa: S102
+    overload(stub, jit_options=_OPTS)(namespace["typer"])
+    return stub
+
+
 def motion_rates(r, u, v, w, p, effects):
-    """(rdot, thetadot, udot, vdot, wdot) of the centre (docs/physics.md "Equations of motion";
-    rolling resistance from "Effects beyond the ideal cone" when compiled in)."""
-    ir = 1.0 / r
-    kappa = p[P_COT] * ir
-    vir = v * ir
-    udot = v * vir + p[P_KK] * kappa * v * w - p[P_GC]
-    vdot = -u * vir
-    if effects & ROLLING_RESISTANCE:
-        # A force c_rr N opposing the CM velocity (u, v).
-        speed = math.sqrt(u * u + v * v)
-        N = p[P_M] * (p[P_G] * p[P_SIN] + v * vir * p[P_COT])
-        f = p[P_CRR] * N * p[P_INV_M1K]
-        if speed > 0.0:
-            udot -= f * u / speed
-            vdot -= f * v / speed
-        else:  # at rest: it opposes the pull, up to f
-            held = min(f / max(math.sqrt(udot * udot + vdot * vdot), 1e-300), 1.0)
-            udot -= held * udot
-            vdot -= held * vdot
-    return u, vir / p[P_SIN], udot, vdot, -kappa * u * v
+    """(rdot, thetadot, udot, vdot, wdot): the model's rolling equations with the effects'
+    forces and couples. Jit-only."""
+    raise NotImplementedError(_JIT_ONLY)
 
 
+def dissipated_power(r, u, v, w, p, effects):
+    """The power [W] the effects take from the rolling sphere. Jit-only."""
+    raise NotImplementedError(_JIT_ONLY)
+
+
+def omega_fixed(r, theta, u, v, w, p, effects):
+    """The rolling sphere's angular velocity (wx, wy, wz) [rad/s] in the fixed frame.
+    Jit-only."""
+    raise NotImplementedError(_JIT_ONLY)
+
+
+def invariants(y, p, effects):
+    """(E [J], and the model's two conserved quantities: the cone's L_z and h) of the state y.
+    Jit-only."""
+    raise NotImplementedError(_JIT_ONLY)
+
+
+def slip_margin(y, p, effects):
+    """Event function of the slip check: |F| - mu N [N] (> 0: the sphere slips). Jit-only."""
+    raise NotImplementedError(_JIT_ONLY)
+
+
+def normal_force(r, v, p, effects):
+    """The normal force N [N] at the contact. Jit-only."""
+    raise NotImplementedError(_JIT_ONLY)
+
+
+def set_point(p, X, i, effects):
+    """Point i's geometry (the columns of the points array X the model reads) into p. Jit-only."""
+    raise NotImplementedError(_JIT_ONLY)
+
+
+def period_start(effects, p, X, i, rtol):
+    """Where point i's one-period run starts: (ok, y0 at a turning point, atol, the run's
+    orbit constants); ok False: no bounded orbit. Jit-only."""
+    raise NotImplementedError(_JIT_ONLY)
+
+
+def fate_start(effects, p, X, i, rtol):
+    """Where point i's fate run starts: (start, r, y0, t0, work0, atol, orbit constants),
+    start :data:`.fate_codes.RUNS` or the fate it has at its start (the cone's:
+    :func:`.cone_starts.fate_start`). Jit-only."""
+    raise NotImplementedError(_JIT_ONLY)
+
+
+def holds_at_rest(p, effects):
+    """Whether rolling resistance holds a sphere at rest where it stopped. Jit-only."""
+    raise NotImplementedError(_JIT_ONLY)
+
+
+_interface(motion_rates, "physics")
+_interface(dissipated_power, "physics")
+_interface(omega_fixed, "physics", takes_effects=False)
+_interface(invariants, "physics", takes_effects=False)
+_interface(slip_margin, "physics")
+_interface(normal_force, "physics", takes_effects=False)
+_interface(set_point, "starts", takes_effects=False)
+_interface(period_start, "starts")
+_interface(fate_start, "starts")
+_interface(holds_at_rest, "starts", takes_effects=False)
+
+
+# ----------------------------------------------------------- what every model shares
 @kernel
-def omega_fixed(theta, u, v, w, p):
-    """Angular velocity (wx, wy, wz) [rad/s] in the fixed frame: (-v/a) e1 + (u/a) e2 + (w/a) nu."""
-    s = p[P_SIN]
-    c = p[P_COS]
-    cth = math.cos(theta)
-    sth = math.sin(theta)
-    ia = 1.0 / p[P_RADIUS]
-    o1 = -v * ia
-    o2 = u * ia
-    o3 = w * ia
-    # e1 = (s cth, s sth, c), e2 = (-sth, cth, 0), nu = (-c cth, -c sth, s)
-    wx = o1 * s * cth - o2 * sth - o3 * c * cth
-    wy = o1 * s * sth + o2 * cth - o3 * c * sth
-    wz = o1 * c + o3 * s
-    return wx, wy, wz
-
-
-@kernel
-def quaternion_rate(theta, u, v, w, q0, q1, q2, q3, p):
+def quaternion_rate(r, theta, u, v, w, q0, q1, q2, q3, p, effects):
     """qdot = 1/2 (0, omega) * q: q maps body axes to the fixed frame, omega in the fixed frame."""
-    wx, wy, wz = omega_fixed(theta, u, v, w, p)
+    wx, wy, wz = omega_fixed(r, theta, u, v, w, p, effects)
     return (
         0.5 * (-wx * q1 - wy * q2 - wz * q3),
         0.5 * (wx * q0 + wy * q3 - wz * q2),
@@ -255,14 +274,27 @@ def quaternion_rate(theta, u, v, w, q0, q1, q2, q3, p):
 
 
 @kernel
-def dissipated_power(r, u, v, p, effects):
-    """Power [W] the dissipative effects take from the sphere (the rate of the work state):
-    rolling resistance c_rr N |V|."""
-    power = 0.0
-    if effects & ROLLING_RESISTANCE:
-        N = p[P_M] * (p[P_G] * p[P_SIN] + v * v * p[P_COT] / r)
-        power += p[P_CRR] * N * math.sqrt(u * u + v * v)
-    return power
+def rim_margin(y, p):
+    """Event function of the rim: the meridian coordinate past the rim's (:data:`.layouts.P_RIM`,
+    set by the model) [m] (>= 0: the sphere has left the surface)."""
+    return y[0] - p[P_RIM]
+
+
+@kernel
+def kinetic_energy(y, p):
+    """Kinetic energy [J] of translation and rotation of the rolling sphere."""
+    M = p[P_M]
+    k = p[P_K]
+    u = y[2]
+    v = y[3]
+    w = y[4]
+    return 0.5 * (1.0 + k) * M * (u * u + v * v) + 0.5 * k * M * w * w
+
+
+@kernel
+def energy(y, p, effects):
+    """The total energy E [J] of the state y."""
+    return invariants(y, p, effects)[0]
 
 
 @kernel
@@ -273,25 +305,25 @@ def rates5(y0, y1, y2, y3, y4, p, effects):
 
 @kernel
 def rates6(y0, y1, y2, y3, y4, y5, p, effects):
-    """dy/dt of the state with the work done by the dissipative forces (y5)."""
+    """dy/dt of the state with the work the effects took (y5)."""
     a, b, c, d, e = motion_rates(y0, y2, y3, y4, p, effects)
-    return a, b, c, d, e, dissipated_power(y0, y2, y3, p, effects)
+    return a, b, c, d, e, dissipated_power(y0, y2, y3, y4, p, effects)
 
 
 @kernel
 def rates9(y0, y1, y2, y3, y4, y5, y6, y7, y8, p, effects):
     """dy/dt of a 9-component state (with the attitude quaternion) given as scalars."""
     a, b, c, d, e = motion_rates(y0, y2, y3, y4, p, effects)
-    q0, q1, q2, q3 = quaternion_rate(y1, y2, y3, y4, y5, y6, y7, y8, p)
+    q0, q1, q2, q3 = quaternion_rate(y0, y1, y2, y3, y4, y5, y6, y7, y8, p, effects)
     return a, b, c, d, e, q0, q1, q2, q3
 
 
 @kernel
 def rates10(y0, y1, y2, y3, y4, y5, y6, y7, y8, y9, p, effects):
-    """dy/dt of the state with the attitude quaternion and the work of the dissipative forces."""
+    """dy/dt of the state with the attitude quaternion and the work the effects took."""
     a, b, c, d, e = motion_rates(y0, y2, y3, y4, p, effects)
-    q0, q1, q2, q3 = quaternion_rate(y1, y2, y3, y4, y5, y6, y7, y8, p)
-    return a, b, c, d, e, q0, q1, q2, q3, dissipated_power(y0, y2, y3, p, effects)
+    q0, q1, q2, q3 = quaternion_rate(y0, y1, y2, y3, y4, y5, y6, y7, y8, p, effects)
+    return a, b, c, d, e, q0, q1, q2, q3, dissipated_power(y0, y2, y3, y4, p, effects)
 
 
 @kernel
@@ -304,102 +336,11 @@ def rhs(y, p, effects, out, row):
     out[row, 3] = d
     out[row, 4] = e
     if effects & ATTITUDE:
-        q0, q1, q2, q3 = quaternion_rate(y[1], y[2], y[3], y[4], y[5], y[6], y[7], y[8], p)
+        q0, q1, q2, q3 = quaternion_rate(y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], y[8], p,
+                                         effects)  # fmt: skip
         out[row, 5] = q0
         out[row, 6] = q1
         out[row, 7] = q2
         out[row, 8] = q3
     if effects & DISSIPATIVE:
-        out[row, state_size(effects) - 1] = dissipated_power(y[0], y[2], y[3], p, effects)
-
-
-# ----------------------------------------------------------- quantities of a state vector
-@kernel
-def forces(y, p):
-    """(F [N], N [N]) of the state y (:func:`contact_forces_of`)."""
-    return contact_forces_of(
-        y[0], y[3], y[4], p[P_SIN], p[P_COS], p[P_COT], p[P_M], p[P_G], p[P_KK]
-    )
-
-
-@kernel
-def slip_margin(y, p, effects):
-    """Event function of the slip check: |F| - mu N [N] (> 0: the sphere slips).
-
-    F is the whole friction force at the contact. With rolling resistance (a couple c_rr N a
-    opposing the rolling) it adds -c_rr N/(1+k) along the velocity (u, v) to the conservative
-    part F e1 (docs/physics.md "Effects beyond the ideal cone"); at zero speed, up to c_rr N/(1+k)
-    against the pull (:func:`motion_rates`)."""
-    F, N = forces(y, p)
-    if effects & ROLLING_RESISTANCE:
-        u = y[2]
-        v = y[3]
-        speed = math.sqrt(u * u + v * v)
-        if speed > 0.0:
-            f = p[P_CRR] * N / ((1.0 + p[P_K]) * speed)
-            F1 = F - f * u
-            F2 = f * v
-            return math.sqrt(F1 * F1 + F2 * F2) - p[P_MU] * N
-        held = p[P_M] * min(p[P_GC], p[P_CRR] * N * p[P_INV_M1K])
-        return abs(F + held) - p[P_MU] * N
-    return abs(F) - p[P_MU] * N
-
-
-@kernel
-def rim_margin(y, p):
-    """Event function of the rim: r - rim [m] (>= 0: the sphere has left the cone)."""
-    return y[0] - p[P_RIM]
-
-
-@kernel
-def invariants(y, p):
-    """(E [J], L_z [kg m^2/s], h [m/s]) of the state y (:func:`invariants_of`)."""
-    return invariants_of(y[0], y[2], y[3], y[4], p[P_SIN], p[P_COS], p[P_M], p[P_G], p[P_K])
-
-
-@kernel
-def kinetic_energy(y, p):
-    """Kinetic energy [J] of translation and rotation."""
-    M = p[P_M]
-    k = p[P_K]
-    u = y[2]
-    v = y[3]
-    w = y[4]
-    return 0.5 * (1.0 + k) * M * (u * u + v * v) + 0.5 * k * M * w * w
-
-
-@kernel
-def contact_velocity(y, ydot, p):
-    """Velocity [m/s] (fixed frame) of the material point of the sphere at the contact.
-
-    R_dot + omega x (-a nu), with R_dot from (rdot, thetadot) = ydot[0:2] and omega recovered from
-    the attitude, omega = 2 qdot q* / |q|^2 with qdot = ydot[5:9]: zero for rolling without slip,
-    so it checks the frame, the rolling constraint and the quaternion's kinematics together.
-    """
-    s = p[P_SIN]
-    c = p[P_COS]
-    a = p[P_RADIUS]
-    r = y[0]
-    cth = math.cos(y[1])
-    sth = math.sin(y[1])
-    rd = ydot[0]
-    vt = r * s * ydot[1]
-    # R_dot = rdot e1 + r s thetadot e2
-    Rx = rd * s * cth - vt * sth
-    Ry = rd * s * sth + vt * cth
-    Rz = rd * c
-    q0, q1, q2, q3 = y[5], y[6], y[7], y[8]
-    d0, d1, d2, d3 = ydot[5], ydot[6], ydot[7], ydot[8]
-    n2 = q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3
-    # vector part of 2 qdot * conj(q)
-    wx = 2.0 * (-d0 * q1 + d1 * q0 - d2 * q3 + d3 * q2) / n2
-    wy = 2.0 * (-d0 * q2 + d1 * q3 + d2 * q0 - d3 * q1) / n2
-    wz = 2.0 * (-d0 * q3 - d1 * q2 + d2 * q1 + d3 * q0) / n2
-    # -a nu = a (c cth, c sth, -s)
-    px = a * c * cth
-    py = a * c * sth
-    pz = -a * s
-    vx = Rx + wy * pz - wz * py
-    vy = Ry + wz * px - wx * pz
-    vz = Rz + wx * py - wy * px
-    return vx, vy, vz
+        out[row, state_size(effects) - 1] = dissipated_power(y[0], y[2], y[3], y[4], p, effects)

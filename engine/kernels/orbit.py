@@ -30,30 +30,16 @@ from numba.extending import overload
 
 from .._jit import kernel, parallel_kernel
 from .effects import DISSIPATIVE
-from .model import (
-    ATTITUDE,
-    P_COS,
-    P_G,
-    P_K,
-    P_M,
-    P_SIN,
-    coefficients,
-    invariants,
-    kinetic_energy,
-    set_alpha,
-    state_size,
-)
+from .model import energy, kinetic_energy, period_start, set_point
 from .protocol import (
     APOCENTRE,
     NOT_BOUNDED,
     OK,
     PERICENTRE,
     RECORD_NONE,
-    SQRT_EPS,
     event_buffers,
 )
 from .rk import rk_run
-from .roots import circular_radius, turning_points
 from .symplectic import SYMPLECTIC, sym_run
 from .tableaux import RK_TABLEAUX
 
@@ -98,81 +84,6 @@ def solve(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_steps
                dt_out, ev_t, ev_kind, ev_y, tr_t, tr_y, tr_rate)  # fmt: skip
 
 
-# ------------------------------------------------------------------------ start and tolerances
-@kernel
-def orbit_start(p, energy, h, Lz):
-    """(ok, r1, r2, rc) of the bounded orbit (calE = energy [J], h [m/s], L_z): the turning
-    points [m] and the circular radius [m]; ok is False when the orbit is not bounded."""
-    A, B, C = coefficients(p[0], h, Lz, p[P_M], p[P_G], p[P_K])
-    if not (Lz != 0.0 and math.isfinite(energy) and math.isfinite(h) and math.isfinite(Lz)):
-        return False, math.nan, math.nan, math.nan
-    rc = circular_radius(A, B, C)
-    if math.isnan(rc):
-        return False, math.nan, math.nan, rc
-    r1, r2 = turning_points(energy, A, B, C, rc)
-    ok = r1 > 0.0 and r2 >= r1 and math.isfinite(r2)
-    return ok, r1, r2, rc
-
-
-@kernel
-def initial_state(p, effects, r0, energy, h, Lz):
-    """State at radius r0 [m] on the orbit (calE, h, L_z): u >= 0 from the energy (0 at a
-    turning point), theta = 0, attitude = identity."""
-    n = state_size(effects)
-    y = np.zeros(n)
-    s = p[P_SIN]
-    c = p[P_COS]
-    M = p[P_M]
-    A, B, C = coefficients(p[0], h, Lz, M, p[P_G], p[P_K])
-    ke = energy - (A / (r0 * r0) + B / r0 + C * r0)
-    y[0] = r0
-    y[1] = 0.0
-    y[2] = math.sqrt(2.0 * ke / M) if ke > 0.0 else 0.0
-    y[3] = Lz / (M * r0 * s)
-    y[4] = h + Lz * c / (M * r0 * s * s)
-    if effects & ATTITUDE:
-        y[5] = 1.0
-    return y
-
-
-@kernel
-def tolerance_scales(p, effects, y0, energy, h, Lz, r1, r2, rc):
-    """Characteristic size of each state component on the orbit (atol_i = rtol * scale_i).
-
-    r: r1 [m]; theta: 1 rad; u: the largest radial speed sqrt(2 (calE - V_min)/M) [m/s];
-    v: its smallest size |v(r2)| (v r is L_z/(M sin a), so v must stay relatively accurate for L_z
-    to be conserved near the axis, where r2/r1 is huge); w: max |w| over [r1, r2]; quaternion: 1.
-    Velocities are floored at sqrt(eps) times the speed, so an exactly circular orbit still has a
-    usable absolute tolerance. The work of the dissipative forces: the orbit's energy scale.
-    """
-    n = y0.shape[0]
-    sc = np.ones(n)
-    M = p[P_M]
-    s = p[P_SIN]
-    c = p[P_COS]
-    A, B, C = coefficients(p[0], h, Lz, M, p[P_G], p[P_K])
-    speed = math.sqrt(y0[2] ** 2 + y0[3] ** 2 + y0[4] ** 2)
-    if math.isfinite(rc) and rc > 0.0:
-        du = energy - (A / (rc * rc) + B / rc + C * rc)
-        umax = math.sqrt(2.0 * du / M) if du > 0.0 else 0.0
-    else:
-        umax = max(speed, math.sqrt(2.0 * abs(energy) / M))
-    vel = max(speed, umax)
-    floor = SQRT_EPS * vel
-    sc[0] = y0[0]
-    sc[1] = 1.0
-    sc[2] = max(umax, floor)
-    # v = L_z/(M r sin a) carries L_z: keep it relatively accurate where it is smallest (r2).
-    r_far = r2 if math.isfinite(r2) else r1
-    sc[3] = max(abs(Lz / (M * r_far * s)), floor)
-    w1 = abs(h + Lz * c / (M * r1 * s * s))
-    w2 = abs(h + Lz * c / (M * r2 * s * s)) if math.isfinite(r2) else abs(h)
-    sc[4] = max(max(w1, w2), floor)
-    if effects & DISSIPATIVE:  # the work of the dissipative forces: the orbit's energy scale
-        sc[n - 1] = max(abs(energy), 0.5 * M * vel * vel)
-    return sc
-
-
 # ------------------------------------------------------------------------- one radial period
 @kernel
 def period_apsides(effects):
@@ -198,8 +109,8 @@ def reduce_period(effects, p, y0, res, ev_t, ev_kind, ev_y):
         return NOT_BOUNDED, nan, nan, nan, n_acc, nan, nan
     T = ev_t[1] if last == 1 else 2.0 * ev_t[0]
     psi = abs(ev_y[0, 1])
-    E0 = invariants(y0, p)[0]
-    E1 = invariants(ev_y[last], p)[0]
+    E0 = energy(y0, p, effects)
+    E1 = energy(ev_y[last], p, effects)
     scale = max(abs(E0), kinetic_energy(y0, p))
     drift = abs(E1 - E0) / scale
     loss = E0 - E1 if effects & DISSIPATIVE else nan
@@ -207,45 +118,44 @@ def reduce_period(effects, p, y0, res, ev_t, ev_kind, ev_y):
 
 
 @kernel
-def one_period(method, effects, p, energy, h, Lz, rtol, max_steps):
-    """One radial period from r_min (u = 0, theta = 0): integrated to r_max and doubled for a
-    conservative scene, to the next r_min for a dissipative one (:func:`period_apsides`).
+def one_period(method, effects, p, X, i, rtol, max_steps):
+    """One radial period of point i (the columns ``X[:, i]`` of the points array, p holding its
+    geometry), from the turning point where the model starts it (the cone's r_min: u = 0,
+    theta = 0): integrated to the other turning point and doubled for a conservative scene, to
+    the next one of its kind for a dissipative one (:func:`period_apsides`).
 
     Returns (status, period [s], apsidal angle [rad], precession rate [rad/s], accepted steps,
     energy drift [1], energy lost [J]). The drift is |E(t) - E(0)| / max(|E(0)|, KE(0)) at the
     run's end t (r_max, or the next r_min), KE the kinetic energy: relative to E, or to the
     kinetic energy where E ~ 0.
     """
-    ok, r1, r2, rc = orbit_start(p, energy, h, Lz)
+    ok, y0, atol, orbit = period_start(effects, p, X, i, rtol)
     if not ok:
         return NOT_BOUNDED, math.nan, math.nan, math.nan, 0, math.nan, math.nan
-    y0 = initial_state(p, effects, r1, energy, h, Lz)
-    y0[2] = 0.0  # exactly at the turning point
-    atol = tolerance_scales(p, effects, y0, energy, h, Lz, r1, r2, rc)
-    atol *= rtol
     ev_t, ev_kind, ev_y = event_buffers(4, y0.shape[0])
     # Nothing is recorded: the event buffers stand in for the (unused) trajectory buffers.
     n_aps = np.int64(period_apsides(effects))
-    res = run(method, effects, y0, p, (energy, h, Lz), rtol, atol, math.inf, n_aps, max_steps,
+    res = run(method, effects, y0, p, orbit, rtol, atol, math.inf, n_aps, max_steps,
               np.int64(RECORD_NONE), 0.0, ev_t, ev_kind, ev_y, ev_t, ev_y, ev_y)  # fmt: skip
     return reduce_period(effects, p, y0, res, ev_t, ev_kind, ev_y)
 
 
 @parallel_kernel
-def integrate_points(alpha, energy, h, Lz, params, method, effects, rtol, max_steps, out_f,
-                     out_n, out_status):  # fmt: skip
-    """:func:`one_period` for every point, in parallel (``method``, ``effects``: literal ints).
+def integrate_points(X, params, method, effects, rtol, max_steps, out_f, out_n, out_status):
+    """:func:`one_period` for every point (the columns of the points array X: the model's
+    inputs, the cone's (alpha, calE, h, L_z)), in parallel (``method``, ``effects``: literal
+    ints).
 
     Writes ``out_f`` float64[5, n] (rows :data:`PERIOD_ROWS`), ``out_n`` int64[n] accepted
     steps and ``out_status`` int8[n].
     """
     literally(method)
     literally(effects)
-    n = alpha.shape[0]
+    n = X.shape[1]
     for i in prange(n):
         p = params.copy()
-        set_alpha(p, alpha[i])
-        res = one_period(method, effects, p, energy[i], h[i], Lz[i], rtol, max_steps)
+        set_point(p, X, i, effects)
+        res = one_period(method, effects, p, X, i, rtol, max_steps)
         store_period(out_f, out_n, out_status, i, res)
 
 

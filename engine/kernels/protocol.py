@@ -21,7 +21,8 @@ import numpy as np
 
 from .._jit import kernel
 from .effects import EFFECTS, REVOLUTIONS, bringing
-from .model import P_R_VERTEX, P_THETA_MAX, P_V_REST, rim_margin, slip_margin
+from .layouts import P_R_VERTEX, P_THETA_MAX, P_V_REST
+from .model import rim_margin, slip_margin
 
 EPS = 2.220446049250313e-16
 SQRT_EPS = 1.4901161193847656e-08

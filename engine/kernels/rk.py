@@ -14,7 +14,7 @@ steps on several orbits at once.
 
 Error control: a step is accepted when the RMS over components of err_i / (atol_i + rtol
 max(|y_i|, |y_new_i|)) is <= 1 (with a 3rd-order companion estimate: Hairer's stretched
-norm). The absolute tolerances come from :func:`.orbit.tolerance_scales`. Measured accuracy
+norm). The absolute tolerances come from :func:`.cone_starts.tolerance_scales`. Measured accuracy
 (tests/kernels/test_rk.py): period and apsidal angle within 100 rtol kappa relative, kappa =
 max(1, (A/r1^2)/|calE|) the amplification of a velocity error at the pericentre into the
 radial energy ((1+e)/(1-e) for a free-fall ellipse, ~1 otherwise).
@@ -32,7 +32,8 @@ from numba import literally
 
 from .._jit import kernel
 from .branchless import pick, power
-from .model import ATTITUDE, param_tuple, rhs, state_size
+from .layouts import ATTITUDE, state_size
+from .model import param_tuple, rhs
 from .protocol import (
     BUFFER_FULL,
     EPS,

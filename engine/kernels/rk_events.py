@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._jit import kernel
-from .model import P_RIM
+from .layouts import P_RIM
 from .protocol import (
     EPS,
     FIRST_TERMINAL,

@@ -24,17 +24,9 @@ import math
 import numpy as np
 
 from .._jit import kernel
-from .model import (
-    N_PARAMS,
-    P_COS,
-    P_COT,
-    P_CRR,
-    P_G,
-    P_K,
-    P_M,
-    P_MU,
-    P_SIN,
-)
+from .cone import P_COS, P_COT, P_SIN
+from .layouts import P_CRR, P_G, P_K, P_M, P_MU
+from .model import N_PARAMS
 
 #: Hybrid parameter array: the scene's ``model.P_*`` entries, then these two.
 H_MU_K = N_PARAMS  # kinetic friction coefficient

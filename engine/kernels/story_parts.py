@@ -18,6 +18,8 @@ from __future__ import annotations
 import math
 
 from .._jit import kernel
+from .cone import P_COS, P_SIN, invariants, invariants_of, radial_energy
+from .cone_starts import initial_state, orbit_start, tolerance_scales
 from .fate import (
     FAILED,
     FATE_REST,
@@ -49,23 +51,8 @@ from .hybrid_step import (
     rolling_invariants,
     segment,
 )
-from .model import (
-    P_COS,
-    P_G,
-    P_K,
-    P_M,
-    P_R_VERTEX,
-    P_RIM,
-    P_SIN,
-    P_V_REST,
-    ROLLING_RESISTANCE,
-    invariants,
-    invariants_of,
-    kinetic_energy,
-    motion_rates,
-    radial_energy,
-)
-from .orbit import initial_state, orbit_start, tolerance_scales
+from .layouts import P_G, P_K, P_M, P_R_VERTEX, P_RIM, P_V_REST
+from .model import ROLLING_RESISTANCE, kinetic_energy, motion_rates
 from .sliding import (
     MODE_ROLLING,
     MODE_SLIDING,

@@ -33,8 +33,9 @@ import math
 import numpy as np
 
 from .._jit import kernel
+from .cone import P_ALPHA, P_COS, P_SIN, coefficients
 from .effects import CAPABILITIES, needing_any
-from .model import P_COS, P_G, P_K, P_M, P_SIN, coefficients
+from .layouts import P_G, P_K, P_M
 from .protocol import (
     BUFFER_FULL,
     EPS,
@@ -144,7 +145,7 @@ def ttl_coefficients(p, energy, h, Lz):
     of the reduced radial problem."""
     M = p[P_M]
     s = p[P_SIN]
-    A, B, C = coefficients(p[0], h, Lz, M, p[P_G], p[P_K])
+    A, B, C = coefficients(p[P_ALPHA], h, Lz, M, p[P_G], p[P_K])
     cf = np.empty(8)
     cf[6] = energy
     cf[7] = Lz * Lz / (2.0 * M * s * s)

@@ -11,6 +11,7 @@ from model_oracle import contact_forces, state_from_invariants
 from oracle import reference, tolerance
 
 import engine
+from engine.kernels.cone import coefficients, potential, potential_d1
 from engine.kernels.ending import mu_required
 from engine.kernels.geometry import (
     BOUNDED,
@@ -24,7 +25,6 @@ from engine.kernels.geometry import (
     orbit_point,
     scene_params,
 )
-from engine.kernels.model import coefficients, potential, potential_d1
 from engine.kernels.roots import TP_STEPS, cbrt, circular_radius, tp_accept, tp_starts, tp_step
 
 EPS = 2.220446049250313e-16

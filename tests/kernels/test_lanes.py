@@ -12,6 +12,9 @@ from cases import BOUNDED_REF, HARD, vmin
 
 import engine
 from engine._jit import call_specialized
+from engine.integrated import points
+from engine.kernels.cone import coefficients
+from engine.kernels.cone_starts import initial_state, orbit_start, tolerance_scales
 from engine.kernels.lanes import integrate_points_lanes
 from engine.kernels.lanes_step import (
     LANES,
@@ -21,15 +24,8 @@ from engine.kernels.lanes_step import (
     layout,
     piece_starts,
 )
-from engine.kernels.model import RIM, SLIP_CHECK, coefficients
-from engine.kernels.orbit import (
-    initial_state,
-    orbit_start,
-    period_apsides,
-    reduce_period,
-    solve,
-    tolerance_scales,
-)
+from engine.kernels.model import RIM, SLIP_CHECK
+from engine.kernels.orbit import period_apsides, reduce_period, solve
 from engine.kernels.protocol import MAX_STEPS, NOT_BOUNDED, OK, PERICENTRE, RECORD_NONE
 from engine.kernels.roots import circular_radius
 from engine.methods import METHODS
@@ -57,9 +53,9 @@ def typical_orbits(n, seed):
 def lanes(alpha, energy, h, Lz, scene, method, rtol=RTOL, max_steps=10**6, workers=1):
     n = alpha.size
     f, steps, st = np.full((5, n), -1.0), np.full(n, -1, np.int64), np.full(n, -1, np.int8)
-    args = (alpha, energy, h, Lz, scene.params(), METHODS[method].kernel_id, scene.effects_mask,
-            rtol, max_steps, workers, f, steps, st)  # fmt: skip
-    call_specialized(integrate_points_lanes, args, (5, 6))
+    args = (points(alpha, energy, h, Lz), scene.params(), METHODS[method].kernel_id,
+            scene.effects_mask, rtol, max_steps, workers, f, steps, st)  # fmt: skip
+    call_specialized(integrate_points_lanes, args, (2, 3))
     return f, steps, st
 
 

@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from engine.integrated import fate_points
+from engine.kernels.cone import coefficients
 from engine.kernels.effects import REVOLUTIONS
 from engine.kernels.fate import FATE_NAMES, FATE_ROWS
-from engine.kernels.model import P_THETA_MAX, coefficients
+from engine.kernels.layouts import P_THETA_MAX
 from engine.methods import METHODS
 from engine.scene import Scene
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from cases import METHODS, P003, RTOL
 
-from engine.kernels.model import coefficients
+from engine.kernels.cone import coefficients
 from engine.scene import Scene
 from engine.simulate import simulate
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from engine.kernels import model
+from engine.kernels import cone, layouts, model
 from engine.kernels.sliding import (
     MODE_ROLLING,
     MODE_SLIDING,
@@ -30,7 +30,7 @@ def _hp(alpha, *, mu=0.3, mu_k=0.2, c_rr=0.0, c_spin=0.0, k=0.4, M=1.3, g=9.81):
 
 def _energy_rate(hp, y, d):
     """dE/dt by the chain rule, E = M(u^2+v^2)/2 + kM(p1^2+p2^2+w^2)/2 + M g r cos(alpha)."""
-    M, k, g, al = hp[model.P_M], hp[model.P_K], hp[model.P_G], hp[model.P_ALPHA]
+    M, k, g, al = hp[layouts.P_M], hp[layouts.P_K], hp[layouts.P_G], hp[cone.P_ALPHA]
     r, _, u, v, p1, p2, w = y[:7]
     grad = [M * g * math.cos(al), 0.0, M * u, M * v, k * M * p1, k * M * p2, k * M * w]
     return sum(gi * di for gi, di in zip(grad, d[:7], strict=True))
@@ -38,7 +38,7 @@ def _energy_rate(hp, y, d):
 
 def _powers(hp, y, mu_k, c_rr, c_spin, stuck):
     """The three dissipated powers, written here from the physics (not from the kernel)."""
-    M, g, al = hp[model.P_M], hp[model.P_G], hp[model.P_ALPHA]
+    M, g, al = hp[layouts.P_M], hp[layouts.P_G], hp[cone.P_ALPHA]
     r, _, u, v, p1, p2, w = y[:7]
     N = M * (g * math.sin(al) + v * v / (r * math.tan(al)))
     slip = math.hypot(u - p2, v + p1)
@@ -63,7 +63,7 @@ def test_sliding_energy_balance_on_random_states(stuck):
         d = sliding_rates.py_func(y[0], y[2], y[3], y[4], y[5], y[6], stuck, hp)
         powers = _powers(hp, y, mu_k, c_rr, c_spin, stuck)
         dE = _energy_rate(hp, y, d)
-        scale = hp[model.P_M] * (9.81 * y[0] + np.sum(y[2:7] ** 2)) / y[0] + sum(powers)
+        scale = hp[layouts.P_M] * (9.81 * y[0] + np.sum(y[2:7] ** 2)) / y[0] + sum(powers)
         err = abs(dE + sum(powers)) / scale
         worst = max(worst, err)
         assert np.allclose(d[7:], powers, rtol=1e-13, atol=1e-15 * scale)
@@ -79,9 +79,9 @@ def test_rolling_mode_is_the_rolling_model_plus_spin_couple():
         p = hp[: model.N_PARAMS]
         r, u, v, w = rng.uniform(0.05, 5.0), *rng.uniform(-3, 3, 3)
         d = rolling_rates.py_func(r, u, v, w, False, hp)
-        ref = model.motion_rates.py_func(r, u, v, w, p, model.ROLLING_RESISTANCE)
-        N = hp[model.P_M] * (9.81 * math.sin(alpha) + v * v / (r * math.tan(alpha)))
-        spin = -c_spin * N * math.copysign(1.0, w) / (0.4 * hp[model.P_M])
+        ref = cone.motion_rates.py_func(r, u, v, w, p, model.ROLLING_RESISTANCE)
+        N = hp[layouts.P_M] * (9.81 * math.sin(alpha) + v * v / (r * math.tan(alpha)))
+        spin = -c_spin * N * math.copysign(1.0, w) / (0.4 * hp[layouts.P_M])
         assert np.allclose(d[:4], ref[:4], rtol=1e-13, atol=1e-13)
         assert d[6] == pytest.approx(ref[4] + spin, rel=1e-12, abs=1e-13)
         assert (d[4], d[5]) == (-d[3], d[2])  # the constraint p1 = -v, p2 = u is kept
@@ -92,7 +92,7 @@ def test_rolling_mode_is_the_rolling_model_plus_spin_couple():
 def test_stick_removes_the_slip_and_books_the_energy():
     hp = _hp(1.0, c_spin=0.1)
     y = np.array([1.0, 0.0, 0.7, -0.2, 0.3, 0.1, 0.5, 0.0, 0.0, 0.0])
-    args = (hp[model.P_M], hp[model.P_K])
+    args = (hp[layouts.P_M], hp[layouts.P_K])
     e0 = 0.5 * args[0] * (y[2] ** 2 + y[3] ** 2) + 0.5 * args[0] * args[1] * np.sum(y[4:7] ** 2)
     lost = stick.py_func(y, hp)
     e1 = 0.5 * args[0] * (y[2] ** 2 + y[3] ** 2) + 0.5 * args[0] * args[1] * np.sum(y[4:7] ** 2)
