@@ -212,7 +212,14 @@ def leave_vertex(p, effects, energy, h):
 
 
 @kernel
-def holds_at_rest(p):
-    """Whether rolling resistance can hold a sphere at rest on this cone's slope: the slope's
-    pull g cos(alpha) against the most the resistance gives, c_rr N = c_rr M g sin(alpha)."""
+def holds_at_rest(p, y=None):
+    """Whether rolling resistance can hold a sphere at rest on this cone's slope (anywhere: y
+    is not needed): the slope's pull g cos(alpha) against the most the resistance gives,
+    c_rr N = c_rr M g sin(alpha)."""
     return p[P_COT] <= p[P_CRR]
+
+
+@kernel
+def starts_inner(effects, p, y0):
+    """A cone's one-period run starts at r_min, the inner turning point."""
+    return True

@@ -117,7 +117,7 @@ def come_to_rest(y, p, effects):
         y[4] += rates[4] * half
         y[2] = 0.0
         y[3] = 0.0
-    if not model_holds_at_rest(p, effects):
+    if not model_holds_at_rest(p, y, effects):
         return dt, OK
     if effects & SLIP_CHECK:
         if slip_margin(y, p, effects) > 0.0:

@@ -31,7 +31,7 @@ from numba.extending import overload
 from numba.np.unsafe.ndarray import to_fixed_tuple
 
 from .._jit import kernel
-from . import cone, cone_starts
+from . import cone, cone_starts, surface, surface_starts
 from .effects import DISSIPATIVE, EFFECT_BITS, REVOLUTIONS
 from .layouts import (
     ATTITUDE,
@@ -61,7 +61,8 @@ assert REVOLUTIONS < 1 << MODEL_SHIFT, "run options must stay below the model id
 #: What a model may offer -> what that means. Each model declares every one, offered or
 #: lacked with a reason.
 MODEL_CAPABILITIES: dict[str, str] = {
-    "closed form": "orbits in closed form (complete elliptic integrals)",
+    "exact maps": "orbits without integrating them: the cone's closed form (complete elliptic "
+    "integrals), a surface's reduction to its meridian (Routh's integrals and quadrature)",
     "invariant grids": "maps over (alpha, E, h, L_z): an orbit identified by its invariants",
     "separable split": "a separable radial Hamiltonian (the symplectic integrator's split)",
     "sliding contact": "the sliding model: a slip becomes a transition (mu_k, c_spin)",
@@ -83,11 +84,37 @@ class Model(NamedTuple):
 
 
 #: Every model, by id.
-MODELS: tuple[Model, ...] = (Model("cone", 0, cone, cone_starts, tuple(MODEL_CAPABILITIES), ()),)
+MODELS: tuple[Model, ...] = (
+    Model("cone", 0, cone, cone_starts, tuple(MODEL_CAPABILITIES), ()),
+    Model(
+        "surface",
+        1,
+        surface,
+        surface_starts,
+        ("exact maps",),
+        (
+            (
+                "invariant grids",
+                "an orbit off the cone is identified by its launch (rho0, v0, w0): its two "
+                "linear integrals are constants of the whole surface's meridian",
+            ),
+            (
+                "separable split",
+                "the symplectic integrator splits the cone's radial Hamiltonian; a curved "
+                "meridian has no such split",
+            ),
+            (
+                "sliding contact",
+                "the sliding model (mu_k, c_spin) is written for the cone's meridian only",
+            ),
+        ),
+    ),
+)
 #: Model id -> row (what the functions below dispatch on).
 MODEL_ROWS = {m.id: m for m in MODELS}
-#: The cone's id.
+#: The models' ids.
 CONE = 0
+SURFACE = 1
 
 
 def check_models(models: tuple[Model, ...]) -> None:
@@ -173,7 +200,8 @@ def _interface(stub, part: str, takes_effects: bool = True):
     """Make ``stub`` (a function of the interface, jit-only) call the model's own kernel of
     the same name, picked at compile time from the literal ``effects``: the model row's
     ``part`` module ("physics" or "starts"); without ``takes_effects`` the model's kernel does
-    not take the ``effects`` argument."""
+    not take the ``effects`` argument. A model module that lacks the kernel fails at import
+    (:func:`check_models`)."""
     names = list(inspect.signature(stub).parameters)
     args = ", ".join(names)
     call = ", ".join(n for n in names if takes_effects or n != "effects")
@@ -220,11 +248,6 @@ def slip_margin(y, p, effects):
     raise NotImplementedError(_JIT_ONLY)
 
 
-def normal_force(r, v, p, effects):
-    """The normal force N [N] at the contact. Jit-only."""
-    raise NotImplementedError(_JIT_ONLY)
-
-
 def set_point(p, X, i, effects):
     """Point i's geometry (the columns of the points array X the model reads) into p. Jit-only."""
     raise NotImplementedError(_JIT_ONLY)
@@ -243,8 +266,14 @@ def fate_start(effects, p, X, i, rtol):
     raise NotImplementedError(_JIT_ONLY)
 
 
-def holds_at_rest(p, effects):
-    """Whether rolling resistance holds a sphere at rest where it stopped. Jit-only."""
+def holds_at_rest(p, y, effects):
+    """Whether rolling resistance holds a sphere at rest at the state y. Jit-only."""
+    raise NotImplementedError(_JIT_ONLY)
+
+
+def starts_inner(effects, p, y0):
+    """Whether a one-period run from the turning point y0 starts at the inner one (its first
+    apsis is then the outer: the apocentre). Jit-only."""
     raise NotImplementedError(_JIT_ONLY)
 
 
@@ -253,11 +282,36 @@ _interface(dissipated_power, "physics")
 _interface(omega_fixed, "physics", takes_effects=False)
 _interface(invariants, "physics", takes_effects=False)
 _interface(slip_margin, "physics")
-_interface(normal_force, "physics", takes_effects=False)
 _interface(set_point, "starts", takes_effects=False)
 _interface(period_start, "starts")
 _interface(fate_start, "starts")
 _interface(holds_at_rest, "starts", takes_effects=False)
+_interface(starts_inner, "starts")
+
+#: The kernels each model provides: (module part, name).
+INTERFACE = tuple(
+    (part, fn.__name__)
+    for part, fns in (
+        ("physics", (motion_rates, dissipated_power, omega_fixed, invariants, slip_margin)),
+        ("starts", (set_point, period_start, fate_start, holds_at_rest, starts_inner)),
+    )
+    for fn in fns
+)
+
+
+def check_interface(models: tuple[Model, ...]) -> None:
+    """Refuse (ValueError) a model whose modules lack a kernel of the interface, or whose
+    physics does not declare its parameter slots."""
+    for m in models:
+        missing = [f"{part}.{name}" for part, name in INTERFACE
+                   if not hasattr(getattr(m, part), name)]  # fmt: skip
+        if not hasattr(m.physics, "SLOTS"):
+            missing.append("physics.SLOTS")
+        if missing:
+            raise ValueError(f"model {m.name!r} lacks {', '.join(missing)}")
+
+
+check_interface(MODELS)
 
 
 # ----------------------------------------------------------- what every model shares

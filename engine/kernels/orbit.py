@@ -30,7 +30,7 @@ from numba.extending import overload
 
 from .._jit import kernel, parallel_kernel
 from .effects import DISSIPATIVE
-from .model import energy, kinetic_energy, period_start, set_point
+from .model import energy, kinetic_energy, period_start, set_point, starts_inner
 from .protocol import (
     APOCENTRE,
     NOT_BOUNDED,
@@ -105,7 +105,8 @@ def reduce_period(effects, p, y0, res, ev_t, ev_kind, ev_y):
     if status != OK:
         return status, nan, nan, nan, n_acc, nan, nan
     last = period_apsides(effects) - 1
-    if n_ev <= last or ev_kind[0] != APOCENTRE or (last == 1 and ev_kind[1] != PERICENTRE):
+    first = APOCENTRE if starts_inner(effects, p, y0) else PERICENTRE
+    if n_ev <= last or ev_kind[0] != first or (last == 1 and ev_kind[1] == first):
         return NOT_BOUNDED, nan, nan, nan, n_acc, nan, nan
     T = ev_t[1] if last == 1 else 2.0 * ev_t[0]
     psi = abs(ev_y[0, 1])

@@ -1,0 +1,130 @@
+"""Any surface of revolution, the second model: a sphere rolling on the inside of a surface
+whose meridian :mod:`.meridian` describes (docs/physics.md "Any surface of revolution").
+
+State y (the model interface's, :mod:`.model`): q, the meridian parameter of the contact point
+(its kind's: :mod:`.meridian`), theta [rad], u = ds/dt [m/s] along the centre's meridian, v =
+rho dtheta/dt [m/s] along the parallel, w = a omega_nu [m/s] the spin about the normal nu (from
+the contact to the centre). With the centre's meridian at q (rho, z, slope b, curvature kappa,
+sigma = ds/dq) and k' = k/(1+k), the rolling equations are
+
+    dq/dt = u / sigma,   dtheta/dt = v / rho
+    du/dt = v^2 cos(b)/rho + k' sin(b)/rho v w - g sin(b)/(1+k)
+    dv/dt = -u v cos(b)/rho - k' kappa u w
+    dw/dt = -u v (sin(b)/rho - kappa)
+
+plus the effects' forces and couples (:mod:`.forces`) as every model adds them. The normal
+force is N = M (g cos b + sin(b)/rho v^2 + kappa u^2), the friction rolling needs
+(F1, F2) = k' M (g sin b + sin(b)/rho v w, -kappa u w). On a cone (kappa = 0, b = pi/2 - alpha,
+s = r) these are the cone's equations (:mod:`.cone`).
+"""
+
+from __future__ import annotations
+
+import math
+
+from .._jit import kernel
+from .effects import FORCE_EFFECTS
+from .forces import effect_terms, taken_power
+from .layouts import P_G, P_INV_M1K, P_K, P_KK, P_M, P_MU, P_RADIUS
+from .meridian import SLOTS as SLOTS
+from .meridian import centre
+
+
+@kernel
+def geometry(q, p):
+    """(1/rho, cos b, sin b, kappa, sigma) of the centre's meridian at q."""
+    rho, z, cb, sb, kappa, sigma, fit = centre(p, q)
+    return 1.0 / rho, cb, sb, kappa, sigma
+
+
+@kernel
+def pull(q, u, v, w, p):
+    """(du/dt, dv/dt, dw/dt) of the rolling sphere without the effects, and (N, sigma, 1/rho)."""
+    irho, cb, sb, kappa, sigma = geometry(q, p)
+    kk = p[P_KK]
+    sbr = sb * irho
+    udot = v * v * cb * irho + kk * sbr * v * w - p[P_G] * sb / (1.0 + p[P_K])
+    vdot = -u * v * cb * irho - kk * kappa * u * w
+    wdot = -u * v * (sbr - kappa)
+    N = p[P_M] * (p[P_G] * cb + sbr * v * v + kappa * u * u)
+    return udot, vdot, wdot, N, sigma, irho
+
+
+@kernel
+def motion_rates(q, u, v, w, p, effects):
+    """(dq/dt, dtheta/dt, du/dt, dv/dt, dw/dt) (module docstring)."""
+    udot, vdot, wdot, N, sigma, irho = pull(q, u, v, w, p)
+    if effects & FORCE_EFFECTS:
+        f1, f2, t1, t2, t3 = effect_terms(effects, p, u, v, -v, u, w, N, udot, vdot)
+        udot += (f1 + t2) * p[P_INV_M1K]
+        vdot += (f2 - t1) * p[P_INV_M1K]
+        if t3 != 0.0:
+            wdot += t3 / (p[P_K] * p[P_M])
+    return u / sigma, v * irho, udot, vdot, wdot
+
+
+@kernel
+def dissipated_power(q, u, v, w, p, effects):
+    """Power [W] the effects take from the rolling sphere."""
+    power = 0.0
+    if effects & FORCE_EFFECTS:
+        udot, vdot, wdot, N, sigma, irho = pull(q, u, v, w, p)
+        f1, f2, t1, t2, t3 = effect_terms(effects, p, u, v, -v, u, w, N, udot, vdot)
+        power = taken_power(f1, f2, t1, t2, t3, u, v, -v, u, w)
+    return power
+
+
+@kernel
+def omega_fixed(q, theta, u, v, w, p):
+    """Angular velocity (wx, wy, wz) [rad/s] in the fixed frame: (-v/a) e1 + (u/a) e2 + (w/a) nu,
+    e1 = (cos b cos th, cos b sin th, sin b), e2 = (-sin th, cos th, 0),
+    nu = (-sin b cos th, -sin b sin th, cos b)."""
+    irho, cb, sb, kappa, sigma = geometry(q, p)
+    cth = math.cos(theta)
+    sth = math.sin(theta)
+    ia = 1.0 / p[P_RADIUS]
+    o1 = -v * ia
+    o2 = u * ia
+    o3 = w * ia
+    wx = o1 * cb * cth - o2 * sth - o3 * sb * cth
+    wy = o1 * cb * sth + o2 * cth - o3 * sb * sth
+    wz = o1 * sb + o3 * cb
+    return wx, wy, wz
+
+
+@kernel
+def invariants(y, p):
+    """(E [J], M rho v [kg m^2/s], w [m/s]) of the state y: the energy, conserved, and the
+    quantities Routh's two linear integrals are made of (``engine.surfaces``), which on a
+    curved meridian are not conserved themselves."""
+    rho, z, cb, sb, kappa, sigma, fit = centre(p, y[0])
+    M = p[P_M]
+    k = p[P_K]
+    u, v, w = y[2], y[3], y[4]
+    E = 0.5 * (1.0 + k) * M * (u * u + v * v) + 0.5 * k * M * w * w + M * p[P_G] * z
+    return E, M * rho * v, w
+
+
+@kernel
+def rolling_friction(y, p, effects):
+    """(F1, F2, N) [N]: the friction at the contact that rolling needs, along (e1, e2), with the
+    part the effects' forces and couples need, and the normal force."""
+    q, u, v, w = y[0], y[2], y[3], y[4]
+    udot, vdot, wdot, N, sigma, irho = pull(q, u, v, w, p)
+    rho, z, cb, sb, kappa, sigma, fit = centre(p, q)
+    kM = p[P_KK] * p[P_M]
+    F1 = kM * (p[P_G] * sb + sb * irho * v * w)
+    F2 = -kM * kappa * u * w
+    if effects & FORCE_EFFECTS:
+        f1, f2, t1, t2, t3 = effect_terms(effects, p, u, v, -v, u, w, N, udot, vdot)
+        k = p[P_K]
+        F1 += (t2 - k * f1) / (1.0 + k)
+        F2 += (-t1 - k * f2) / (1.0 + k)
+    return F1, F2, N
+
+
+@kernel
+def slip_margin(y, p, effects):
+    """Event function of the slip check: |F| - mu N [N] (> 0: the sphere slips)."""
+    F1, F2, N = rolling_friction(y, p, effects)
+    return math.sqrt(F1 * F1 + F2 * F2) - p[P_MU] * N

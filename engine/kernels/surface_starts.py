@@ -1,0 +1,222 @@
+"""Where a surface's runs start: a point of a map is a launch.
+
+A surface map's point ``i`` is the column ``X[:, i]`` of the points array: the surface's two
+shape parameters (a survey may sweep them, as alpha on the cone), the launch position (the
+centre's distance rho0 [m] from the axis; on the cylinder, where that is fixed, the centre's
+height z0 [m]), its speed v0 [m/s] along the parallel, its spin w0 = a omega . nu [m/s] and its
+speed u0 [m/s] along the meridian (0: a turning point, where a one-period run starts).
+
+- :func:`set_point` puts the point's shape into p, and where the sphere fits and touches: the
+  meridian parameter's range [Q_LO, Q_HI], the inner end (the hole, the axis region, or where
+  the surface's curvature stops the sphere fitting) and the rim (``Scene.rim``: the edge's
+  distance from the axis; the cylinder's height; the cone's slant length);
+- :func:`launch_q` the meridian parameter of the launch position;
+- :func:`period_start`, :func:`fate_start` where the runs start.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._jit import kernel
+from .effects import DISSIPATIVE
+from .fate_codes import NO_ORBIT, REST_SPEED, RUNS
+from .layouts import (
+    ATTITUDE,
+    P_CRR,
+    P_G,
+    P_K,
+    P_M,
+    P_R_VERTEX,
+    P_RADIUS,
+    P_RIM,
+    P_RIM_SLANT,
+    P_V_REST,
+    state_size,
+)
+from .meridian import (
+    BOWL,
+    CONE,
+    CYLINDER,
+    FUNNEL,
+    P_KIND,
+    P_Q_HI,
+    P_Q_LO,
+    P_SHAPE1,
+    P_SHAPE2,
+    PROFILE,
+    centre,
+)
+from .surface import motion_rates
+
+#: Columns of the points array.
+X_SHAPE1, X_SHAPE2, X_POS, X_V, X_W, X_U = 0, 1, 2, 3, 4, 5
+SQRT_EPS = 1.4901161193847656e-08
+#: Axis region of a surface that reaches its axis, in units of the sphere's radius (the cone's
+#: vertex region: :data:`.model.VERTEX_FRACTION`).
+AXIS_FRACTION = 1e-2
+
+
+@kernel
+def _fits_from(p, q_lo, q_hi):
+    """The smallest q in [q_lo, q_hi] from which on the sphere fits (1 - a kc > 0), by
+    bisection where it does not fit at q_lo (the curvature grows towards the axis)."""
+    if centre(p, q_lo)[6] > 0.0:
+        return q_lo
+    lo, hi = q_lo, q_hi
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if centre(p, mid)[6] > 0.0:
+            hi = mid
+        else:
+            lo = mid
+        if hi - lo <= 4e-16 * abs(hi):
+            break
+    return hi
+
+
+@kernel
+def set_point(p, X, i):
+    """Point i's shape into p, and its meridian parameter's range (module docstring)."""
+    p[P_SHAPE1] = X[X_SHAPE1, i]
+    p[P_SHAPE2] = X[X_SHAPE2, i]
+    kind = p[P_KIND]
+    rim = p[P_RIM_SLANT]
+    if kind == BOWL:
+        r = p[P_SHAPE1]
+        q_lo, q_hi = 0.0, math.pi / 2 if rim >= r else math.asin(rim / r)
+    elif kind == CYLINDER:
+        q_lo, q_hi = -math.inf, rim
+    elif kind == FUNNEL:
+        q_lo, q_hi = p[P_SHAPE2], rim
+    elif kind == PROFILE:
+        q_lo, q_hi = p[P_SHAPE1], min(p[P_SHAPE2], rim)
+    elif kind == CONE:
+        q_lo, q_hi = 0.0, rim
+    else:
+        q_lo, q_hi = 0.0, rim
+    if kind != CYLINDER:  # where the sphere stops fitting, and the axis region
+        top = q_hi if math.isfinite(q_hi) else max(2.0 * q_lo, 1.0)
+        q_lo = _fits_from(p, max(q_lo, 1e-300), top)
+    p[P_Q_LO] = q_lo
+    p[P_Q_HI] = q_hi
+    p[P_RIM] = q_hi
+    inner = q_lo
+    if kind != CYLINDER and kind != FUNNEL:  # the axis region: the centre within a few a / 100
+        inner = max(inner, launch_q(p, AXIS_FRACTION * p[P_RADIUS]))
+    p[P_R_VERTEX] = inner
+
+
+@kernel
+def launch_q(p, pos):
+    """The meridian parameter q where the centre is at distance ``pos`` [m] from the axis (the
+    cylinder: at height ``pos``), by bisection on [Q_LO, Q_HI] (rho grows with q); NaN where
+    no q of the range has it."""
+    if p[P_KIND] == CYLINDER:
+        return pos
+    lo = p[P_Q_LO]
+    hi = p[P_Q_HI]
+    if not math.isfinite(hi):
+        hi = max(2.0 * lo, 1.0)
+        for _ in range(2000):
+            if centre(p, hi)[0] >= pos:
+                break
+            hi *= 2.0
+    if not (centre(p, lo)[0] <= pos <= centre(p, hi)[0]):
+        return math.nan
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if centre(p, mid)[0] < pos:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo <= 4e-16 * abs(hi):
+            break
+    return 0.5 * (lo + hi)
+
+
+@kernel
+def launch_state(effects, p, X, i):
+    """The state of point i's launch (theta = 0, attitude identity, no work done); empty where
+    the launch position is not on the surface where the sphere fits."""
+    q0 = launch_q(p, X[X_POS, i])
+    if not math.isfinite(q0):
+        return np.empty(0)
+    y = np.zeros(state_size(effects))
+    y[0] = q0
+    y[2] = X[X_U, i] if X.shape[0] > X_U else 0.0
+    y[3] = X[X_V, i]
+    y[4] = X[X_W, i]
+    if effects & ATTITUDE:
+        y[5] = 1.0
+    return y
+
+
+@kernel
+def tolerance_scales(effects, p, y0):
+    """Characteristic size of each state component (atol_i = rtol * scale_i): q: its own size
+    (1 for the cylinder's height and the bowl's angle below 1); theta: 1 rad; the velocities:
+    the launch's speed with the speed the drop from the launch height to the inner end can add,
+    each floored at sqrt(eps) of it; the work of the effects: the energy scale."""
+    n = y0.shape[0]
+    sc = np.ones(n)
+    rho, z, cb, sb, kappa, sigma, fit = centre(p, y0[0])
+    z_in = centre(p, max(p[P_Q_LO], 0.0))[1] if math.isfinite(p[P_Q_LO]) else z
+    drop = max(z - z_in, 0.0)
+    speed = math.sqrt(y0[2] ** 2 + y0[3] ** 2 + y0[4] ** 2)
+    vel = max(speed, math.sqrt(2.0 * p[P_G] * drop / (1.0 + p[P_K])))
+    floor = SQRT_EPS * vel
+    sc[0] = max(abs(y0[0]), 1.0) if p[P_KIND] == CYLINDER else max(abs(y0[0]), floor)
+    sc[2] = max(vel, floor)
+    sc[3] = max(abs(y0[3]), floor)
+    sc[4] = max(max(abs(y0[4]), abs(y0[3])), floor)
+    if effects & DISSIPATIVE:
+        sc[n - 1] = max(0.5 * p[P_M] * vel * vel, p[P_M] * p[P_G] * max(abs(z), drop))
+    return sc
+
+
+@kernel
+def period_start(effects, p, X, i, rtol):
+    """Where point i's one-period run starts: its launch, a turning point (u0 = 0). (ok, y0,
+    atol, orbit constants (unused: NaN)); ok False where the launch is not on the surface, is
+    not at a turning point, or has no speed along the parallel (it passes through the axis)."""
+    nan = (math.nan, math.nan, math.nan)
+    y0 = launch_state(effects, p, X, i)
+    if y0.shape[0] == 0 or y0[2] != 0.0 or y0[3] == 0.0 or not math.isfinite(y0[4]):
+        return False, np.empty(0), np.empty(0), nan
+    atol = tolerance_scales(effects, p, y0) * rtol
+    return True, y0, atol, nan
+
+
+@kernel
+def fate_start(effects, p, X, i, rtol):
+    """Where point i's fate run starts: its launch (:func:`.model.fate_start`'s tuple; the rest
+    threshold set in p). No orbit where the launch is not on the surface or beyond the rim."""
+    nan = (math.nan, math.nan, math.nan)
+    none = np.empty(0)
+    y0 = launch_state(effects, p, X, i)
+    if y0.shape[0] == 0 or not (math.isfinite(y0[2]) and math.isfinite(y0[3])):
+        return NO_ORBIT, math.nan, none, 0.0, 0.0, none, nan
+    if y0[0] > p[P_RIM]:
+        return NO_ORBIT, math.nan, none, 0.0, 0.0, none, nan
+    sc = tolerance_scales(effects, p, y0)
+    p[P_V_REST] = REST_SPEED * rtol * max(sc[2], abs(y0[3]))
+    return RUNS, math.nan, y0, 0.0, 0.0, sc * rtol, nan
+
+
+@kernel
+def holds_at_rest(p, y):
+    """Whether rolling resistance can hold a sphere at rest at y: the slope's pull
+    g sin(b) against the most the resistance gives, c_rr N = c_rr M g cos(b) (at rest the
+    normal force is the weight's part): tan(b) <= c_rr."""
+    rho, z, cb, sb, kappa, sigma, fit = centre(p, y[0])
+    return sb <= p[P_CRR] * cb
+
+
+@kernel
+def starts_inner(effects, p, y0):
+    """Whether the run from the turning point y0 starts at the inner one: the meridian
+    acceleration there points outward."""
+    return motion_rates(y0[0], 0.0, y0[3], y0[4], p, effects)[2] > 0.0
