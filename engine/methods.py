@@ -16,7 +16,9 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from .kernels.effects import CAPABILITIES, EFFECTS, mask_of
+from .kernels.effects import BY_NAME, CAPABILITIES, EFFECTS, mask_of
+from .kernels.model import MODEL_CAPABILITIES, MODELS, Model
+from .kernels.orbit import RUN_KERNELS
 from .kernels.symplectic import SUPPORTS as SYMPLECTIC_SUPPORTS
 from .kernels.symplectic import SYMPLECTIC
 from .kernels.tableaux import RK_TABLEAUX
@@ -56,6 +58,8 @@ class Method:
     title: str
     supports: tuple[str, ...]
     lacks: tuple[tuple[str, str], ...] = ()
+    #: What it needs of a model (``engine.kernels.model.MODEL_CAPABILITIES``).
+    model_needs: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         lacked = [c for c, _ in self.lacks]
@@ -102,6 +106,17 @@ class Method:
         refused = dict(self.refuses)
         return [e for e in scene.effects if e in refused]
 
+    def model_refusals(self, model: Model, scene: Scene | None = None) -> list[str]:
+        """Why this method cannot serve ``model`` (with ``scene``'s effects): the model's
+        reasons for lacking what the method (or the scene's sliding contact) needs."""
+        needs = list(self.model_needs)
+        if scene is not None and any(
+            "sliding contact" in BY_NAME[e].needs for e in scene.effects
+        ):
+            needs.append("sliding contact")
+        lacks = dict(model.lacks)
+        return [f"{need}: {lacks[need]}" for need in needs if need in lacks]
+
 
 #: What the Runge-Kutta pairs can do: they integrate the scene's full state and right-hand side.
 RK_SUPPORTS = ("dissipative forces", "rigid-body state", "sliding contact", "terminal events")
@@ -118,7 +133,7 @@ METHODS: dict[str, Method] = {
         "exact",
         None,
         "closed form",
-        "closed form (elliptic integrals)",
+        "closed form (elliptic integrals; off the cone, Routh's reduction and quadrature)",
         ("terminal events",),
         (
             (
@@ -128,6 +143,7 @@ METHODS: dict[str, Method] = {
             ("rigid-body state", "the closed form does not follow the sphere's orientation"),
             ("sliding contact", "the closed form describes rolling without slipping"),
         ),
+        model_needs=("exact maps",),
     ),
     **{tb.name: _rk_row(i) for i, tb in enumerate(RK_TABLEAUX)},
     "symplectic": Method(
@@ -141,8 +157,55 @@ METHODS: dict[str, Method] = {
             ("rigid-body state", "it does not carry the sphere's orientation"),
             ("sliding contact", "a sliding sphere is not a conservative rolling orbit"),
         ),
+        model_needs=("separable split",),
     ),
 }
+
+
+def check_model_needs() -> None:
+    """Every method's model needs are capabilities models declare (at import)."""
+    for m in METHODS.values():
+        unknown = [n for n in m.model_needs if n not in MODEL_CAPABILITIES]
+        if unknown:
+            raise ValueError(f"method {m.name!r} needs unknown model capabilities {unknown}")
+
+
+check_model_needs()
+
+
+def check_kernel_ids(methods: dict[str, Method]) -> None:
+    """Every integrator's kernel id is its own, and names a run kernel (a Runge-Kutta pair's
+    position or ``engine.kernels.orbit.RUN_KERNELS``); the closed form has none (at import)."""
+    seen: dict[int, str] = {}
+    for m in methods.values():
+        if m.kernel_id is None:
+            continue
+        if m.kernel_id in seen:
+            raise ValueError(f"methods {seen[m.kernel_id]!r} and {m.name!r} share kernel id "
+                             f"{m.kernel_id}")  # fmt: skip
+        seen[m.kernel_id] = m.name
+        rk = m.family == "runge-kutta" and 0 <= m.kernel_id < len(RK_TABLEAUX)
+        if not (rk or (m.family != "runge-kutta" and m.kernel_id in RUN_KERNELS)):
+            raise ValueError(f"method {m.name!r}: kernel id {m.kernel_id} names no run kernel")
+
+
+check_kernel_ids(METHODS)
+
+
+def check_model(method: Method, model: Model, scene: Scene | None = None) -> None:
+    """Refuse (ValueError) a method that cannot serve ``model``, with the model's reasons and
+    the methods that can."""
+    why = method.model_refusals(model, scene)
+    if why:
+        able = [m.name for m in METHODS.values() if not m.model_refusals(model, scene)]
+        raise ValueError(
+            f"method {method.name!r} cannot serve the {model.name} model ({'; '.join(why)}); "
+            f"methods that can: {', '.join(able) or 'none'}"
+        )
+
+
+#: The models, by name (the cone, and any surface of revolution).
+MODEL_BY_NAME = {m.name: m for m in MODELS}
 
 
 def get_method(name: Any, *, integrator: bool = False) -> Method:

@@ -134,16 +134,23 @@ class Scene:
         """The effects as the bit mask the kernels compile in (``engine.kernels.effects``)."""
         return mask_of(self.effects)
 
-    def params(self, alpha: float = math.pi / 4) -> np.ndarray:
-        """The float64 parameter array of the kernels (layout ``engine.kernels.layouts``) on a
-        cone of half-aperture ``alpha`` [rad] (batch kernels replace alpha per point)."""
-        slots, values = [], []
+    def effect_slots(self) -> dict[str, float]:
+        """The effects' parameter slots (names of ``engine.kernels.layouts.SLOTS``) and their
+        values: each effect's Scene field (a limit not given: +inf)."""
+        out = {}
         for effect in EFFECTS:
             value = getattr(self, effect.scene_field)
             for slot in effect.params:
-                slots.append(SLOTS[slot])
-                values.append(math.inf if value is None else float(value))
-        p = make_params(self.M, self.g, self.k, self.a, np.array(slots, np.int64), np.array(values))
+                out[slot] = math.inf if value is None else float(value)
+        return out
+
+    def params(self, alpha: float = math.pi / 4) -> np.ndarray:
+        """The float64 parameter array of the kernels (layout ``engine.kernels.layouts``) on a
+        cone of half-aperture ``alpha`` [rad] (batch kernels replace alpha per point)."""
+        named = self.effect_slots()
+        slots = np.array([SLOTS[name] for name in named], np.int64)
+        values = np.array(list(named.values()), np.float64)
+        p = make_params(self.M, self.g, self.k, self.a, slots, values)
         set_alpha(p, alpha)
         return p
 

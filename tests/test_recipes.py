@@ -43,7 +43,8 @@ ROW = """
         bit=16,
         scene_field="c_drag",
         switch="coefficient",
-        params=("P_DRAG",),
+        params=("c_drag",),
+        forces=True,
         dissipative=True,
         events=("rest", "vertex"),
         needs=("dissipative forces",),
@@ -51,28 +52,22 @@ ROW = """
         doc="linear air drag: the centre's velocity decays at the rate c_drag",
     ),"""
 ROW_AFTER = 'integrated with the motion",\n    ),'
-_ATT = 'ATTITUDE = EFFECT_BITS["attitude"]'
-_RETURN = "    return u, vir / p[P_SIN], udot, vdot, -kappa * u * v"
-_RR_POWER = "        power += p[P_CRR] * N * math.sqrt(u * u + v * v)"
-#: Its terms in the right-hand side: the force, and the power it takes (the work state's rate).
-RHS_TERM = """
+_IMPORT = "from .layouts import MODEL_BASE, P_CRR, P_INV_M1K"
+_BIT = 'ROLLING_RESISTANCE = EFFECT_BITS["rolling_resistance"]'
+_RETURN = "    return f1, f2, t1, t2, t3"
+#: Its terms: the force on the centre, -c_drag M (1 + k) V (rolling, the velocity decays at the
+#: rate c_drag; its power, the work the drag takes, follows from the force).
+TERMS = """
     if effects & AIR_DRAG:
-        udot -= p[P_DRAG] * u
-        vdot -= p[P_DRAG] * v"""
-POWER_TERM = """
-    if effects & AIR_DRAG:
-        power += p[P_DRAG] * (u * u + v * v) / p[P_INV_M1K]"""
+        drag = p[P_DRAG] / p[P_INV_M1K]
+        f1 -= drag * u
+        f2 -= drag * v"""
 #: (file, old text, new text): the recipe's edits; each old text occurs once.
 EFFECT_EDITS = [
     ("kernels/effects.py", ROW_AFTER, ROW_AFTER + ROW),
-    ("kernels/model.py", _ATT, _ATT + '\nAIR_DRAG = EFFECT_BITS["air_drag"]'),
-    (
-        "kernels/model.py",
-        "\nN_PARAMS = 18",
-        "\nP_DRAG = 18  # linear drag rate [s-1]\nN_PARAMS = 19",
-    ),
-    ("kernels/model.py", _RETURN, RHS_TERM.lstrip("\n") + "\n" + _RETURN),
-    ("kernels/model.py", _RR_POWER, _RR_POWER + POWER_TERM),
+    ("kernels/forces.py", _IMPORT, _IMPORT + ", SLOTS"),
+    ("kernels/forces.py", _BIT, _BIT + '\nAIR_DRAG = EFFECT_BITS["air_drag"]\nP_DRAG = SLOTS["c_drag"]'),
+    ("kernels/forces.py", _RETURN, TERMS.lstrip("\n") + "\n" + _RETURN),
     (
         "scene.py",
         "    attitude: bool = False",

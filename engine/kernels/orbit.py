@@ -43,8 +43,28 @@ from .rk import rk_run
 from .symplectic import SYMPLECTIC, sym_run
 from .tableaux import RK_TABLEAUX
 
-#: Run kernels of the methods that are not Runge-Kutta pairs, by kernel id.
+#: Run kernels of the methods that are not Runge-Kutta pairs, by kernel id. The Runge-Kutta
+#: pairs take the ids 0 .. len(RK_TABLEAUX) - 1 (their positions); these start at
+#: :data:`OTHER_KERNELS`, so a new pair never takes another method's id.
 RUN_KERNELS = {SYMPLECTIC: sym_run}
+#: The first kernel id of the methods that are not Runge-Kutta pairs.
+OTHER_KERNELS = 100
+
+
+def check_kernel_ids(run_kernels: dict, n_tableaux: int) -> None:
+    """Refuse (ValueError) kernel ids that the Runge-Kutta pairs could take, or that are not
+    ints: each id names one kernel, whatever is appended to either table."""
+    if n_tableaux > OTHER_KERNELS:
+        raise ValueError(f"{n_tableaux} Runge-Kutta pairs reach the other kernels' ids")
+    for kid in run_kernels:
+        if not isinstance(kid, int) or kid < OTHER_KERNELS:
+            raise ValueError(
+                f"kernel id {kid!r} is not an int >= {OTHER_KERNELS} (below it the ids are the "
+                "Runge-Kutta pairs' positions)"
+            )
+
+
+check_kernel_ids(RUN_KERNELS, len(RK_TABLEAUX))
 #: Rows of the float output of :func:`integrate_points`.
 PERIOD_ROWS = ("period", "apsidal_angle", "precession_rate", "energy_drift", "energy_loss")
 
