@@ -110,9 +110,7 @@ class Method:
         """Why this method cannot serve ``model`` (with ``scene``'s effects): the model's
         reasons for lacking what the method (or the scene's sliding contact) needs."""
         needs = list(self.model_needs)
-        if scene is not None and any(
-            "sliding contact" in BY_NAME[e].needs for e in scene.effects
-        ):
+        if scene is not None and any("sliding contact" in BY_NAME[e].needs for e in scene.effects):
             needs.append("sliding contact")
         lacks = dict(model.lacks)
         return [f"{need}: {lacks[need]}" for need in needs if need in lacks]

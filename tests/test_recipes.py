@@ -66,7 +66,11 @@ TERMS = """
 EFFECT_EDITS = [
     ("kernels/effects.py", ROW_AFTER, ROW_AFTER + ROW),
     ("kernels/forces.py", _IMPORT, _IMPORT + ", SLOTS"),
-    ("kernels/forces.py", _BIT, _BIT + '\nAIR_DRAG = EFFECT_BITS["air_drag"]\nP_DRAG = SLOTS["c_drag"]'),
+    (
+        "kernels/forces.py",
+        _BIT,
+        _BIT + '\nAIR_DRAG = EFFECT_BITS["air_drag"]\nP_DRAG = SLOTS["c_drag"]',
+    ),
     ("kernels/forces.py", _RETURN, TERMS.lstrip("\n") + "\n" + _RETURN),
     (
         "scene.py",

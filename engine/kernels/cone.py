@@ -50,6 +50,16 @@ P_COT = _SLOT["cot"]  # cot(alpha)
 P_GC = _SLOT["gc"]  # g cos(alpha) / (1 + k) [m s-2]
 
 
+#: The slot of the domain's floor (None: r = 0): :func:`domain_floor`.
+DOMAIN_FLOOR_SLOT = None
+
+
+@kernel
+def domain_floor(p):
+    """The cone's state needs r > 0."""
+    return 0.0
+
+
 # ------------------------------------------------------------------------ the scene's params
 @kernel
 def set_alpha(p, alpha):

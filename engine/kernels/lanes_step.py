@@ -34,7 +34,7 @@ from numba.extending import intrinsic, overload
 from .._jit import kernel
 from .branchless import keep, pick
 from .layouts import state_size_of
-from .model import N_PARAMS, rates5, rates6, rates9, rates10
+from .model import MODEL_ROWS, N_PARAMS, model_of_key, rates5, rates6, rates9, rates10
 from .protocol import OK, TERMINAL_EFFECTS, terminal_between
 from .rk import clip_step, step_allowed, step_decide, step_error
 from .rk_codegen import GEN_OPTS, literal_int, rk_method_id, unrolled_step_lines
@@ -107,9 +107,11 @@ def _w(slot: int, j: int = 0) -> str:
     return f"W[{(slot + j) * LANES} + l]"
 
 
-def attempt_source(method: int, n: int) -> str:
+def attempt_source(method: int, n: int, floor: int | None = None) -> str:
     """Source of ``impl(method, effects, W, rtol)``: one step of every lane (h, y, f(y),
-    tolerances and parameters from ``W``; its stages, y_new, error and root into ``W``)."""
+    tolerances and parameters from ``W``; its stages, y_new, error and root into ``W``).
+    ``floor``: the parameter slot of the model's domain floor (:func:`.model.domain_floor`;
+    None: 0, written as no subtraction at all, as the cone's r > 0 always was)."""
     ly = layout(method, n)
     slot = {"y": ly.Y, "k0": ly.K, "atol": ly.ATOL}
 
@@ -127,7 +129,8 @@ def attempt_source(method: int, n: int) -> str:
     # The controller's root in a loop of its own (arithmetic: .branchless.power).
     ctl = repr(RK_TABLEAUX[method].controller())
     lines += [f"    for l in range({LANES}):"]
-    lines += [f"        e = step_error({_w(ly.ERR)}, {_w(ly.YN)}, {ctl})"]
+    inside = _w(ly.YN) if floor is None else f"{_w(ly.YN)} - {_w(ly.P + floor)}"
+    lines += [f"        e = step_error({_w(ly.ERR)}, {inside}, {ctl})"]
     lines += [f"        {_w(ly.ERR, c)} = e[{c}]" for c in range(2)]
     return "\n".join(lines) + "\n"
 
@@ -212,9 +215,9 @@ _NAMESPACE = {
 
 
 @functools.cache
-def _compiled(kind: str, method: int, n: int, terminal: bool):
+def _compiled(kind: str, method: int, n: int, terminal: bool, floor: int | None = None):
     if kind == "attempt":
-        src = attempt_source(method, n)
+        src = attempt_source(method, n, floor)
     else:
         src = control_source(method, n, terminal, kind == "fate control")
     namespace = dict(_NAMESPACE)
@@ -225,6 +228,11 @@ def _compiled(kind: str, method: int, n: int, terminal: bool):
 def _effects(effects) -> tuple[int, bool]:
     e = literal_int(effects, "effects")
     return state_size_of(e), bool(e & TERMINAL_EFFECTS)
+
+
+def _floor(effects) -> int | None:
+    """The slot of the model's domain floor (None: 0, the cone's r > 0)."""
+    return MODEL_ROWS[model_of_key(literal_int(effects, "effects"))].physics.DOMAIN_FLOOR_SLOT
 
 
 def lanes_attempt(method, effects, W, rtol):
@@ -251,7 +259,7 @@ def lanes_layout(method, effects):
 
 @overload(lanes_attempt, jit_options=GEN_OPTS)
 def _ol_lanes_attempt(method, effects, W, rtol):
-    return _compiled("attempt", rk_method_id(method), _effects(effects)[0], False)
+    return _compiled("attempt", rk_method_id(method), _effects(effects)[0], False, _floor(effects))
 
 
 @overload(lanes_control, jit_options=GEN_OPTS)

@@ -243,6 +243,13 @@ def invariants(y, p, effects):
     raise NotImplementedError(_JIT_ONLY)
 
 
+def domain_floor(p, effects):
+    """The meridian coordinate at or below which the model's state means nothing (the cone:
+    r = 0; a surface: where the sphere stops fitting or touching): a step that ends there is
+    rejected. Jit-only."""
+    raise NotImplementedError(_JIT_ONLY)
+
+
 def slip_margin(y, p, effects):
     """Event function of the slip check: |F| - mu N [N] (> 0: the sphere slips). Jit-only."""
     raise NotImplementedError(_JIT_ONLY)
@@ -282,6 +289,7 @@ _interface(dissipated_power, "physics")
 _interface(omega_fixed, "physics", takes_effects=False)
 _interface(invariants, "physics", takes_effects=False)
 _interface(slip_margin, "physics")
+_interface(domain_floor, "physics", takes_effects=False)
 _interface(set_point, "starts", takes_effects=False)
 _interface(period_start, "starts")
 _interface(fate_start, "starts")
@@ -292,7 +300,10 @@ _interface(starts_inner, "starts")
 INTERFACE = tuple(
     (part, fn.__name__)
     for part, fns in (
-        ("physics", (motion_rates, dissipated_power, omega_fixed, invariants, slip_margin)),
+        (
+            "physics",
+            (motion_rates, dissipated_power, omega_fixed, invariants, slip_margin, domain_floor),
+        ),
         ("starts", (set_point, period_start, fate_start, holds_at_rest, starts_inner)),
     )
     for fn in fns
@@ -305,8 +316,9 @@ def check_interface(models: tuple[Model, ...]) -> None:
     for m in models:
         missing = [f"{part}.{name}" for part, name in INTERFACE
                    if not hasattr(getattr(m, part), name)]  # fmt: skip
-        if not hasattr(m.physics, "SLOTS"):
-            missing.append("physics.SLOTS")
+        for name in ("SLOTS", "DOMAIN_FLOOR_SLOT"):
+            if not hasattr(m.physics, name):
+                missing.append(f"physics.{name}")
         if missing:
             raise ValueError(f"model {m.name!r} lacks {', '.join(missing)}")
 

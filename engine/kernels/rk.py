@@ -33,7 +33,7 @@ from numba import literally
 from .._jit import kernel
 from .branchless import pick, power
 from .layouts import ATTITUDE, state_size
-from .model import param_tuple, rhs
+from .model import domain_floor, param_tuple, rhs
 from .protocol import (
     BUFFER_FULL,
     EPS,
@@ -89,9 +89,9 @@ def _grow(err, root, err_old, beta, rejected, fmax):
 @kernel(inline="always")
 def step_error(err, r_new, ctl):
     """(error the controller sees, its root: e ** -k1 if the step is accepted (e <= 1), else
-    e ** -k_rej) after an attempt with scaled error err and new radius r_new; a step that
-    leaves r > 0 has an infinite error. Pure arithmetic, so the lanes compute it for all lanes
-    at once (:mod:`.lanes`)."""
+    e ** -k_rej) after an attempt with scaled error err whose new state lies r_new inside the
+    model's domain (:func:`.model.domain_floor`); a step that leaves it has an infinite error.
+    Pure arithmetic, so the lanes compute it for all lanes at once (:mod:`.lanes`)."""
     k1, k_rej, beta, fmax = ctl
     e = pick(r_new > 0.0, err, math.inf)
     return e, _root(e, k1, k_rej)
@@ -155,7 +155,7 @@ def initial_step(method, effects, y0, K, p, rtol, atol, ytmp):
         h0 = 0.01 * d0 / d1
     for j in range(n):
         ytmp[j] = y0[j] + h0 * K[0, j]
-    if not ytmp[0] > 0.0:
+    if not ytmp[0] - domain_floor(p, effects) > 0.0:
         return h0
     rhs(ytmp, p, effects, K, 1)
     d2 = 0.0
@@ -285,7 +285,7 @@ def rk_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_step
             break
         h, last = clip_step(t, h, t_end)
         err = rk_attempt(method, effects, y, h, pt, K, ynew, rtol, atol)
-        e = step_error(err, ynew[0], ctl)
+        e = step_error(err, ynew[0] - domain_floor(pt, effects), ctl)
         accepted, h, h_next, err_old, rejected = step_decide(e, h, err_old, rejected, ctl)
         if not accepted:
             n_rej += 1
