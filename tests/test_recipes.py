@@ -55,6 +55,7 @@ ROW_AFTER = 'integrated with the motion",\n    ),'
 _IMPORT = "from .layouts import MODEL_BASE, P_CRR, P_INV_M1K"
 _BIT = 'ROLLING_RESISTANCE = EFFECT_BITS["rolling_resistance"]'
 _RETURN = "    return f1, f2, t1, t2, t3"
+_DRAG_NAMES = '\nAIR_DRAG = EFFECT_BITS["air_drag"]\nP_DRAG = SLOTS["c_drag"]'
 #: Its terms: the force on the centre, -c_drag M (1 + k) V (rolling, the velocity decays at the
 #: rate c_drag; its power, the work the drag takes, follows from the force).
 TERMS = """
