@@ -201,7 +201,8 @@ def build_table(p: np.ndarray, q_max: float = math.inf) -> Table:
         if tail:
             outer = K.END_INFINITY
         else:
-            q_b, outer = max(float(q_max), 2.0 * q_a), K.END_TABLE
+            q_b = float(q_max) if math.isfinite(q_max) else 1.0
+            q_b, outer = max(q_b, 2.0 * q_a), K.END_TABLE
     q_split = q_b
     if tail:
         q_split = min(4.0 * max(q_a, p[P_RADIUS]), q_b)

@@ -82,6 +82,14 @@ HALVINGS = 200
 #: its well (:mod:`.routh_well`) where the well's series converge to WELL_TOL.
 NARROW = 0.3
 WELL_TOL = 1e-14
+#: Gauss-Legendre rules of 2 N_GL, 4 N_GL, 8 N_GL points on [-1, 1]: their positive halves,
+#: rows padded with points of weight 0.
+N_GL = 16
+_GL_X = np.full((3, 4 * N_GL), 0.5)
+_GL_W = np.zeros((3, 4 * N_GL))
+for _m in range(3):
+    _x, _w = np.polynomial.legendre.leggauss(2 * N_GL * 2**_m)
+    _GL_X[_m, : N_GL * 2**_m], _GL_W[_m, : N_GL * 2**_m] = _x[_x > 0], _w[_x > 0]
 #: Log substitution where the apocentre's distance from the axis is this many pericentres.
 ECCENTRIC = 4.0
 
@@ -182,9 +190,7 @@ def _node(p, edges, coef, meta, c1, c2, e0, q, jac, fa, fb, q1, q2, wm):
 @kernel
 def quadrature(p, edges, coef, meta, c1, c2, e0, q1, q2, sub, wm):
     """(T, psi, nodes) of the orbit between its turning points q1 < q2 (module docstring); sub:
-    0 q = m - h cos t, 1 log(q - q_axis) = m - h cos t, 2 a radial orbit (q1 the axis: q =
-    q1 + (q2 - q1) cos t, t in [0, pi/2]; T = 2 int, psi not computed); ``wm`` the well
-    (:func:`_at`)."""
+    0 q = m - h cos t, 1 log(q - q_axis) = m - h cos t; ``wm`` the well (:func:`_at`)."""
     F1, fq1, s1, l1 = _at(p, edges, coef, meta, c1, c2, e0, q1, wm)
     F2, fq2, s2, l2 = _at(p, edges, coef, meta, c1, c2, e0, q2, wm)
     m = 0.5 * (q1 + q2)
@@ -196,18 +202,11 @@ def quadrature(p, edges, coef, meta, c1, c2, e0, q1, q2, sub, wm):
         y2 = math.log(q2 - qx)
         ym = 0.5 * (y1 + y2)
         yh = 0.5 * (y2 - y1)
-    if sub == 2:
-        tend = 0.5 * math.pi
-        a = s2 * math.sqrt(4.0 * h / abs(fq2))
-        fa, pa = a, 0.0
-        fb, pb = _node(p, edges, coef, meta, c1, c2, e0, q1, 2.0 * h, fq1, fq2, -math.inf, q2, wm)
-    else:
-        tend = math.pi
-        j1 = h if sub == 0 else (q1 - qx) * yh
-        j2 = h if sub == 0 else (q2 - qx) * yh
-        fa = s1 * math.sqrt(2.0 * j1 / abs(fq1))
-        fb = s2 * math.sqrt(2.0 * j2 / abs(fq2))
-        pa, pb = fa * l1, fb * l2
+    j1 = h if sub == 0 else (q1 - qx) * yh
+    j2 = h if sub == 0 else (q2 - qx) * yh
+    fa = s1 * math.sqrt(2.0 * j1 / abs(fq1))
+    fb = s2 * math.sqrt(2.0 * j2 / abs(fq2))
+    pa, pb = fa * l1, fb * l2
     sT = 0.5 * (fa + fb)
     sP = 0.5 * (pa + pb)
     sA = 0.5 * (abs(pa) + abs(pb))
@@ -216,27 +215,45 @@ def quadrature(p, edges, coef, meta, c1, c2, e0, q1, q2, sub, wm):
     while n < N_MAX:
         n *= 2
         for j in range(1, n, 2):  # the new nodes
-            t = j * tend / n
+            t = j * math.pi / n
             ct = math.cos(t)
+            st = math.sin(t)
             if sub == 0:
                 q, jac = m - h * ct, h
-            elif sub == 1:
+            else:
                 e = math.exp(ym - yh * ct)
                 q, jac = qx + e, e * yh
-            else:
-                q, jac = q1 + 2.0 * h * ct, 2.0 * h
             f, g = _node(p, edges, coef, meta, c1, c2, e0, q, jac, fq1, fq2, q1, q2, wm)
-            st = math.sin(t)
             sT += f * st
             sP += g * st
             sA += abs(g) * st
-        IT2 = sT * tend / n
-        IP2 = sP * tend / n
+        IT2 = sT * math.pi / n
+        IP2 = sP * math.pi / n
         if n >= 16 and abs(IT2 - IT) <= QUAD_TOL * IT2:
-            if sub == 2 or abs(IP2 - IP) <= QUAD_TOL * sA * tend / n:
+            if abs(IP2 - IP) <= QUAD_TOL * sA * math.pi / n:
                 return 2.0 * IT2, abs(IP2), n + 1
         IT, IP = IT2, IP2
     return 2.0 * IT, abs(IP), n + 1
+
+
+@kernel
+def radial_period(p, edges, coef, meta, c2, e0, qa, q2):
+    """T = 2 int_{qa}^{q2} sigma dq/sqrt(F) of a radial orbit (qa the axis, where the
+    potential may have a kink: the cone's vertex): q = q2 - (q2 - qa) v^2 makes the integrand
+    smooth and even in v on [-1, 1]; Gauss-Legendre on 2 N_GL and 4 N_GL points, then 8 N_GL
+    where they differ by more than QUAD_TOL."""
+    D = q2 - qa
+    last = math.nan
+    for m in range(3):
+        s = 0.0
+        for i in range(N_GL * 2**m):
+            v = _GL_X[m, i]
+            F, Fq, sig, lr2, rho, z = radial_f(p, edges, coef, meta, 0.0, c2, e0, q2 - D * v * v)
+            s += _GL_W[m, i] * sig * 2.0 * D * v / math.sqrt(F)
+        if abs(s - last) <= QUAD_TOL * s:
+            break
+        last = s
+    return 2.0 * s
 
 
 @kernel
@@ -296,7 +313,7 @@ def orbit(p, edges, coef, meta, q0, u0, v0, w0):
     none = np.empty(0)
     wm = (none, none, none, none, 0.0, 1.0, 0.0)
     if radial and axis:
-        T = quadrature(p, edges, coef, meta, 0.0, c2, e0, q1, q2, 2, wm)[0]
+        T = radial_period(p, edges, coef, meta, c2, e0, q1, q2)
         return RADIAL, 0.0, rmax, T, nan, nan, IL, Iw
     rho_m, z_m, sb_m, cb_m, kap_m, sig_m, L_m, w_m = along(p, edges, coef, meta, c1, c2,
                                                            0.5 * (q1 + q2))  # fmt: skip
