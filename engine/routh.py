@@ -3,10 +3,9 @@ surface of revolution"; kernels :mod:`engine.kernels.routh` and :mod:`engine.ker
 
 Per surface, once, :func:`surface_table` builds the fundamental matrix Phi of the linear
 meridian system d(L, X)/dq = A(q) (L, X) (Phi(q_ref) = I) to near machine precision: Chebyshev
-collocation on panels, each panel's propagator from the integral form Y(xi) = Y(start) +
-int B Y (the spectral integration matrix on NC Chebyshev points of the first kind, which avoid
-the panel's ends: the axis, q = inf), panels halved until the last two Chebyshev coefficients
-of the propagator (scaled by the panel's rho: L and w alike) are below :data:`PANEL_TOL`.
+collocation in integral form on panels (:mod:`engine.kernels.routh_panel`), marched from
+q_ref, each panel halved until the last two Chebyshev coefficients of its propagator are below
+:data:`PANEL_TOL`.
 Where the coefficients decay like 1/q^2 or faster (the cone, where A = 0; the funnel) the
 last panels are in x = 1/q up to q = inf; elsewhere the table ends at a finite q (the rim, or
 beyond the launches' reach, extended when an orbit reaches it). Tables are cached by the
@@ -22,7 +21,6 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numpy.polynomial import chebyshev as cheb
 
 from .kernels import routh as K
 from .kernels.layouts import P_RADIUS
@@ -41,6 +39,7 @@ from .kernels.meridian import (
     centre,
 )
 from .kernels.routh_orbit import orbit_points
+from .kernels.routh_panel import panel
 from .kernels.surface_starts import X_POS, launch_q, set_point
 
 #: A panel is accepted when its propagator's last two Chebyshev coefficients are below this.
@@ -49,15 +48,6 @@ PANEL_TOL = 2e-15
 MAX_PANELS = 4000
 #: Tables kept (by the surface's parameters).
 CACHE_SIZE = 256
-
-_NODES = np.cos(np.pi * (np.arange(K.NC) + 0.5) / K.NC)  # first kind, descending
-_V2C = np.cos(np.outer(np.arange(K.NC), np.pi * (np.arange(K.NC) + 0.5) / K.NC)) * (2.0 / K.NC)
-_V2C[0] *= 0.5
-_ANTI = [cheb.chebint(np.eye(K.NC)[k], lbnd=-1) for k in range(K.NC)]
-#: int_{-1}^{xi_i} f from the values f(xi_j), and int_{-1}^{1} f.
-_INT = np.stack([cheb.chebval(_NODES, a) for a in _ANTI], axis=1) @ _V2C
-_W = np.array([cheb.chebval(1.0, a) for a in _ANTI]) @ _V2C
-
 
 class Table(NamedTuple):
     """A surface's fundamental solution (:mod:`engine.kernels.routh`): ``edges``, ``coef``,
@@ -102,56 +92,12 @@ def _ends(p: np.ndarray) -> tuple[float, int]:
     return qa, K.END_AXIS
 
 
-def _coefficients(p: np.ndarray, mode: int, q: np.ndarray) -> np.ndarray:
-    out = np.empty((5, q.shape[0]))
-    K.ode_coefficients(p, mode, np.ascontiguousarray(q), out)
-    return out
-
-
-def _panel(p, mode, lo, hi, in_x, from_left):
-    """The propagator Psi on the panel [lo, hi] (in q; in x = 1/q where ``in_x``) from its
-    start (the left end where ``from_left``): (Psi at the nodes [NC, 2, 2], Psi at the far end,
-    the trailing-coefficient size)."""
-    if in_x:
-        xa, xb = 1.0 / lo, 1.0 / hi
-        x = 0.5 * (xa + xb) + 0.5 * (xb - xa) * _NODES
-        q = 1.0 / x
-        jac = q * q * 0.5 * (xa - xb)
-    else:
-        q = 0.5 * (lo + hi) + 0.5 * (hi - lo) * _NODES
-        jac = np.full(K.NC, 0.5 * (hi - lo))
-    a = _coefficients(p, mode, q)
-    B = a[:4] * jac
-    ell = max(float(np.mean(np.abs(a[4]))), 1e-300)
-    if not np.any(B):
-        psi = np.broadcast_to(np.eye(2), (K.NC, 2, 2)).copy()
-        return psi, np.eye(2), 0.0
-    S = _INT if from_left else _INT - _W[None, :]
-    n = K.NC
-    M = np.eye(2 * n)
-    M[:n, :n] -= S * B[0]
-    M[:n, n:] -= S * B[1]
-    M[n:, :n] -= S * B[2]
-    M[n:, n:] -= S * B[3]
-    rhs = np.zeros((2 * n, 2))
-    rhs[:n, 0] = 1.0
-    rhs[n:, 1] = 1.0
-    Y = np.linalg.solve(M, rhs)
-    psi = np.stack([np.stack([Y[:n, 0], Y[:n, 1]], 1), np.stack([Y[n:, 0], Y[n:, 1]], 1)], 1)
-    sign = 1.0 if from_left else -1.0
-    dY = np.stack([B[0] * Y[:n].T + B[1] * Y[n:].T, B[2] * Y[:n].T + B[3] * Y[n:].T])
-    end = np.eye(2) + sign * np.einsum("j,rcj->rc", _W, dY)
-    scaled = psi * np.array([[1.0, 1.0 / ell], [ell, 1.0]])
-    c = np.einsum("kj,jrc->krc", _V2C, scaled)
-    tail = float(np.max(np.abs(c[-2:])) / max(1.0, float(np.max(np.abs(scaled)))))
-    return psi, end, tail
-
-
 def _march(p, mode, lo, hi, in_x, from_left, start, out):
     """Panels covering [lo, hi] from its start end with Phi = ``start`` there, halved until
-    accepted: appends (lo, hi, in_x, Phi at the nodes) to ``out``; returns Phi at the far end
-    and the largest trailing coefficient accepted."""
-    psi, end, tail = _panel(p, mode, lo, hi, in_x, from_left)
+    their trailing coefficients are below PANEL_TOL (or too small to halve): appends (lo, hi,
+    in_x, coefficients of Phi - I) to ``out``; returns Phi at the far end and the largest
+    trailing coefficient accepted."""
+    coef, end, tail = panel(p, mode, lo, hi, in_x, from_left, start)
     mid = 2.0 / (1.0 / lo + 1.0 / hi) if in_x else 0.5 * (lo + hi)
     width = (1.0 / lo - 1.0 / hi) * lo if in_x else (hi - lo) / max(abs(lo), abs(hi))
     small = not (lo < mid < hi) or width <= 1e-12
@@ -162,20 +108,8 @@ def _march(p, mode, lo, hi, in_x, from_left, start, out):
             start, e = _march(p, mode, a, b, in_x, from_left, start, out)
             err = max(err, e)
         return start, err
-    out.append((lo, hi, in_x, psi @ start))
-    return end @ start, tail if np.isfinite(tail) else math.inf
-
-
-def _coef_of(values: np.ndarray) -> np.ndarray:
-    """[NC, 4] Chebyshev coefficients of Phi - I (Phi11 - 1, Phi12, Phi21, Phi22 - 1) from
-    Phi's node values (a constant exactly: the cone's Phi - I = 0)."""
-    v = (values - np.eye(2)).reshape(K.NC, 4)
-    c = _V2C @ v
-    for m in range(4):
-        if np.all(v[:, m] == v[0, m]):
-            c[:, m] = 0.0
-            c[0, m] = v[0, m]
-    return c
+    out.append((lo, hi, in_x, coef))
+    return end, tail if np.isfinite(tail) else math.inf
 
 
 def build_table(p: np.ndarray, q_max: float = math.inf) -> Table:
@@ -220,7 +154,7 @@ def build_table(p: np.ndarray, q_max: float = math.inf) -> Table:
         q_ref = q_a
     panels.sort(key=lambda t: t[0])
     edges = np.array([t[0] for t in panels] + [panels[-1][1]])
-    coef = np.stack([_coef_of(t[3]) for t in panels])
+    coef = np.stack([t[3] for t in panels])
     n_q = sum(1 for t in panels if not t[2])
     flat = not np.any(coef)
     rho_a, _, cb_a, sb_a, kap_a = centre(p, q_a)[:5]
