@@ -37,9 +37,9 @@ from bench_common import MACHINE, interleaved, load, verdict
 
 from engine import routh
 from engine.kernels import meridian as mer
+from engine.kernels.lanes import integrate_points_lanes
 from engine.kernels.layouts import SLOTS
 from engine.kernels.model import SURFACE, make_params, scene_key
-from engine.kernels.lanes import integrate_points_lanes
 from engine.kernels.orbit import integrate_points
 from engine.kernels.routh import BOUNDED
 from engine.kernels.surface_starts import launch_q, set_point
@@ -106,6 +106,39 @@ def setup_ms(p: np.ndarray, X: np.ndarray, rounds: int) -> tuple[float, routh.Ta
     return 1e3 * best, t
 
 
+def surface(name: str, n: int, rounds: int) -> None:
+    """Lines (a)-(d) of one surface."""
+    p, X = launches(name, n)
+    exact = routh.exact_map(p, X)
+    ms, t = setup_ms(p, X, max(rounds, 3))
+    print(f"\n{name}: {X.shape[1]} bounded orbits")
+    print(f"  (a) setup {ms:.2f} ms ({int(t.meta[routh.K.N_PANELS])} panels, trailing "
+          f"{t.error:.1e}); target < 50 ms: {verdict(50.0, ms)}")  # fmt: skip
+    chosen, err = RTOLS[-1], math.inf
+    for rtol in RTOLS:
+        err = float(np.max(np.abs(dop853(p, X, rtol)[1] - exact["apsidal_angle"])))
+        if err <= PSI_ERROR:
+            chosen = rtol
+            break
+    print(f"  (b) dop853 at rtol {chosen:.0e}: largest |psi - psi_exact| {err:.1e} rad")
+    numba.set_num_threads(1)
+    fns = {"exact": lambda: routh.exact_map(p, X), "lanes": lambda: dop853(p, X, chosen),
+           "scalar": lambda: dop853(p, X, chosen, lanes=False)}  # fmt: skip
+    cpu = interleaved(fns, rounds, (time.process_time,))
+    us = {k: 1e6 * v[0] / X.shape[1] for k, v in cpu.items()}
+    ratio = us["lanes"] / us["exact"]
+    print(f"  (c) per core: exact {us['exact']:.2f} us/orbit; dop853 {us['lanes']:.2f} us/orbit "
+          f"on the SIMD lanes, {us['scalar']:.2f} one point per thread: dop853 (lanes) / "
+          f"exact = {ratio:.1f}x; target >= 3x: {verdict(ratio, 3.0)}")  # fmt: skip
+    walls = {}
+    for threads in (1, 2):
+        numba.set_num_threads(threads)
+        walls[threads] = interleaved({"e": fns["exact"]}, rounds)["e"][0]
+    speed = walls[1] / walls[2]
+    print(f"  (d) exact on 2 threads: {1e3 * walls[2]:.2f} ms (1 thread {1e3 * walls[1]:.2f} "
+          f"ms): 2-thread speedup {speed:.2f}; target >= 1.8: {verdict(speed, 1.8)}")  # fmt: skip
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("-n", type=int, default=2000, help="orbits per surface")
@@ -116,36 +149,7 @@ def main() -> None:
     print(f"machine: {MACHINE}; load average {load()}")
     print(f"exact map (Routh) vs dop853 one-period map (kernels), {n} orbits per surface")
     for name in SURFACES:
-        p, X = launches(name, n)
-        exact = routh.exact_map(p, X)
-        ms, t = setup_ms(p, X, max(rounds, 3))
-        print(f"\n{name}: {X.shape[1]} bounded orbits")
-        print(f"  (a) setup {ms:.2f} ms ({int(t.meta[routh.K.N_PANELS])} panels, trailing "
-              f"{t.error:.1e}); target < 50 ms: {verdict(50.0, ms)}")  # fmt: skip
-        chosen, err = RTOLS[-1], math.inf
-        for rtol in RTOLS:
-            psi = dop853(p, X, rtol)[1]
-            err = float(np.max(np.abs(psi - exact["apsidal_angle"])))
-            if err <= PSI_ERROR:
-                chosen = rtol
-                break
-        print(f"  (b) dop853 at rtol {chosen:.0e}: largest |psi - psi_exact| {err:.1e} rad")
-        numba.set_num_threads(1)
-        fns = {"exact": lambda: routh.exact_map(p, X), "lanes": lambda: dop853(p, X, chosen),
-               "scalar": lambda: dop853(p, X, chosen, lanes=False)}  # fmt: skip
-        cpu = interleaved(fns, rounds, (time.process_time,))
-        us = {k: 1e6 * v[0] / X.shape[1] for k, v in cpu.items()}
-        ratio = us["lanes"] / us["exact"]
-        print(f"  (c) per core: exact {us['exact']:.2f} us/orbit; dop853 {us['lanes']:.2f} "
-              f"us/orbit on the SIMD lanes, {us['scalar']:.2f} one point per thread: "
-              f"dop853 (lanes) / exact = {ratio:.1f}x; target >= 3x: {verdict(ratio, 3.0)}")  # fmt: skip
-        walls = {}
-        for threads in (1, 2):
-            numba.set_num_threads(threads)
-            walls[threads] = interleaved({"e": fns["exact"]}, rounds)["e"][0]
-        speed = walls[1] / walls[2]
-        print(f"  (d) exact on 2 threads: {1e3 * walls[2]:.2f} ms (1 thread {1e3 * walls[1]:.2f}"
-              f" ms): 2-thread speedup {speed:.2f}; target >= 1.8: {verdict(speed, 1.8)}")  # fmt: skip
+        surface(name, n, rounds)
     print(f"\nload average after: {load()}")
 
 
