@@ -49,6 +49,7 @@ MAX_PANELS = 4000
 #: Tables kept (by the surface's parameters).
 CACHE_SIZE = 256
 
+
 class Table(NamedTuple):
     """A surface's fundamental solution (:mod:`engine.kernels.routh`): ``edges``, ``coef``,
     ``meta``, and ``params``, the surface's parameter array after ``set_point``."""
