@@ -163,13 +163,13 @@ def _turn(p, edges, coef, meta, c1, c2, e0, q0, q_end, axis_end):
 
 @kernel
 def _at(p, edges, coef, meta, c1, c2, e0, q, wm):
-    """(F, dF/dq, sigma, L/rho^2) at q: from the well's series where ``wm`` holds one
-    (:mod:`.routh_well`), else directly."""
+    """(F, dF/dq, ds/dq, L/rho^2) at q; where ``wm`` holds a well (:mod:`.routh_well`) q is
+    its variable x = (q - q_c)/hw (the orbit's nodes keep every digit of its width, which q
+    itself, rounded to eps q, would not) and F comes from the well's series."""
     H, g, S, R, qc, hw, delta = wm
     if H.shape[0] > 0:
-        x = (q - qc) / hw
-        sig = value(S, x)
-        return delta - value(H, x), -sig * value(g, x), sig, value(R, x)
+        sig = hw * value(S, q)
+        return delta - value(H, q), -sig * value(g, q), sig, value(R, q)
     F, Fq, sig, lr2, rho, z = radial_f(p, edges, coef, meta, c1, c2, e0, q)
     return F, Fq, sig, lr2
 
@@ -190,7 +190,8 @@ def _node(p, edges, coef, meta, c1, c2, e0, q, jac, fa, fb, q1, q2, wm):
 @kernel
 def quadrature(p, edges, coef, meta, c1, c2, e0, q1, q2, sub, wm):
     """(T, psi, nodes) of the orbit between its turning points q1 < q2 (module docstring); sub:
-    0 q = m - h cos t, 1 log(q - q_axis) = m - h cos t; ``wm`` the well (:func:`_at`)."""
+    0 q = m - h cos t, 1 log(q - q_axis) = m - h cos t; ``wm`` the well (:func:`_at`: then
+    q1, q2 are in its variable x)."""
     F1, fq1, s1, l1 = _at(p, edges, coef, meta, c1, c2, e0, q1, wm)
     F2, fq2, s2, l2 = _at(p, edges, coef, meta, c1, c2, e0, q2, wm)
     m = 0.5 * (q1 + q2)
@@ -326,9 +327,10 @@ def orbit(p, edges, coef, meta, q0, u0, v0, w0):
             x1 = well_root(H, g, S, hw, delta, (q1 - qc) / hw)
             x2 = well_root(H, g, S, hw, delta, (q2 - qc) / hw)
             if x1 < x2:
-                q1, q2 = qc + hw * x1, qc + hw * x2
-                rmin, rmax = _position(p, meta, q1), _position(p, meta, q2)
+                rmin, rmax = _position(p, meta, qc + hw * x1), _position(p, meta, qc + hw * x2)
                 wm = (H, g, S, R, qc, hw, delta)
+                T, psi, nodes = quadrature(p, edges, coef, meta, c1, c2, e0, x1, x2, 0, wm)
+                return BOUNDED, rmin, rmax, T, psi, (2.0 * psi - 2.0 * math.pi) / T, IL, Iw
     qx = meta[Q_AXIS]
     sub = 1 if (q1 > qx and q2 - qx > ECCENTRIC * (q1 - qx)) else 0  # NaN q_axis: 0
     T, psi, nodes = quadrature(p, edges, coef, meta, c1, c2, e0, q1, q2, sub, wm)
