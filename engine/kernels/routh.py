@@ -37,7 +37,7 @@ from __future__ import annotations
 import math
 
 from .._jit import kernel
-from .layouts import P_G, P_K, P_KK, P_M
+from .layouts import P_G, P_INV_M1K, P_K, P_KK, P_M
 from .meridian import centre
 
 #: Orbit classes (int8); bounded .. spills have the cone's codes (``.geometry``).
@@ -49,7 +49,7 @@ EXTEND = -1
 #: Rows of the float output of :func:`.routh_orbit.orbit_points`.
 ROWS = ("rho_min", "rho_max", "period", "apsidal_angle", "precession_rate", "routh_L", "routh_w")
 #: Chebyshev coefficients per panel.
-NC = 20
+NC = 16
 #: The table's modes (its variables).
 MODE_HAT, MODE_LW, MODE_CYLINDER = 0, 1, 2
 #: Kinds of the meridian's ends: inner (the axis, a hole, the fit limit, none: the cylinder's
@@ -146,13 +146,14 @@ def potential(p, rho, z, sb, cb, L, dw, c2):
     """(U - k c2^2/(1+k) [m^2/s^2], dU/ds [m/s^2], the size of dU/ds's terms) of the orbit with
     L and w = c2 + dw at q (module docstring; the constant k c2^2/(1+k) taken out, so that F's
     differences do not carry its rounding: on a funnel the binding energy at infinity)."""
-    k = p[P_K]
+    k1 = p[P_INV_M1K] * p[P_M]  # 1/(1+k)
     w = c2 + dw
-    v = L / rho if L != 0.0 else 0.0
-    t1 = p[P_G] * sb / (1.0 + k)
-    t2 = p[P_KK] * w * v * sb / rho
-    t3 = v * v * cb / rho
-    U = (k * dw * (dw + 2.0 * c2) + 2.0 * p[P_G] * z) / (1.0 + k) + v * v
+    ir = 1.0 / rho
+    v = L * ir if L != 0.0 else 0.0
+    t1 = p[P_G] * sb * k1
+    t2 = p[P_KK] * w * v * sb * ir
+    t3 = v * v * cb * ir
+    U = (p[P_K] * dw * (dw + 2.0 * c2) + 2.0 * p[P_G] * z) * k1 + v * v
     return U, 2.0 * (t1 - t2 - t3), 2.0 * (abs(t1) + abs(t2) + abs(t3))
 
 

@@ -1,26 +1,23 @@
 """One orbit of Routh's radial problem (:mod:`.routh`): its class, turning points, radial
-period and apsidal angle; the parallel batch over points.
+period and apsidal angle (:mod:`.routh_quad`); the parallel batch over points.
 
 - **Turning points**: from the launch (F = u0^2 >= 0) towards each end of the meridian, F is
   sampled at steps that grow from 1/64 of the way and then close in geometrically on the end
   (the axis, where a centrifugal barrier can sit arbitrarily close), or double towards an
   infinite end; the first sign change is refined by Newton's method kept inside the bracket
   (bisection where it leaves it) to full precision. A launch with u0 = 0 is itself a turning
-  point, the pericentre where the meridian force dF/dq points outward. An end reached with
+  point, the pericentre where the meridian force -dU/ds/2 points outward. An end reached with
   F >= 0 gives the class: a rim (spills), a hole, the fit limit (unfit), infinity where F(inf)
   >= 0 after 2^20 times the launch's q with no root (hyperbolic: a barrier farther out is not
   looked for), the cylinder's open bottom (hyperbolic: it falls).
-- **Period and apsidal angle**: T = 2 int sigma dq/sqrt(F), psi = |int (L/rho^2) sigma
-  dq/sqrt(F)| between the turning points q1 < q2, with q = m - h cos t (or, for an eccentric
-  orbit, log(q - q_axis) = m - h cos t): F = O(t^2) at the ends, the integrands are smooth,
-  even and 2 pi-periodic in t, and the trapezoidal rule converges geometrically; n doubles from
-  16 until two rules agree to :data:`QUAD_TOL` (the finer one then to its square). psi takes the
-  absolute value: L may change sign along a curved meridian.
+- **Narrow orbits** (narrower in arc length than :data:`NARROW` of their distance from the
+  axis) are solved in their well (:mod:`.routh_well`): from a launch at a turning point whose
+  harmonic estimate of the width is narrow, directly (no search); otherwise after the search.
 - **Circular** launches (u0 = 0, dU/ds = 0 to the rounding of its terms): T = 2 pi/omega,
   omega^2 = U''(s)/2, psi = pi |L/rho^2|/omega (the small-oscillation limit, as for the cone);
   U'' < 0: an unstable circular orbit.
 - **Radial** orbits (L = 0 along the whole meridian: on the cone L = 0; elsewhere also w = 0)
-  pass through the axis: T = 2 int from the axis to the apocentre (pericentre to pericentre,
+  pass through the axis: T from the axis to the apocentre and back (pericentre to pericentre,
   the cone's convention: half the swing from one side to the other and back), psi NaN.
 """
 
@@ -67,13 +64,10 @@ from .routh import (
     potential_ss,
     radial_f,
 )
+from .routh_quad import quadrature, radial_period
 from .routh_well import circular_q, value, well, well_root
 from .surface_starts import X_POS, X_U, X_V, X_W, launch_q
 
-#: Two trapezoidal rules agree to this (relative) when the quadrature stops.
-QUAD_TOL = 1e-9
-#: Most nodes of the quadrature (then it stops, at its best estimate).
-N_MAX = 8192
 #: Doublings towards infinity before F(inf) decides.
 SCAN = 20
 #: Closer and closer steps towards a finite end.
@@ -82,14 +76,6 @@ HALVINGS = 200
 #: its well (:mod:`.routh_well`) where the well's series converge to WELL_TOL.
 NARROW = 0.3
 WELL_TOL = 1e-14
-#: Gauss-Legendre rules of 2 N_GL, 4 N_GL, 8 N_GL points on [-1, 1]: their positive halves,
-#: rows padded with points of weight 0.
-N_GL = 16
-_GL_X = np.full((3, 4 * N_GL), 0.5)
-_GL_W = np.zeros((3, 4 * N_GL))
-for _m in range(3):
-    _x, _w = np.polynomial.legendre.leggauss(2 * N_GL * 2**_m)
-    _GL_X[_m, : N_GL * 2**_m], _GL_W[_m, : N_GL * 2**_m] = _x[_x > 0], _w[_x > 0]
 #: Log substitution where the apocentre's distance from the axis is this many pericentres.
 ECCENTRIC = 4.0
 
@@ -97,8 +83,8 @@ ECCENTRIC = 4.0
 @kernel
 def _root(p, edges, coef, meta, c1, c2, e0, qa, fa, qb, fb):
     """The root of F between qa (F = fa >= 0) and qb (F = fb < 0): Newton kept in the bracket."""
-    q = qb - fb * (qb - qa) / (fb - fa)
-    if not (min(qa, qb) < q < max(qa, qb)):
+    q = qb - fb * (qb - qa) / (fb - fa)  # the secant; the middle where qa is a root itself
+    if not (fa > 0.0 and min(qa, qb) < q < max(qa, qb)):  # (the launch: F = 0 there)
         q = 0.5 * (qa + qb)
     for _ in range(100):
         F, Fq, sig, lr2, rho, z = radial_f(p, edges, coef, meta, c1, c2, e0, q)
@@ -118,11 +104,17 @@ def _root(p, edges, coef, meta, c1, c2, e0, qa, fa, qb, fb):
 
 
 @kernel
-def _turn(p, edges, coef, meta, c1, c2, e0, q0, q_end, axis_end):
+def _turn(p, edges, coef, meta, c1, c2, e0, q0, q_end, axis_end, hint):
     """(found, q): the first root of F from q0 (F >= 0) towards the end q_end, or (False,
-    q_end) where F stays >= 0 to the end (module docstring)."""
+    q_end) where F stays >= 0 to the end (module docstring). ``hint``: a first sample beyond
+    the root q0 + hint (from the harmonic estimate of the well; 0: none), used where it is on
+    the way to the end and F < 0 there."""
     qp = q0
     fp = max(radial_f(p, edges, coef, meta, c1, c2, e0, q0)[0], 0.0)
+    if hint != 0.0 and (q0 + hint - q_end) * hint < 0.0:
+        f = radial_f(p, edges, coef, meta, c1, c2, e0, q0 + hint)[0]
+        if f < 0.0:
+            return True, _root(p, edges, coef, meta, c1, c2, e0, q0, fp, q0 + hint, f)
     if math.isfinite(q_end):
         span = q_end - q0
         frac = 1.0 / 128.0
@@ -162,106 +154,29 @@ def _turn(p, edges, coef, meta, c1, c2, e0, q0, q_end, axis_end):
 
 
 @kernel
-def _at(p, edges, coef, meta, c1, c2, e0, q, wm):
-    """(F, dF/dq, ds/dq, L/rho^2) at q; where ``wm`` holds a well (:mod:`.routh_well`) q is
-    its variable x = (q - q_c)/hw (the orbit's nodes keep every digit of its width, which q
-    itself, rounded to eps q, would not) and F comes from the well's series."""
-    H, g, S, R, qc, hw, delta = wm
-    if H.shape[0] > 0:
-        sig = hw * value(S, q)
-        return delta - value(H, q), -sig * value(g, q), sig, value(R, q)
-    F, Fq, sig, lr2, rho, z = radial_f(p, edges, coef, meta, c1, c2, e0, q)
-    return F, Fq, sig, lr2
-
-
-@kernel
-def _node(p, edges, coef, meta, c1, c2, e0, q, jac, fa, fb, q1, q2, wm):
-    """(sigma J/sqrt(F), its L/rho^2 multiple) at q; where rounding makes F <= 0 beside an end,
-    F's linear growth from the nearer end (slopes fa, fb) stands in."""
-    F, Fq, sig, lr2 = _at(p, edges, coef, meta, c1, c2, e0, q, wm)
-    if not F > 0.0:
-        F = min(abs(fa) * (q - q1), abs(fb) * (q2 - q))
-        if not F > 0.0:
-            return 0.0, 0.0
-    f = sig * jac / math.sqrt(F)
-    return f, f * lr2
-
-
-@kernel
-def quadrature(p, edges, coef, meta, c1, c2, e0, q1, q2, sub, wm):
-    """(T, psi, nodes) of the orbit between its turning points q1 < q2 (module docstring); sub:
-    0 q = m - h cos t, 1 log(q - q_axis) = m - h cos t; ``wm`` the well (:func:`_at`: then
-    q1, q2 are in its variable x)."""
-    F1, fq1, s1, l1 = _at(p, edges, coef, meta, c1, c2, e0, q1, wm)
-    F2, fq2, s2, l2 = _at(p, edges, coef, meta, c1, c2, e0, q2, wm)
-    m = 0.5 * (q1 + q2)
-    h = 0.5 * (q2 - q1)
-    qx = meta[Q_AXIS]
-    ym = yh = 0.0
-    if sub == 1:
-        y1 = math.log(q1 - qx)
-        y2 = math.log(q2 - qx)
-        ym = 0.5 * (y1 + y2)
-        yh = 0.5 * (y2 - y1)
-    j1 = h if sub == 0 else (q1 - qx) * yh
-    j2 = h if sub == 0 else (q2 - qx) * yh
-    fa = s1 * math.sqrt(2.0 * j1 / abs(fq1))
-    fb = s2 * math.sqrt(2.0 * j2 / abs(fq2))
-    pa, pb = fa * l1, fb * l2
-    sT = 0.5 * (fa + fb)
-    sP = 0.5 * (pa + pb)
-    sA = 0.5 * (abs(pa) + abs(pb))
-    n = 1
-    IT = IP = math.nan
-    while n < N_MAX:
-        n *= 2
-        for j in range(1, n, 2):  # the new nodes
-            t = j * math.pi / n
-            ct = math.cos(t)
-            st = math.sin(t)
-            if sub == 0:
-                q, jac = m - h * ct, h
-            else:
-                e = math.exp(ym - yh * ct)
-                q, jac = qx + e, e * yh
-            f, g = _node(p, edges, coef, meta, c1, c2, e0, q, jac, fq1, fq2, q1, q2, wm)
-            sT += f * st
-            sP += g * st
-            sA += abs(g) * st
-        IT2 = sT * math.pi / n
-        IP2 = sP * math.pi / n
-        if n >= 16 and abs(IT2 - IT) <= QUAD_TOL * IT2:
-            if abs(IP2 - IP) <= QUAD_TOL * sA * math.pi / n:
-                return 2.0 * IT2, abs(IP2), n + 1
-        IT, IP = IT2, IP2
-    return 2.0 * IT, abs(IP), n + 1
-
-
-@kernel
-def radial_period(p, edges, coef, meta, c2, e0, qa, q2):
-    """T = 2 int_{qa}^{q2} sigma dq/sqrt(F) of a radial orbit (qa the axis, where the
-    potential may have a kink: the cone's vertex): q = q2 - (q2 - qa) v^2 makes the integrand
-    smooth and even in v on [-1, 1]; Gauss-Legendre on 2 N_GL and 4 N_GL points, then 8 N_GL
-    where they differ by more than QUAD_TOL."""
-    D = q2 - qa
-    last = math.nan
-    for m in range(3):
-        s = 0.0
-        for i in range(N_GL * 2**m):
-            v = _GL_X[m, i]
-            F, Fq, sig, lr2, rho, z = radial_f(p, edges, coef, meta, 0.0, c2, e0, q2 - D * v * v)
-            s += _GL_W[m, i] * sig * 2.0 * D * v / math.sqrt(F)
-        if abs(s - last) <= QUAD_TOL * s:
-            break
-        last = s
-    return 2.0 * s
-
-
-@kernel
 def _position(p, meta, q):
     """Where the centre is at q: its distance from the axis (the cylinder: its height)."""
     rho, z, cb, sb, kap, sig, fit = centre(p, min(q, Q_FAR))
     return z if meta[MODE] == MODE_CYLINDER else max(rho, 0.0)
+
+
+@kernel
+def _in_well(p, edges, coef, meta, c1, c2, e0, q0, u0, qc, hw, x1, x2):
+    """(ok, rho_min, rho_max, T, psi) of the orbit in its well around q_c (half-width hw; its
+    turning points near x1, x2 in x = (q - q_c)/hw); ok False where the well's series do not
+    converge or its turning points are not inside it."""
+    nan = math.nan
+    H, g, S, R, tail = well(p, edges, coef, meta, c1, c2, qc, hw)
+    if not tail <= WELL_TOL:
+        return False, nan, nan, nan, nan
+    delta = u0 * u0 + value(H, (q0 - qc) / hw)
+    x1 = well_root(H, g, S, hw, delta, x1)
+    x2 = well_root(H, g, S, hw, delta, x2)
+    if not (-0.98 < x1 < x2 < 0.98):
+        return False, nan, nan, nan, nan
+    T, psi, nodes = quadrature(p, edges, coef, meta, c1, c2, e0, x1, x2, 0,
+                               (H, g, S, R, qc, hw, delta))  # fmt: skip
+    return True, _position(p, meta, qc + hw * x1), _position(p, meta, qc + hw * x2), T, psi
 
 
 @kernel
@@ -286,6 +201,20 @@ def orbit(p, edges, coef, meta, q0, u0, v0, w0):
         T = 2.0 * math.pi / om
         psi = math.pi * abs(L0 / (rho0 * rho0)) / om
         return CIRCULAR, pos0, pos0, T, psi, (2.0 * psi - 2.0 * math.pi) / T, IL, Iw
+    hint = 0.0
+    if u0 == 0.0 and not radial:  # at a turning point: narrow by its harmonic estimate?
+        Uss = potential_ss(p, rho0, sb0, cb0, kap0, L0, c2 + dw0)
+        dq = -Us0 / (Uss * sig0)  # to the centre of the harmonic well
+        hint = 2.5 * dq if Uss > 0.0 else 0.0
+        if Uss > 0.0 and 2.6 * abs(dq) * sig0 <= NARROW * rho0:
+            qc = circular_q(p, edges, coef, meta, c1, c2, min(q0, q0 + 2.0 * dq),
+                            max(q0, q0 + 2.0 * dq))  # fmt: skip
+            hw = 1.3 * abs(q0 - qc)
+            x0 = (q0 - qc) / hw
+            ok, rmin, rmax, T, psi = _in_well(p, edges, coef, meta, c1, c2, e0, q0, 0.0, qc, hw,
+                                              min(x0, -x0), max(x0, -x0))  # fmt: skip
+            if ok:
+                return BOUNDED, rmin, rmax, T, psi, (2.0 * psi - 2.0 * math.pi) / T, IL, Iw
     inner = meta[INNER]
     lo_end = -math.inf if inner == END_OPEN else meta[Q_A]
     axis = inner == END_AXIS
@@ -294,11 +223,11 @@ def orbit(p, edges, coef, meta, q0, u0, v0, w0):
     elif u0 == 0.0 and Us0 < 0.0:
         found1, q1 = True, q0
     else:
-        found1, q1 = _turn(p, edges, coef, meta, c1, c2, e0, q0, lo_end, axis)
+        found1, q1 = _turn(p, edges, coef, meta, c1, c2, e0, q0, lo_end, axis, hint)
     if u0 == 0.0 and Us0 > 0.0:
         found2, q2 = True, q0
     else:
-        found2, q2 = _turn(p, edges, coef, meta, c1, c2, e0, q0, meta[Q_B], False)
+        found2, q2 = _turn(p, edges, coef, meta, c1, c2, e0, q0, meta[Q_B], False, hint)
     rmin = _position(p, meta, q1) if found1 or not axis else 0.0
     outer = meta[OUTER]
     rmax = _position(p, meta, q2) if found2 or outer == END_RIM else math.inf
@@ -321,16 +250,10 @@ def orbit(p, edges, coef, meta, q0, u0, v0, w0):
     if (q2 - q1) * sig_m <= NARROW * rho_m:  # a narrow orbit: its well (.routh_well)
         qc = circular_q(p, edges, coef, meta, c1, c2, q1, q2)
         hw = 0.6 * (q2 - q1) + abs(0.5 * (q1 + q2) - qc)
-        H, g, S, R, tail = well(p, edges, coef, meta, c1, c2, qc, hw)
-        if tail <= WELL_TOL:
-            delta = u0 * u0 + value(H, (q0 - qc) / hw)
-            x1 = well_root(H, g, S, hw, delta, (q1 - qc) / hw)
-            x2 = well_root(H, g, S, hw, delta, (q2 - qc) / hw)
-            if x1 < x2:
-                rmin, rmax = _position(p, meta, qc + hw * x1), _position(p, meta, qc + hw * x2)
-                wm = (H, g, S, R, qc, hw, delta)
-                T, psi, nodes = quadrature(p, edges, coef, meta, c1, c2, e0, x1, x2, 0, wm)
-                return BOUNDED, rmin, rmax, T, psi, (2.0 * psi - 2.0 * math.pi) / T, IL, Iw
+        ok, rmin2, rmax2, T, psi = _in_well(p, edges, coef, meta, c1, c2, e0, q0, u0, qc, hw,
+                                            (q1 - qc) / hw, (q2 - qc) / hw)  # fmt: skip
+        if ok:
+            return BOUNDED, rmin2, rmax2, T, psi, (2.0 * psi - 2.0 * math.pi) / T, IL, Iw
     qx = meta[Q_AXIS]
     sub = 1 if (q1 > qx and q2 - qx > ECCENTRIC * (q1 - qx)) else 0  # NaN q_axis: 0
     T, psi, nodes = quadrature(p, edges, coef, meta, c1, c2, e0, q1, q2, sub, wm)
