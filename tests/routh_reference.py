@@ -33,11 +33,12 @@ linear ODE is integrated by Gauss-Legendre collocation (s = 12 stages, order 24,
 stage solves; 1-3 s per launch), step doubling for the step size, from the launch to the turning
 points (safeguarded Newton on u^2, d(u^2)/dq from the ODE, within the step that brackets them).
 T and psi are quadratures along q = c - d cos(theta) (c, d the turning points' mean and
-half-difference): with u^2 = G(q) d^2 sin^2(theta) the integrand (ds/dq)/sqrt(G) is even and
-2 pi-periodic in theta, free of the endpoint singularities, so the trapezoidal rule converges
-geometrically; (L_z, w) is carried from node to node by collocation steps. (Stage values of one
-collocation step over the whole integral converged only like h^13 there: the integrand's
-dependence on (L_z, w) blows up like 1/theta^3 at the ends.) A leg from a turning point q_t to
+half-difference; log q instead of q where the turning points are > 0, for wide orbits): the
+integrand (ds/dq)(dq/dtheta)/|u| is then even and 2 pi-periodic in theta, free of the endpoint
+singularities (u^2 ~ sin^2 theta there), so the trapezoidal rule converges geometrically;
+(L_z, w) is carried from node to node by collocation steps. (Stage values of one collocation
+step over the whole integral converged only like h^13 there: the integrand's dependence on
+(L_z, w) blows up like 1/theta^3 at the ends.) A leg from a turning point q_t to
 any q_e (the time to a rim, a hole, a slip) is the same integral along
 q = q_t + (q_e - q_t)(1 - cos theta), theta in [0, pi/2], by Gauss-Legendre quadrature (n
 doubled until two agree to the tolerance's square root).
@@ -146,7 +147,8 @@ class Reduction:
             self.K = self.k / (1 + self.k)
             if q0 is None:
                 rho0 = mp.mpf(rho0)
-                q0 = mp.findroot(lambda q: self.geo(q)[0] - rho0, rho0)
+                hi = min(rho0 + self.a, self.S.q_hi * (1 - mp.mpf(10) ** -12))
+                q0 = mp.findroot(lambda q: self.geo(q)[0] - rho0, (rho0, hi), solver="anderson")
             self.q0 = mp.mpf(q0)
             rc, zc, sb, cb, bp, ds = self.geo(self.q0)
             self.rho0, v0, w0, u0 = rc, mp.mpf(v0), mp.mpf(w0), mp.mpf(u0)
@@ -242,7 +244,7 @@ class Reduction:
             x, y = self.q0, self.y0
             lim = self.S.q_hi if direction > 0 else self.S.q_lo
             end = lim if end is None else mp.mpf(end)
-            span = 10**3 * (abs(self.q0) + self.a)
+            span = 10**6 * (abs(self.q0) + self.a)
             h = direction * (abs(self.q0) + self.a) / 64
             if self.u0 == 0 and self.du2(x, y) * direction < 0:
                 raise ValueError("the launch is a turning point on this side")
@@ -257,8 +259,9 @@ class Reduction:
                 hu, yn, h = self._step(self.B, x, y, h)
                 xn = x + hu
                 f_new = self.u2(xn, yn)
-                if self.geo(xn)[5] <= 0:
-                    break  # the ball no longer fits
+                if self.geo(xn)[5] <= 0:  # the ball no longer fits (the ODE goes on: kept)
+                    self.marks[direction].append((xn, yn))
+                    break
                 if f_old > 0 >= f_new:
                     out = self._root(x, y, xn, f_old, f_new)
                     break
@@ -331,24 +334,33 @@ class Reduction:
             if lo is None or hi is None:
                 return {"cls": "unbounded", "lower": lo, "upper": hi}
             (q1, y1), (q2, y2) = lo, hi
-            c, d = (q1 + q2) / 2, (q2 - q1) / 2
+            # q = c - d cos(theta), or log q = c - d cos(theta) where q1 > 0 (a wide orbit's
+            # q ~ 0 singularities then lie far from the real theta axis)
+            logmap = q1 > 0
+            e1, e2 = (mp.log(q1), mp.log(q2)) if logmap else (q1, q2)
+            c, d = (e1 + e2) / 2, (e2 - e1) / 2
+
+            def qmap(th):
+                """(q, dq/dtheta)."""
+                x = c - d * mp.cos(th)
+                return (mp.exp(x), mp.exp(x) * d * mp.sin(th)) if logmap else (x, d * mp.sin(th))
 
             def Bt(th):
-                Bq = self.B(c - d * mp.cos(th))
-                f = d * mp.sin(th)
-                return ((0, Bq[0][1] * f), (Bq[1][0] * f, 0))
+                q, dq = qmap(th)
+                Bq = self.B(q)
+                return ((0, Bq[0][1] * dq), (Bq[1][0] * dq, 0))
 
             def f(th, y):
-                """(dT, dpsi)/dtheta = (2, L_z/(M rho^2)) (ds/dq)/sqrt(G), u^2 = G d^2 sin^2."""
-                q = c - d * mp.cos(th)
+                """(dT, dpsi)/dtheta = (2, L_z/(M rho^2)) (ds/dq)(dq/dtheta)/|u|; at the ends,
+                where q - q_t ~ J theta^2/2, the limit (ds/dq) sqrt(2 J/|d(u^2)/dq|)."""
+                q, dq = qmap(th)
                 rc, _, _, _, _, ds = self.geo(q)
                 if th == 0:
-                    G = self.du2(q1, y) / (q2 - q1)
+                    w = ds * mp.sqrt(2 * d * (q1 if logmap else 1) / self.du2(q1, y))
                 elif th == mp.pi:
-                    G = -self.du2(q2, y) / (q2 - q1)
+                    w = ds * mp.sqrt(2 * d * (q2 if logmap else 1) / -self.du2(q2, y))
                 else:
-                    G = self.u2(q, y) / (d * mp.sin(th)) ** 2
-                w = ds / mp.sqrt(G)
+                    w = ds * dq / mp.sqrt(self.u2(q, y))
                 return (2 * w, y[0] / (self.M * rc**2) * w)
 
             # The integrand in theta is even and 2 pi-periodic, so the trapezoidal rule converges

@@ -9,14 +9,16 @@ ones: `Cone(alpha)` z = rho cot(alpha), `Bowl(R)` the sphere of radius R with it
 `PowerLaw(scale, n)` z = scale rho^n, `Cylinder(R)` the wall rho = R (q = z). Their functions
 take a float or an mpmath number (tests/routh_reference.py evaluates them at 40 digits); user
 callables must too. The ball is on the side the normal (-Z', R')/|P'| points to: up for a
-graph, towards the axis for the cylinder.
+graph, towards the axis for the cylinder. `mathlib(q)` and `lift(q, ...)` help a profile's
+callables do that (its constants combined at q's precision).
 
-**Model.** Cartesian state: the centre X, its velocity V, the angular velocity Omega (fixed
-frame), and the azimuth phi of the centre (integrated, dphi/dt = (X x V)_z / rho^2). The centre
-stays on the offset surface (the touching surface moved by a along its normal): the contact point
-P(q) is the foot of X on the meridian, (rho - R) R' + (z - Z) Z' = 0 solved by Newton, and
-dq/dt follows by implicit differentiation. With n the unit normal at P (from the contact point
-to the centre), d(n . V)/dt = 0 gives n . A = -dn/dt . V, hence the normal force
+**Model** (k > 0: I = k M a^2 divides). Cartesian state: the centre X, its velocity V, the
+angular velocity Omega (fixed frame), and the azimuth phi of the centre (integrated,
+dphi/dt = (X x V)_z / rho^2). The centre stays on the offset surface (the touching surface moved
+by a along its normal): the contact point P(q) is the foot of X on the meridian,
+(rho - R) R' + (z - Z) Z' = 0 solved by Newton, and dq/dt follows by implicit differentiation.
+With n the unit normal at P (from the contact point to the centre), d(n . V)/dt = 0 gives
+n . A = -dn/dt . V, hence the normal force
 N = M (g n_z - dn/dt . V). Rolling: the contact point's velocity S = V - a Omega x n stays zero;
 with M A = -M g z + N n + F and I dOmega/dt = -a n x F + T_rr (I = k M a^2, F tangential),
 the tangential part of dS/dt = 0 is linear in F and solved for it. Rolling resistance is the
@@ -29,7 +31,9 @@ tangent up the wall): `peri` where u turns from - to + (rho_min of the centre; t
 point; on the cylinder the lowest z), `apo` from + to -. Terminal (the fate): `rim` (the contact
 point reaches height `rim_z` or distance `rim_rho` from the axis), `hole` (the contact point
 reaches the funnel's hole), `left_surface` (N <= 0), `slipped` (|F| > mu N), `no_fit` (the
-meridian's curvature reaches 1/a: 1 - a kappa <= 0), `vertex` (the centre within `vertex_rho` of
+meridian's curvature nears 1/a: 1 - a kappa <= 1e-3; the centre's surface has a cusp where it
+is 0, approached like sqrt(time), dq/dt ~ 1/(1 - a kappa)), `vertex` (the centre within
+`vertex_rho` of
 the axis), `rest` (with c_rr > 0 the speed falls to 1e-9 of its scale; carried on to zero at the
 rate it falls, then held if tan(b) <= c_rr and tan(b) <= mu, b the slope angle, else the ball
 starts again from rest), or `rolling` at the horizon.
@@ -44,7 +48,8 @@ meridian tangent t (up the wall positive; 0 unless given), rolling, and spin w0 
 centre, the radial period (pericentre to pericentre), the apsidal angle (azimuth swept from a
 pericentre to the next apocentre), the energy E = M V^2/2 + I Omega^2/2 + M g X_z, L_z = M (X x V)_z
 (the centre's; on the cone the engine's L_z), the whole ball's L_ball = L_z + I Omega_z, the spin
-w = a Omega . n, the fate and its time.
+w = a Omega . n (`series`), the fate and its time. The apsidal angle is signed (the azimuth swept,
+counter-clockwise positive; L_z may change sign along an orbit on a curved meridian).
 """
 
 from __future__ import annotations
@@ -58,8 +63,17 @@ from scipy.integrate import DOP853
 from scipy.optimize import brentq
 
 
-def _lib(q):
+def mathlib(q):
+    """The module of functions for q's kind of number: mpmath for mpmath numbers, else math."""
     return mp if isinstance(q, mp.mpf | mp.mpc) else math
+
+
+def lift(q, *xs):
+    """Constants as numbers of q's kind (mpmath for mpmath q), so that a meridian evaluated at
+    40 digits combines its float parameters at 40 digits, not in double precision."""
+    if mathlib(q) is mp:
+        return tuple(mp.mpf(x) for x in xs)
+    return xs
 
 
 # ------------------------------------------------------------------------- surfaces
@@ -74,6 +88,13 @@ class Meridian:
         """(R, Z, R', Z', R'', Z'') at q (float or mpmath)."""
         raise NotImplementedError
 
+    def guess(self, rho, z):
+        """Where to start looking for the foot of the point (rho, z): the nearest of a sampling."""
+        lo = self.q_lo if math.isfinite(self.q_lo) else -10.0
+        hi = self.q_hi if math.isfinite(self.q_hi) else 10.0
+        qs = np.linspace(lo, hi, 4001)[1:-1]
+        return float(min(qs, key=lambda q: math.hypot(self.at(q)[0] - rho, self.at(q)[1] - z)))
+
 
 class Graph(Meridian):
     """z = f(rho) with its first two derivatives (q = the touching point's rho)."""
@@ -84,6 +105,9 @@ class Graph(Meridian):
 
     def at(self, q):
         return q, self.f(q), 1, self.df(q), 0, self.d2f(q)
+
+    def guess(self, rho, z):
+        return min(max(rho, self.q_lo), self.q_hi)
 
     def __repr__(self):
         return self.name
@@ -109,8 +133,8 @@ class Cone(Graph):
         super().__init__(q_lo=0.0, name=f"Cone({alpha})")
 
     def at(self, q):
-        L = _lib(q)
-        cot = 1 / L.tan(mp.mpf(self.alpha) if L is mp else self.alpha)
+        (alpha,) = lift(q, self.alpha)
+        cot = 1 / mathlib(q).tan(alpha)
         return q, q * cot, 1, cot, 0, 0
 
 
@@ -120,8 +144,8 @@ class Bowl(Graph):
         super().__init__(q_lo=0.0, q_hi=radius, name=f"Bowl({radius})")
 
     def at(self, q):
-        R = self.R
-        s = _lib(q).sqrt(R * R - q * q)
+        (R,) = lift(q, self.R)
+        s = mathlib(q).sqrt(R * R - q * q)
         return q, R - s, 1, q / s, 0, R * R / s**3
 
 
@@ -131,7 +155,7 @@ class Paraboloid(Graph):
         super().__init__(q_lo=0.0, name=f"Paraboloid({radius})")
 
     def at(self, q):
-        R = mp.mpf(self.R) if _lib(q) is mp else self.R
+        (R,) = lift(q, self.R)
         return q, q * q / (2 * R), 1, q / R, 0, 1 / R
 
 
@@ -141,7 +165,7 @@ class Funnel(Graph):
         super().__init__(q_lo=hole, name=f"Funnel({scale}, {hole})")
 
     def at(self, q):
-        c = self.scale
+        (c,) = lift(q, self.scale)
         return q, -c / q, 1, c / q**2, 0, -2 * c / q**3
 
 
@@ -151,9 +175,7 @@ class PowerLaw(Graph):
         super().__init__(q_lo=0.0, name=f"PowerLaw({scale}, {n})")
 
     def at(self, q):
-        c, n = self.scale, self.n
-        if _lib(q) is mp:
-            n = mp.mpf(n)
+        c, n = lift(q, self.scale, self.n)
         return q, c * q**n, 1, n * c * q ** (n - 1), 0, n * (n - 1) * c * q ** (n - 2)
 
 
@@ -163,10 +185,18 @@ class Cylinder(Parametric):
         self.q_lo, self.q_hi, self.name = -math.inf, math.inf, f"Cylinder({radius})"
 
     def at(self, q):
-        return self.R, q, 0, 1, 0, 0
+        (R,) = lift(q, self.R)
+        return R, q, 0, 1, 0, 0
+
+    def guess(self, rho, z):
+        return z
 
 
 # ------------------------------------------------------------------------- the model
+class FootError(ArithmeticError):
+    """The centre has no contact point a away on the meridian (past a fit limit)."""
+
+
 def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
@@ -181,7 +211,7 @@ class Run:
 
     t: np.ndarray
     y: np.ndarray
-    turns: list = field(default_factory=list)  # (kind, t, rho, z, phi)
+    turns: list = field(default_factory=list)  # (kind, t, rho, z, phi, state)
     fate: str = "rolling"
     fate_time: float = math.nan
     fate_state: np.ndarray | None = None
@@ -224,18 +254,28 @@ class SurfaceOracle:
         self._q = None
 
     # ------------------------------------------------------------- geometry
-    def foot(self, rho, z, q=None):
-        """The contact point's parameter q: the foot of the centre (rho, z) on the meridian."""
-        q = self._q if q is None else q
-        for _ in range(60):
-            R, Z, R1, Z1, R2, Z2 = self.S.at(q)
-            phi = (rho - R) * R1 + (z - Z) * Z1
-            dphi = -(R1 * R1 + Z1 * Z1) + (rho - R) * R2 + (z - Z) * Z2
-            dq = phi / dphi
-            q -= dq
-            if abs(dq) <= 1e-15 * (abs(q) + self.a):
-                return q
-        raise RuntimeError(f"foot point did not converge at rho={rho}, z={z}")
+    def foot(self, rho, z):
+        """The contact point's parameter q: the foot of the centre (rho, z) on the meridian, by
+        Newton from the last one (or from the meridian's guess), a distance a away."""
+        for attempt in range(2):
+            q = self._q if attempt == 0 else self.S.guess(rho, z)
+            try:
+                for _ in range(100):
+                    R, Z, R1, Z1, R2, Z2 = self.S.at(q)
+                    phi = (rho - R) * R1 + (z - Z) * Z1
+                    dphi = -(R1 * R1 + Z1 * Z1) + (rho - R) * R2 + (z - Z) * Z2
+                    dq = phi / dphi
+                    noise = 1e-15 * (abs((rho - R) * R1) + abs((z - Z) * Z1))
+                    if abs(phi) > noise:  # near a fit limit dphi -> 0: stop at phi's rounding
+                        q -= dq
+                    if abs(dq) <= 1e-15 * (abs(q) + self.a) or abs(phi) <= noise:
+                        R, Z = self.S.at(q)[:2]
+                        if abs(math.hypot(rho - R, z - Z) - self.a) <= 1e-3 * self.a:
+                            return q
+                        break
+            except (ValueError, ZeroDivisionError, OverflowError):
+                pass
+        raise FootError(f"no contact point for the centre at rho={rho}, z={z}")
 
     def centre_at(self, q):
         """(rho, z) of the centre when the contact point is at q."""
@@ -319,6 +359,16 @@ class SurfaceOracle:
         Wxn = _cross(y[6:9], n)
         return tuple(y[3 + i] - self.a * Wxn[i] for i in range(3))
 
+    def series(self, run: Run) -> dict:
+        """The run's time series as arrays: t, rho, z, phi (centre), E, Lz, L_ball, w (spin),
+        N (normal force)."""
+        out = {"t": run.t, "rho": np.hypot(run.y[:, 0], run.y[:, 1]), "z": run.y[:, 2],
+               "phi": run.y[:, 9]}  # fmt: skip
+        for name, fn in (("E", self.energy), ("Lz", self.Lz), ("L_ball", self.L_ball),
+                         ("w", self.spin), ("N", lambda y: self.evaluate(y)["N"])):  # fmt: skip
+            out[name] = np.array([fn(y) for y in run.y])
+        return out
+
     def offset(self, y):
         """(X - P) . n - a: 0 on the constraint (P the contact point)."""
         ev = self.evaluate(y)
@@ -331,9 +381,14 @@ class SurfaceOracle:
         if q0 is None:
             if isinstance(self.S, Parametric):
                 raise ValueError("a parametric meridian takes the launch point as q0")
-            lo = max(self.S.q_lo, rho0 - self.a)
-            hi = min(self.S.q_hi * (1 - 1e-12), rho0 + self.a)
-            q0 = brentq(lambda q: self.centre_at(q)[0] - rho0, lo, hi, xtol=1e-300, rtol=8.9e-16)
+
+            def f(q):
+                return self.centre_at(q)[0] - rho0
+
+            lo, hi = rho0, min(self.S.q_hi * (1 - 1e-12), rho0 + self.a)
+            if f(lo) > 0:  # a meridian that slopes down: the contact lies inward
+                lo, hi = max(self.S.q_lo, rho0 - self.a), rho0
+            q0 = brentq(f, lo, hi, xtol=1e-300, rtol=8.9e-16)
         R, Z, R1, Z1, _, _ = self.S.at(q0)
         m = math.hypot(R1, Z1)
         t, n = (R1 / m, 0.0, Z1 / m), (-Z1 / m, 0.0, R1 / m)
@@ -356,7 +411,7 @@ class SurfaceOracle:
         if math.isfinite(self.mu):
             ev.append(("slipped", lambda e, y: math.sqrt(_dot(e["F"], e["F"])) - self.mu * e["N"],
                        1, True))  # fmt: skip
-        ev.append(("no_fit", lambda e, y: e["fit"], -1, True))
+        ev.append(("no_fit", lambda e, y: e["fit"] - 1e-3, -1, True))
         if self.vertex_rho is not None:
             ev.append(("vertex", lambda e, y: e["rho"] - self.vertex_rho, -1, True))
         if self.c_rr > 0.0:
@@ -379,9 +434,19 @@ class SurfaceOracle:
             if fired:
                 return self._finish(out, ts, ys, fired, t, y)
             solver = DOP853(self.rhs, t, y, t_end, rtol=self.rtol, atol=atol)
+            h = None
             for _ in range(max_steps):
-                if solver.step() is not None or solver.status == "failed":
-                    raise RuntimeError("the integration failed")
+                try:
+                    msg = solver.step()
+                except FootError:  # a stage past a fit limit: again from the last step, shorter
+                    h = (h or solver.step_size or 1e-3 * (t_end - solver.t)) / 4
+                    if h <= 1e-15 * max(1.0, abs(solver.t)):
+                        raise
+                    solver = DOP853(self.rhs, solver.t, solver.y, t_end, rtol=self.rtol,
+                                    atol=atol, max_step=h, first_step=h)  # fmt: skip
+                    continue
+                if msg is not None or solver.status == "failed":
+                    raise RuntimeError(f"the integration failed: {msg}")
                 e = self.evaluate(solver.y)
                 g_new = [fn(e, solver.y) for _, fn, _, _ in events]
                 restart = None
@@ -463,7 +528,7 @@ class SurfaceOracle:
         return t0, y
 
     def _turn(self, kind, t, y):
-        return (kind, t, math.hypot(y[0], y[1]), y[2], y[9])
+        return (kind, t, math.hypot(y[0], y[1]), y[2], y[9], np.array(y))
 
     def _finish(self, out, ts, ys, fate, t, y, fate_time=None):
         out.t, out.y = np.array(ts), np.array(ys)
