@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from .checks import check_numbers, check_values
+from .checks import PlanError, check_numbers, check_surface, check_values
 from .evaluation import bad_inputs, evaluate_block, evaluate_flat
 from .families import family_values, minimum_energy_flat
 from .grid import BLOCK_POINTS, Tiling
@@ -22,9 +22,11 @@ from .schema import (
     axis_attrs,
     launch_dims,
     result_attrs,
+    surface_dims,
     variable_attrs,
     variable_dims,
 )
+from .surfaces import Surface
 
 __all__ = [
     "evaluate",
@@ -193,10 +195,10 @@ def survey(
 
 
 def launch_survey(
-    alpha: Any,
-    r0: Any,
-    v0: Any,
-    w0: Any,
+    alpha: Any = None,
+    r0: Any = None,
+    v0: Any = None,
+    w0: Any = None,
     scene: Scene | None = None,
     method: str = "exact",
     *,
@@ -209,6 +211,10 @@ def launch_survey(
     u0: Any = 0.0,
     slip_u: Any = 0.0,
     slip_v: Any = 0.0,
+    surface: Surface | None = None,
+    rho0: Any = None,
+    z0: Any = None,
+    surface_axes: dict[str, Any] | None = None,
 ) -> xr.Dataset:
     """A map over launch states: the sphere released at distance ``r0`` [m] from its cone's
     vertex (along the generatrix) with radial speed 0, azimuthal speed ``v0`` [m/s] and spin
@@ -223,8 +229,23 @@ def launch_survey(
     or a 1-D axis; the dims are then (alpha, r0, v0, w0, u0, slip_u, slip_v), a number a
     length-1 axis, and the invariants are those of the rolling orbit through the launch point
     with its radial speed. Without ``mu_k`` they must be 0 (a ValueError names the one that is
-    not)."""
+    not).
+
+    On a ``surface`` of revolution (:mod:`engine.surfaces`: ``Bowl(0.5)``, ``Funnel(0.1,
+    0.02)``, ...) a launch is the centre at distance ``rho0`` [m] from the axis (the cylinder:
+    at height ``z0``) with speed ``v0`` along the parallel, spin ``w0`` and no speed along the
+    meridian (a turning point); ``surface_axes`` sweeps the surface's parameters (name ->
+    values). Dims (the swept parameters, rho0 or z0, v0, w0); the exact map is Routh's
+    reduction (docs/physics.md "Any surface of revolution"), the integrators rk45 and dop853
+    serve it too."""
     scene = Scene() if scene is None else scene
+    if surface is not None or rho0 is not None or z0 is not None:
+        return _surface_survey(
+            surface, dict(alpha=alpha, r0=r0), dict(rho0=rho0, z0=z0, v0=v0, w0=w0),
+            surface_axes or {}, scene, method, circular_tol=circular_tol, rtol=rtol,
+            horizon_time=horizon_time, horizon_revolutions=horizon_revolutions,
+            progress=progress, block_points=block_points,
+        )  # fmt: skip
     dims = launch_dims(scene)
     values = dict(alpha=alpha, r0=r0, v0=v0, w0=w0)
     release = {"u0": u0, "slip_u": slip_u, "slip_v": slip_v}
@@ -244,6 +265,36 @@ def launch_survey(
         circular_tol=circular_tol, rtol=rtol, horizon_time=horizon_time,
         horizon_revolutions=horizon_revolutions, block_points=block_points,
     )  # fmt: skip
+    return run_plan(plan, progress)
+
+
+def _surface_survey(surface, cone_args, launch, surface_axes, scene, method, *, progress,
+                    **options) -> xr.Dataset:  # fmt: skip
+    """:func:`launch_survey` on a surface of revolution (its arguments checked here)."""
+    if surface is None:
+        raise PlanError("surface", "rho0 or z0 give a launch on a surface: name it "
+                        "(surface=engine.surfaces.Bowl(0.5), ...)")  # fmt: skip
+    surface = check_surface(surface)
+    for name, value in cone_args.items():
+        if value is not None:
+            raise PlanError(name, "is the cone's launch; on a surface give rho0 (or z0), v0, w0",
+                            value)  # fmt: skip
+    unknown = sorted(set(surface_axes) - set(surface.parameters))
+    if unknown:
+        has = ", ".join(surface.parameters) or "none"
+        raise PlanError("surface_axes", f"{surface.kind} has the parameters {has}",
+                        ", ".join(unknown))  # fmt: skip
+    other = "z0" if surface.position == "rho0" else "rho0"
+    if launch[other] is not None:
+        raise PlanError(other, f"the {surface.kind}'s launch position is {surface.position}",
+                        launch[other])  # fmt: skip
+    dims = surface_dims(surface, surface_axes)
+    values = {**surface_axes, surface.position: launch[surface.position], "v0": launch["v0"],
+              "w0": launch["w0"]}  # fmt: skip
+    for name in dims:
+        if values[name] is None:
+            raise PlanError(name, "is needed: the launch's values (a number or a 1-D axis)")
+    plan = survey_plan(dims, values, scene, method, surface=surface, **options)
     return run_plan(plan, progress)
 
 

@@ -24,10 +24,15 @@ from .grid import MAX_BLOCKS, Tiling, grid_too_large
 from .horizon import Horizon
 from .io.codecs import check_compression
 from .io.formats import OutputFormat, format_for
-from .methods import METHODS, RTOL_RANGE, Method
+from .methods import METHODS, MODEL_BY_NAME, RTOL_RANGE, Method, check_model
 from .methods import check_method as _registry_check_method
 from .scene import Scene
-from .schema import FATE_KINDS, GRID_DIMS
+from .schema import AXES, FATE_KINDS, GRID_DIMS, is_surface_grid
+from .surfaces import Surface
+
+#: Axes whose values must be > 0: the cone's launch radius, a surface's launch distance and
+#: its parameters.
+POSITIVE_AXES = ("r0", "rho0", "radius", "scale", "hole", "n")
 
 __all__ = [
     "PlanError",
@@ -61,6 +66,23 @@ def check_scene(scene: Any) -> Scene:
     if not isinstance(scene, Scene):
         raise PlanError("scene", "must be an engine.Scene", scene)
     return scene
+
+
+def check_surface(surface: Any) -> Surface | None:
+    """The surface of revolution (None: the cone of the alpha axis)."""
+    if surface is not None and not isinstance(surface, Surface):
+        raise PlanError("surface", "must be a surface of engine.surfaces (Bowl(0.5), ...)",
+                        surface)  # fmt: skip
+    return surface
+
+
+def check_surface_method(method: Method, scene: Scene) -> None:
+    """The method can serve a surface of revolution (the surface model's capabilities), with
+    the scene's effects."""
+    try:
+        check_model(method, MODEL_BY_NAME["surface"], scene)
+    except ValueError as exc:
+        raise PlanError("method", str(exc), method.name, whole=True) from None
 
 
 def check_method(name: Any, scene: Scene) -> Method:
@@ -165,8 +187,8 @@ def axis_problem(name: str, x: float) -> str:
         return "must be finite"
     if name == "alpha" and not 0.0 < x < math.pi / 2:
         return "must lie in the open interval (0, pi/2) [radian]"
-    if name == "r0" and not x > 0.0:
-        return "must be > 0 [m]"
+    if name in POSITIVE_AXES and not x > 0.0:
+        return f"must be > 0 [{AXES[name].units}]"
     return ""
 
 
@@ -215,8 +237,8 @@ def check_values(name: str, values: np.ndarray) -> None:
 def check_axes(dims: tuple[str, ...], values: dict[str, Any]) -> tuple[np.ndarray, ...]:
     """The axes ``dims`` as read-only 1-D float64 arrays: each non-empty, every value passing
     :func:`axis_problem`, the grid not too large for a run."""
-    if dims not in GRID_DIMS:
-        raise PlanError("dims", f"must be one of {GRID_DIMS}", dims)
+    if dims not in GRID_DIMS and not is_surface_grid(dims):
+        raise PlanError("dims", f"must be one of {GRID_DIMS} or a surface's launch axes", dims)
     out = []
     for name in dims:
         arr = np.array(np.atleast_1d(check_numbers(name, values[name])), np.float64)

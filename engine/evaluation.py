@@ -32,6 +32,7 @@ from .schema import (
     RESULTS,
     variable_dims,
 )
+from .surface_eval import surface_block
 
 if TYPE_CHECKING:
     from .plan import MapPlan, RunPlan
@@ -211,7 +212,9 @@ def evaluate_block(
     names = block_variables(plan)
     if out is not None:
         _check_out(out, names, shape)
-    if tuple(dims) == DIMS and plan.map_kind == "closed form":
+    if plan.surface is not None:
+        res = surface_block(plan, sub)
+    elif tuple(dims) == DIMS and plan.map_kind == "closed form":
         direct = out is not None and all(names[n] == np.float64 for n in names if n in BATCH_ROWS)
         res = _closed_form_grid(sub, plan, names, out if direct else None)
         if direct:

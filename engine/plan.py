@@ -33,6 +33,8 @@ from .checks import (
     check_precision,
     check_rtol,
     check_scene,
+    check_surface,
+    check_surface_method,
 )
 from .fates import Horizon
 from .grid import BLOCK_POINTS
@@ -41,12 +43,13 @@ from .io.formats import OutputFormat, format_for
 from .kernels.geometry import CIRCULAR_TOL
 from .methods import DEFAULT_RTOL, Method
 from .scene import Scene
-from .schema import DIMS, map_kind, result_variables, survey_attrs
+from .schema import DIMS, MAP_KINDS, map_kind, result_variables, survey_attrs
 
 #: The title of a survey's results when none is given (a survey file's default too).
 DEFAULT_TITLE = "conesurvey survey"
 
 if TYPE_CHECKING:
+    from .surfaces import Surface
     from .surveyfile import Survey
 
 __all__ = [
@@ -103,6 +106,8 @@ class MapPlan:
     circular_tol: float
     horizon: Horizon | None
     variables: dict[str, np.dtype]
+    #: The surface of revolution (:mod:`engine.surfaces`; None: the cone of the axes' alpha).
+    surface: Surface | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -139,6 +144,14 @@ class RunPlan(MapPlan):
         """The global attributes of its results (:func:`engine.schema.survey_attrs`)."""
         attrs = survey_attrs(self.scene, self.method.name, self.circular_tol, self.rtol,
                              self.energy_relative, self.horizon, self.launch)  # fmt: skip
+        if self.surface is not None:
+            attrs["map_kind"] = self.map_kind
+            attrs["map_description"] = MAP_KINDS[self.map_kind]
+            attrs.update(self.surface.as_attrs())
+            attrs["surface_rim"] = self.surface.rim_means
+            attrs["grid"] = (f"launches on the surface: the centre at {self.surface.position} "
+                             "with speed v0 along the parallel, spin w0 and no speed along "
+                             "the meridian")  # fmt: skip
         if self.output.precision == "single":
             attrs["precision"] = "single: float results stored as float32 (~7 digits)"
         return attrs
@@ -150,7 +163,8 @@ class RunPlan(MapPlan):
             np.array_equal(a, b) for a, b in zip(self.axes, other.axes, strict=True)
         )
         rest = ("dims", "scene", "method", "map_kind", "rtol", "circular_tol", "horizon",
-                "energy_relative", "variables", "output", "title", "source_text")  # fmt: skip
+                "energy_relative", "variables", "output", "title", "source_text",
+                "surface")  # fmt: skip
         return same_axes and all(getattr(self, n) == getattr(other, n) for n in rest)
 
     __hash__ = None  # type: ignore[assignment]
@@ -165,18 +179,24 @@ def map_plan(
     horizon_time: Any = None,
     horizon_revolutions: Any = None,
     horizon_hint: str = HORIZON_HINT,
+    surface: Any = None,
 ) -> MapPlan:
     """The plan of a map at points (:func:`engine.evaluate`; a survey file's too): each input
     checked by its one function, in this order (the first problem is raised, a
     :class:`PlanError`). ``horizon_hint``: how the caller asks for a horizon
-    (:func:`engine.checks.check_horizon`)."""
+    (:func:`engine.checks.check_horizon`). ``surface``: a surface of revolution
+    (:mod:`engine.surfaces`; None: the cone of the alpha axis)."""
     scene = check_scene(scene)
+    surface = check_surface(surface)
     m = check_method(method, scene)
+    if surface is not None:
+        check_surface_method(m, scene)
     rtol = check_rtol(rtol, m)
     circular_tol = check_circular_tol(circular_tol)
-    kind = map_kind(m.name, scene)
+    kind = map_kind(m.name, scene, surface)
     horizon = check_horizon(kind, horizon_time, horizon_revolutions, hint=horizon_hint)
-    return MapPlan(scene, m, kind, rtol, circular_tol, horizon, result_variables(m.name, scene))
+    names = result_variables(m.name, scene, surface=surface)
+    return MapPlan(scene, m, kind, rtol, circular_tol, horizon, names, surface)
 
 
 def survey_plan(
@@ -198,13 +218,14 @@ def survey_plan(
     output_format: Any = None,
     title: str = DEFAULT_TITLE,
     source_text: str = "",
+    surface: Any = None,
 ) -> RunPlan:
     """The plan of a survey over the axes ``dims`` (one of
-    :data:`engine.schema.GRID_DIMS`) holding ``values``: the map's inputs (:func:`map_plan`),
-    then every other input checked by its one function, in this order (the first problem is
-    raised, a :class:`PlanError`)."""
+    :data:`engine.schema.GRID_DIMS`; on a ``surface``, :func:`engine.schema.surface_dims`)
+    holding ``values``: the map's inputs (:func:`map_plan`), then every other input checked by
+    its one function, in this order (the first problem is raised, a :class:`PlanError`)."""
     mp = map_plan(scene, method, circular_tol=circular_tol, rtol=rtol, horizon_time=horizon_time,
-                  horizon_revolutions=horizon_revolutions)  # fmt: skip
+                  horizon_revolutions=horizon_revolutions, surface=surface)  # fmt: skip
     energy_relative = check_energy_relative(energy_relative)
     if energy_relative and tuple(dims) != DIMS:
         raise PlanError("energy_relative", "applies to an energy axis, not to launch states")
@@ -233,7 +254,7 @@ def grid_plan(
     was checked where it was read (:func:`survey_plan` for the API; a survey file's parser,
     :mod:`engine.surveyfile`, with its key paths), each by its one function."""
     output = OutputPlan() if output is None else output
-    names = result_variables(mp.method.name, mp.scene, energy_relative, dims != DIMS)
+    names = result_variables(mp.method.name, mp.scene, energy_relative, dims != DIMS, mp.surface)
     if output.precision == "single":
         names = {n: np.dtype(np.float32) if dt.kind == "f" else dt for n, dt in names.items()}
     fields = {f.name: getattr(mp, f.name) for f in dataclasses.fields(MapPlan)}

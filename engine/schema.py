@@ -21,11 +21,13 @@ from .kernels.fate import FATE_NAMES
 from .kernels.geometry import CLASS_NAMES
 from .kernels.hybrid import HYBRID_FATE_NAMES
 from .kernels.protocol import EVENT_NAMES, STATUS_FLAGS
+from .kernels.routh import CLASS_NAMES as SURFACE_CLASS_NAMES
 from .methods import METHODS, get_method
 
 if TYPE_CHECKING:
     from .fates import Horizon
     from .scene import Scene
+    from .surfaces import Surface
 
 __all__ = ["DIMS", "LAUNCH_DIMS", "GRID_DIMS", "RELEASE", "FINGERPRINT_ATTR", "Variable", "AXES",
            "RESULTS", "TRAJECTORY", "axis_attrs", "variable_attrs", "variable_dims",
@@ -92,7 +94,18 @@ AXES: dict[str, Variable] = {
     "u0": _f("m s-1", "launch radial speed dr/dt along the generatrix (outward > 0)"),
     "slip_u": _f("m s-1", "launch slip velocity of the contact point along the generatrix"),
     "slip_v": _f("m s-1", "launch slip velocity of the contact point along the parallel"),
+    # surveys over launches on a surface of revolution (engine.surfaces)
+    "rho0": _f("m", "launch position: distance of the centre from the axis"),
+    "z0": _f("m", "launch position: height of the centre (the cylinder)"),
+    "radius": _f(
+        "m", "the surface's radius (bowl, paraboloid: of curvature at the bottom; cylinder)"
+    ),  # fmt: skip
+    "scale": _f("1", "the surface's scale (funnel: m2; power law: m(1-n); see surface_kind)"),
+    "hole": _f("m", "radius of the funnel's hole"),
+    "n": _f("1", "the power law's exponent"),
 }
+#: The axes of a survey on a surface, in their order: the surface's parameters, then the launch.
+SURFACE_AXES = ("alpha", "radius", "scale", "hole", "n", "rho0", "z0", "v0", "w0")
 _FAM = ("alpha", "h", "Lz")  # what a property of an (alpha, h, L_z) family depends on
 _ENERGY_RELATIVE = _f("1", "energy offset from the potential minimum, (calE - V_min)/|V_min|")
 
@@ -149,6 +162,25 @@ RESULTS: dict[str, Variable] = {
     "energy_absolute": _f("J", "radial energy calE (absolute) = V_min + energy |V_min|"),
     # surveys over launch states: the invariants of each launch
     **{name: AXES[name] for name in INVARIANTS},
+    # maps on a surface of revolution (Routh's reduction: engine.routh)
+    "rho_min": _f(
+        "m",
+        "inner turning point: the centre's distance from the axis (cylinder: its lowest height)",
+    ),  # fmt: skip
+    "rho_max": _f(
+        "m",
+        "outer turning point: the centre's distance from the axis (cylinder: "
+        "its highest height; +inf for escaping orbits)",
+    ),  # fmt: skip
+    "routh_L": _f(
+        "kg m2 s-1",
+        "Routh's first integral: M rho v at the surface's reference point (on a cone L_z)",
+    ),  # fmt: skip
+    "routh_w": _f(
+        "m s-1",
+        "Routh's second integral: w - rho v tan(b)/rho^2 at the surface's "
+        "reference point (on a cone h)",
+    ),  # fmt: skip
     # engine.integrated.evaluate_integrated with rolling resistance (one period, not a map)
     "energy_loss": _f("J", "total energy lost over the first radial period"),
 }
@@ -159,6 +191,11 @@ CLOSED_FORM = ("orbit_class", "r_min", "r_max", "r_circ", "period", "apsidal_ang
 _CODES = tuple(i for i, n in enumerate(HYBRID_FATE_NAMES) if n != "slipped")
 SLIDING_FATE = Variable("int8", None, "what happened to the sphere (rolling, sliding, ...)",
                         tuple(HYBRID_FATE_NAMES[i] for i in _CODES), _CODES)  # fmt: skip
+#: The exact variables of a map on a surface of revolution (every such map holds them).
+SURFACE_EXACT = ("orbit_class", "rho_min", "rho_max", "period", "apsidal_angle",
+                 "precession_rate", "routh_L", "routh_w")  # fmt: skip
+#: The ``orbit_class`` of a map on a surface of revolution.
+SURFACE_CLASS = Variable("int8", None, "orbit class (Routh's reduction)", SURFACE_CLASS_NAMES)
 #: What a one-period integrator map adds; it also replaces period, apsidal angle and precession.
 INTEGRATED = ("n_steps", "energy_drift", "status")
 #: Closed-form variables a one-period map replaces by the integrator's own values.
@@ -179,9 +216,19 @@ MAP_KINDS = {
     "the ideal lossless cone (closed form); fate and the variables after it describe the "
     "scene's whole story (a slip is a transition: the sphere slides under kinetic friction and "
     "may roll again), integrated from the start to spill, rest, the vertex or the horizon",
+    "surface exact": "every variable is exact for the scene's surface (Routh's reduction: the "
+    "two linear integrals along the meridian, turning points and quadratures)",
+    "surface one period": "period, apsidal angle and precession rate integrated over one "
+    "radial period; the other variables exact (Routh's reduction)",
+    "surface fate": "orbit_class and the orbit's geometry describe the launch orbit on the "
+    "ideal lossless surface (Routh's reduction); fate and the variables after it describe the "
+    "scene (integrated from the launch to the first terminal event or the horizon)",
 }
 #: The kinds of map that follow each orbit to its fate.
-FATE_KINDS = ("fate", "sliding fate")
+FATE_KINDS = ("fate", "sliding fate", "surface fate")
+#: The kind of map on a surface of revolution, by the cone's kind of the same map.
+SURFACE_KIND = {"closed form": "surface exact", "one period": "surface one period",
+                "fate": "surface fate"}  # fmt: skip
 #: Variable ``comment`` in fate maps: which variables come from where.
 _FATE_COMMENTS = {
     **{n: "the launch orbit on the ideal lossless cone (closed form)" for n in CLOSED_FORM},
@@ -246,6 +293,8 @@ def variable_attrs(name: str, kind: str | None = None) -> dict[str, Any]:
     var = RESULTS.get(name) or TRAJECTORY[name]
     if name == "fate" and kind == "sliding fate":
         var = SLIDING_FATE
+    if name == "orbit_class" and kind in SURFACE_KIND.values():
+        var = SURFACE_CLASS
     attrs = var.attrs()
     if kind in FATE_KINDS and name in _FATE_COMMENTS:
         attrs["comment"] = _FATE_COMMENTS[name]
@@ -277,9 +326,29 @@ def grid_dims(names: Any) -> tuple[str, ...]:
     """The dims of the survey grid whose axes include ``names`` (a Dataset's dims, a survey
     file's axes): the longest of :data:`GRID_DIMS` all of whose launch axes are named."""
     present = set(names)
+    if present & {"rho0", "z0"}:
+        return tuple(d for d in SURFACE_AXES if d in present)
     if present & set(RELEASE):
         return SLIDING_LAUNCH_DIMS
     return LAUNCH_DIMS if "r0" in present else DIMS
+
+
+def surface_dims(surface: Surface, swept: Any = ()) -> tuple[str, ...]:
+    """The dims of a survey over launches on ``surface``: the parameters it sweeps (``swept``,
+    in the surface's order), then its launch position (rho0, or the cylinder's z0), v0, w0."""
+    params = tuple(p for p in surface.parameters if p in set(swept))
+    return (*params, surface.position, "v0", "w0")
+
+
+def is_surface_grid(dims: tuple[str, ...]) -> bool:
+    """Whether ``dims`` are a surface survey's (:func:`surface_dims`)."""
+    dims = tuple(dims)
+    return (
+        len(dims) >= 3
+        and dims[-3:] in (("rho0", "v0", "w0"), ("z0", "v0", "w0"))
+        and all(d in SURFACE_AXES for d in dims)
+        and list(dims) == [d for d in SURFACE_AXES if d in dims]
+    )
 
 
 def launch_dims(scene: Scene) -> tuple[str, ...]:
@@ -304,10 +373,13 @@ def period_variables(scene: Scene) -> tuple[str, ...]:
     return (*REPLACED_BY_INTEGRATION, "energy_drift", *effect_variables(scene, "period"))
 
 
-def map_kind(method: str, scene: Scene) -> str:
+def map_kind(method: str, scene: Scene, surface: Surface | None = None) -> str:
     """What a map of ``scene`` by ``method`` is (:data:`MAP_KINDS`): integrators follow a scene
     with a dissipative effect or one that brings terminal events (the effects table) to each
-    orbit's fate; otherwise over one period."""
+    orbit's fate; otherwise over one period. On a ``surface`` of revolution, the surface's
+    kind of the same map (:data:`SURFACE_KIND`)."""
+    if surface is not None:
+        return SURFACE_KIND[map_kind(method, scene)]
     if not get_method(method).integrates:
         return "closed form"
     if any("sliding contact" in BY_NAME[e].needs for e in scene.effects):
@@ -318,10 +390,23 @@ def map_kind(method: str, scene: Scene) -> str:
 
 
 def result_variables(
-    method: str, scene: Scene, energy_relative: bool = False, launch: bool = False
+    method: str,
+    scene: Scene,
+    energy_relative: bool = False,
+    launch: bool = False,
+    surface: Surface | None = None,
 ) -> dict[str, np.dtype]:
     """Names and dtypes of the variables a map of ``scene`` by ``method`` holds, in file order
-    (``launch``: a survey over launch states, which stores the invariants too)."""
+    (``launch``: a survey over launch states, which stores the invariants too; on a
+    ``surface``: Routh's exact variables, then the integrator's)."""
+    if surface is not None:
+        kind = map_kind(method, scene)
+        names = list(SURFACE_EXACT)
+        if kind == "one period":
+            names += INTEGRATED
+        elif kind == "fate":
+            names += FATE
+        return {n: np.dtype(RESULTS[n].dtype) for n in names}
     kind = map_kind(method, scene)
     names = list(CLOSED_FORM)
     if kind == "closed form":
