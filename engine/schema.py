@@ -22,7 +22,7 @@ from .kernels.geometry import CLASS_NAMES
 from .kernels.hybrid import HYBRID_FATE_NAMES
 from .kernels.protocol import EVENT_NAMES, STATUS_FLAGS
 from .kernels.routh import CLASS_NAMES as SURFACE_CLASS_NAMES
-from .methods import METHODS, get_method
+from .methods import METHODS, MODEL_BY_NAME, get_method
 
 if TYPE_CHECKING:
     from .fates import Horizon
@@ -424,18 +424,26 @@ def result_variables(
 
 
 def map_summary(
-    method: str, scene: Scene, energy_relative: bool = False, launch: bool = False
+    method: str,
+    scene: Scene,
+    energy_relative: bool = False,
+    launch: bool = False,
+    surface: Surface | None = None,
 ) -> list[str]:
     """What a map of ``scene`` by ``method`` will hold, in lines for people (``conesurvey
     validate``): which methods honour each effect the scene names, the kind of map, its
     variables."""
     lines = []
     for effect in scene.effects:
-        able = [m.name for m in METHODS.values() if m.honours(effect)]
+        model = MODEL_BY_NAME["surface" if surface is not None else "cone"]
+        able = [m.name for m in METHODS.values()
+                if m.honours(effect) and not m.model_refusals(model)]  # fmt: skip
         lines.append(f"effect {effect}: honoured by {', '.join(able)}")
-    kind = map_kind(method, scene)
+    if surface is not None:
+        lines.append(f"surface {surface.kind}: rim is {surface.rim_means}")
+    kind = map_kind(method, scene, surface)
     lines.append(f"map    {kind}: {MAP_KINDS[kind]}")
-    names = result_variables(method, scene, energy_relative, launch)
+    names = result_variables(method, scene, energy_relative, launch, surface)
     lines.append("holds  " + ", ".join(names))
     return lines
 

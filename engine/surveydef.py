@@ -20,6 +20,8 @@ from .schema import DIMS, LAUNCH_DIMS, SLIDING_LAUNCH_DIMS
 if TYPE_CHECKING:
     import xarray as xr
 
+    from .surfaces import Surface
+
 __all__ = ["Survey"]
 
 
@@ -39,7 +41,7 @@ class Survey:
     rtol: float
     circular_tol: float
     scene: Scene
-    alpha: np.ndarray
+    alpha: np.ndarray | None
     energy: np.ndarray | None
     h: np.ndarray | None
     Lz: np.ndarray | None
@@ -53,6 +55,10 @@ class Survey:
     u0: np.ndarray | None = None
     slip_u: np.ndarray | None = None
     slip_v: np.ndarray | None = None
+    #: A survey over launches on a surface of revolution: the surface, and its axes by name
+    #: (``engine.schema.surface_dims``); alpha, energy, h, Lz are then None.
+    surface: Surface | None = None
+    surface_axes: dict[str, np.ndarray] | None = None
     # the plan the parser built, each value checked once (not copied by dataclasses.replace)
     _plan: RunPlan | None = field(default=None, init=False, repr=False, compare=False)
 
@@ -61,7 +67,10 @@ class Survey:
         """The survey of a checked plan (a survey file's, :mod:`engine.surveyfile`), keeping
         it: reading its plan, variables or attributes, or running it, checks nothing again."""
         axes: dict[str, Any] = dict(zip(plan.dims, plan.axes, strict=True))
-        if plan.launch:
+        if plan.surface is not None:
+            axes = dict(alpha=None, energy=None, h=None, Lz=None, surface=plan.surface,
+                        surface_axes=axes)  # fmt: skip
+        elif plan.launch:
             axes.update(energy=None, h=None, Lz=None)
         survey = cls(title=plan.title, method=plan.method.name, rtol=plan.rtol,
                      circular_tol=plan.circular_tol, scene=plan.scene,
@@ -78,13 +87,14 @@ class Survey:
         (:func:`engine.plan.survey_plan`), kept for the next call."""
         if self._plan is None:
             horizon = self.horizon or Horizon()
-            plan = survey_plan(self.dims, {d: getattr(self, d) for d in self.dims}, self.scene,
+            values = self.surface_axes or {d: getattr(self, d) for d in self.dims}
+            plan = survey_plan(self.dims, values, self.scene,
                                self.method, energy_relative=self.energy_relative,
                                circular_tol=self.circular_tol, rtol=self.rtol,
                                horizon_time=horizon.time,
                                horizon_revolutions=horizon.revolutions,
                                precision=self.precision, title=self.title,
-                               source_text=self.source_text)  # fmt: skip
+                               source_text=self.source_text, surface=self.surface)  # fmt: skip
             object.__setattr__(self, "_plan", plan)
         return self._plan
 
@@ -92,7 +102,9 @@ class Survey:
     def dims(self) -> tuple[str, ...]:
         """The survey's axes: (alpha, energy, h, Lz), or (alpha, r0, v0, w0) over launch
         states, with (u0, slip_u, slip_v) on a scene with kinetic friction (the release's
-        radial speed and slip velocity)."""
+        radial speed and slip velocity); on a surface, its launch axes."""
+        if self.surface_axes is not None:
+            return tuple(self.surface_axes)
         if not self.launch:
             return DIMS
         return SLIDING_LAUNCH_DIMS if self.u0 is not None else LAUNCH_DIMS
@@ -100,7 +112,8 @@ class Survey:
     @property
     def shape(self) -> tuple[int, ...]:
         """Grid shape, in the order of :attr:`dims`."""
-        return tuple(getattr(self, d).size for d in self.dims)
+        axes = self.surface_axes or {d: getattr(self, d) for d in self.dims}
+        return tuple(axes[d].size for d in self.dims)
 
     @property
     def size(self) -> int:
@@ -109,8 +122,8 @@ class Survey:
 
     @property
     def launch(self) -> bool:
-        """A survey over launch states (its dims are alpha, r0, v0, w0)."""
-        return self.r0 is not None
+        """A survey over launch states (its dims are alpha, r0, v0, w0, or a surface's)."""
+        return self.r0 is not None or self.surface_axes is not None
 
     def variables(self) -> dict[str, np.dtype]:
         """Names and dtypes of the result variables, in file order (its plan's: the float ones

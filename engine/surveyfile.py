@@ -75,9 +75,11 @@ from .methods import DEFAULT_RTOL
 from .plan import MapPlan, OutputPlan, grid_plan, map_plan
 from .scene import Scene
 from .schema import DIMS as AXES
-from .schema import LAUNCH_DIMS, RELEASE, launch_dims
+from .schema import LAUNCH_DIMS, RELEASE, launch_dims, surface_dims
+from .surfaces import Surface
 from .surveyaxes import MAX_AXIS_POINTS, RELATIVE_TO, SCALES, AxisReader, frozen
 from .surveydef import Survey
+from .surveysurface import read_surface
 
 __all__ = [
     "AXES",
@@ -95,7 +97,8 @@ DEFAULT_METHOD = "exact"
 #: Largest survey file read [bytes] (``values`` lists of ~10^5 numbers fit).
 MAX_SURVEY_BYTES = 4 << 20
 
-_TOP_KEYS = ("title", "method", "rtol", "circular_tol", "precision", "scene", "horizon", "axes")
+_TOP_KEYS = ("title", "method", "rtol", "circular_tol", "precision", "scene", "horizon", "axes",
+             "surface")  # fmt: skip
 _HORIZON_KEYS = ("time", "revolutions")
 #: Key paths of the plan's fields that a survey file spells otherwise.
 _KEYS = {"horizon_time": "horizon.time", "horizon_revolutions": "horizon.revolutions"}
@@ -201,6 +204,8 @@ class _Reader(AxisReader):
         if "\0" in title:
             raise self.bad_value("title", title, "must not contain NUL (netCDF text ends there)")
         scene = self.scene(self.table(doc, "scene", "", required=False) or {})
+        if "surface" in doc:
+            return self.surface_survey(doc, text, title, scene)
         mp = self.map(doc, scene)
         axes = self.table(doc, "axes", "", required=True)
         launch = any(n in axes for n in (*LAUNCH_DIMS[1:], *RELEASE))
@@ -235,6 +240,28 @@ class _Reader(AxisReader):
                          source_text=text)  # fmt: skip
         return Survey.from_plan(plan)
 
+    def surface_survey(self, doc: dict, text: str, title: str, scene: Scene) -> Survey:
+        """A survey over launches on the ``[surface]`` table's surface
+        (:mod:`engine.surveysurface`)."""
+        axes = self.table(doc, "axes", "", required=True)
+        table = self.table(doc, "surface", "", required=True)
+        surface, swept = read_surface(self, table, axes, self.origin)
+        mp = self.map(doc, scene, surface)
+        dims = surface_dims(surface, swept)
+        self.check_keys(axes, dims, "axes")
+        for name in dims:
+            if name not in axes:
+                raise self.fail(f"axes.{name}", f"missing; a launch on the {surface.kind} "
+                                f"gives {', '.join(dims)}")  # fmt: skip
+        if why := grid_too_large(_counts(axes, dims)):
+            raise self.fail("axes", why)
+        with self.checked():
+            precision = check_precision(doc.get("precision", "double"))
+        plan = grid_plan(mp, dims, tuple(self.axis(axes, name) for name in dims),
+                         output=OutputPlan(precision=precision), title=title,
+                         source_text=text)  # fmt: skip
+        return Survey.from_plan(plan)
+
     def rolling_release(self, values: np.ndarray, name: str) -> None:
         """An axis of the release (u0, slip_u, slip_v) on a scene without kinetic friction:
         refused unless every value is 0 (every launch rolls from rest radially there)."""
@@ -247,7 +274,7 @@ class _Reader(AxisReader):
                 "friction: the sliding model); without it every launch rolls from rest radially",
             )
 
-    def map(self, doc: dict, scene: Scene) -> MapPlan:
+    def map(self, doc: dict, scene: Scene, surface: Surface | None = None) -> MapPlan:
         """The map's inputs (method, rtol, circular_tol, ``[horizon]``) through the API's one
         set of checks (:func:`engine.plan.map_plan`), each value checked once, there; a
         missing horizon is asked for in the file's words (its ``[horizon]`` table)."""
@@ -259,7 +286,7 @@ class _Reader(AxisReader):
                             rtol=doc.get("rtol", DEFAULT_RTOL),
                             horizon_time=horizon.get("time"),
                             horizon_revolutions=horizon.get("revolutions"),
-                            horizon_hint=_HORIZON_HINT)  # fmt: skip
+                            horizon_hint=_HORIZON_HINT, surface=surface)  # fmt: skip
 
     @contextlib.contextmanager
     def checked(self) -> Iterator[None]:

@@ -24,7 +24,6 @@ from ..grid import BLOCK_POINTS
 from ..io.codecs import COMPRESSIONS, DEFAULT_COMPRESSION, DEFAULT_LEVELS
 from ..io.formats import format_for
 from ..io.manifest import fingerprint
-from ..kernels.geometry import CLASS_NAMES
 from ..plan import RunPlan, plan_from_survey
 from ..progress import Progress
 from ..runner import AlreadyComplete, RunError, RunFailed, RunStats, run_survey
@@ -332,11 +331,14 @@ def print_summary(
     total = stats.points
     shape = " x ".join(f"{d} {n}" for d, n in zip(stats.dims, stats.shape, strict=True))
     lines = [title, f"  grid    {shape} = {total:,} points", f"  method  {method}", ""]
-    tables = [("class", CLASS_NAMES, stats.counts)]
+    classes = tuple(n for _, n in flag_table("orbit_class", kind))
+    counts = stats.counts[: len(classes)]
+    tables = [("class", classes, counts)]
     if "fate" in stats.flags:  # a fate map: what happened to each ball first
         codes, names = zip(*flag_table("fate", kind), strict=True)
         tables.insert(0, ("fate", names, stats.flags["fate"][list(codes)]))
-        tables[1] = ("class", CLASS_NAMES, stats.counts, "  (the launch orbits on the ideal cone)")
+        ideal = "surface" if kind is not None and kind.startswith("surface") else "cone"
+        tables[1] = ("class", classes, counts, f"  (the launch orbits on the ideal {ideal})")
     for i, (label, names, counts, *note) in enumerate(tables):
         lines += [""] if i else []
         lines.append(f"  {label:<12}{'count':>12}{'fraction':>10}" + "".join(note))

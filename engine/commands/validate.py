@@ -50,7 +50,10 @@ __all__ = [
 #: surveys (docs/surveys.md, "The first run compiles"); one period: the rk45/dop853 batch's
 #: compile as the integrator benchmark measured it (84-91 s).
 COMPILE_SECONDS = {"closed form": (30.0, "batch"), "one period": (90.0, "lanes"),
-                   "fate": (50.0, "fate"), "sliding fate": (120.0, "hybrid")}  # fmt: skip
+                   "fate": (50.0, "fate"), "sliding fate": (120.0, "hybrid"),
+                   "surface exact": (20.0, "routh_orbit"),
+                   "surface one period": (110.0, "lanes"),
+                   "surface fate": (70.0, "fate")}  # fmt: skip
 
 
 def compile_seconds(plan: RunPlan) -> float:
@@ -176,7 +179,7 @@ def _validate(args: argparse.Namespace, command: str) -> int:
     if plan.output.precision == "single":
         print("  precision single: float results stored as float32 (~7 significant digits); "
               "classes, status and fate exact")  # fmt: skip
-    for line in map_summary(method, plan.scene, plan.energy_relative, plan.launch):
+    for line in map_summary(method, plan.scene, plan.energy_relative, plan.launch, plan.surface):
         print(f"  {line}")
     return 0
 

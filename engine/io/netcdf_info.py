@@ -15,7 +15,6 @@ from typing import Any
 import netCDF4
 import numpy as np
 
-from ..kernels.geometry import CLASS_NAMES
 from ..schema import FINGERPRINT_ATTR, MAP_KINDS, flag_table
 from . import OutputError
 from .atomic import not_regular
@@ -107,18 +106,26 @@ def _attributes(nc: Any, notes: list[str]) -> dict[str, Any]:
 
 
 def class_counts(nc: Any, notes: list[str]) -> dict[str, int] | None:
-    """Count of each class code of ``orbit_class`` ("other" for values that are not one)."""
-    return flag_counts(nc, "orbit_class", CLASS_NAMES, notes)
+    """Count of each class code of ``orbit_class`` ("other" for values that are not one), named
+    as the kind of map (the ``map_kind`` attribute: the cone's classes, or a surface's) names
+    them."""
+    names = tuple(n for _, n in flag_table("orbit_class", _map_kind(nc)))
+    return flag_counts(nc, "orbit_class", names, notes)
+
+
+def _map_kind(nc: Any) -> str | None:
+    """The file's ``map_kind`` attribute where it names a kind of map (else None)."""
+    try:
+        kind = str(nc.getncattr("map_kind"))
+    except Exception:  # no such attribute, or one netCDF4 cannot decode
+        return None
+    return kind if kind in MAP_KINDS else None
 
 
 def fate_counts(nc: Any, notes: list[str]) -> dict[str, int] | None:
     """Count of each fate of a fate map's ``fate`` (None for other maps), named as the kind of
     map (the ``map_kind`` attribute) names them."""
-    try:
-        kind = str(nc.getncattr("map_kind"))
-    except Exception:  # no such attribute, or one netCDF4 cannot decode
-        kind = None
-    table = dict(flag_table("fate", kind if kind in MAP_KINDS else None))
+    table = dict(flag_table("fate", _map_kind(nc)))
     names = tuple(table.get(c, f"(code {c})") for c in range(max(table) + 1))
     out = flag_counts(nc, "fate", names, notes)
     if out is None:
