@@ -50,8 +50,10 @@ KIND_NAMES = ("cone", "bowl", "paraboloid", "funnel", "power_law", "cylinder", "
 PROFILE_TERMS = 24
 #: The surface slots: the kind, two shape parameters (CONE: alpha; BOWL, PARABOLOID, CYLINDER:
 #: R; FUNNEL: c, hole; POWER_LAW: c, n; PROFILE: lo, hi), the meridian parameter's range where
-#: the sphere fits and touches (Q_LO, Q_HI: the hole, the rim), then a profile's coefficients.
-SLOTS = ("kind", "shape1", "shape2", "q_lo", "q_hi") + tuple(
+#: the sphere fits and touches (Q_LO, Q_HI: the hole or the fit limit, the rim), the floor of
+#: the integrators' domain (Q_FLOOR: below Q_LO, so that the inner end is an event that can
+#: fire), then a profile's coefficients.
+SLOTS = ("kind", "shape1", "shape2", "q_lo", "q_hi", "q_floor") + tuple(
     f"cheb{j}" for j in range(PROFILE_TERMS)
 )
 _SLOT = model_slots(SLOTS)
@@ -60,6 +62,7 @@ P_SHAPE1 = _SLOT["shape1"]
 P_SHAPE2 = _SLOT["shape2"]
 P_Q_LO = _SLOT["q_lo"]
 P_Q_HI = _SLOT["q_hi"]
+P_Q_FLOOR = _SLOT["q_floor"]  # below it the geometry means nothing (a step there is rejected)
 P_CHEB = _SLOT["cheb0"]
 
 

@@ -26,18 +26,19 @@ from .._jit import kernel
 from .effects import FORCE_EFFECTS
 from .forces import effect_terms, taken_power
 from .layouts import P_G, P_INV_M1K, P_K, P_KK, P_M, P_MU, P_RADIUS
-from .meridian import P_Q_LO, centre
+from .meridian import P_Q_FLOOR, centre
 from .meridian import SLOTS as SLOTS
 
 #: The slot of the domain's floor: where the sphere stops fitting or touching.
-DOMAIN_FLOOR_SLOT = P_Q_LO
+DOMAIN_FLOOR_SLOT = P_Q_FLOOR
 
 
 @kernel
 def domain_floor(p):
-    """A surface's state needs q above Q_LO (where the sphere stops fitting, the hole, the
-    axis; -inf on the cylinder)."""
-    return p[P_Q_LO]
+    """A surface's state needs q above Q_FLOOR (where the sphere stops fitting, else the axis;
+    -inf on the cylinder): the inner end's event (the hole, the fit limit's margin, the axis
+    region) lies above it."""
+    return p[P_Q_FLOOR]
 
 
 @kernel

@@ -42,6 +42,7 @@ from .meridian import (
     CYLINDER,
     FUNNEL,
     P_KIND,
+    P_Q_FLOOR,
     P_Q_HI,
     P_Q_LO,
     P_SHAPE1,
@@ -57,18 +58,22 @@ SQRT_EPS = 1.4901161193847656e-08
 #: Axis region of a surface that reaches its axis, in units of the sphere's radius (the cone's
 #: vertex region: :data:`.model.VERTEX_FRACTION`).
 AXIS_FRACTION = 1e-2
+#: Where the sphere stops fitting, a run ends where 1 - a kc falls to this (the centre's
+#: surface has a cusp where it reaches 0).
+FIT_MARGIN = 1e-3
 
 
 @kernel
-def _fits_from(p, q_lo, q_hi):
-    """The smallest q in [q_lo, q_hi] from which on the sphere fits (1 - a kc > 0), by
-    bisection where it does not fit at q_lo (the curvature grows towards the axis)."""
-    if centre(p, q_lo)[6] > 0.0:
+def _fits_from(p, q_lo, q_hi, margin):
+    """The smallest q in [q_lo, q_hi] from which on 1 - a kc > margin (margin 0: the sphere
+    fits), by bisection where it does not hold at q_lo (the curvature grows towards the
+    axis)."""
+    if centre(p, q_lo)[6] > margin:
         return q_lo
     lo, hi = q_lo, q_hi
     for _ in range(200):
         mid = 0.5 * (lo + hi)
-        if centre(p, mid)[6] > 0.0:
+        if centre(p, mid)[6] > margin:
             hi = mid
         else:
             lo = mid
@@ -97,16 +102,22 @@ def set_point(p, X, i):
         q_lo, q_hi = 0.0, rim
     else:
         q_lo, q_hi = 0.0, rim
+    floor = q_lo if kind != FUNNEL else 0.0  # a funnel's meridian goes on below its hole
+    inner = q_lo
     if kind != CYLINDER:  # where the sphere stops fitting, and the axis region
         top = q_hi if math.isfinite(q_hi) else max(2.0 * q_lo, 1.0)
-        q_lo = _fits_from(p, max(q_lo, 1e-300), top)
+        fits = _fits_from(p, max(q_lo, 1e-300), top, 0.0)
+        if fits > q_lo:  # it stops fitting before the axis: the run ends a margin before
+            floor = fits
+            inner = _fits_from(p, fits, top, FIT_MARGIN)
+        q_lo = fits
     p[P_Q_LO] = q_lo
     p[P_Q_HI] = q_hi
+    p[P_Q_FLOOR] = floor
     p[P_RIM] = q_hi
-    inner = q_lo
-    if kind != CYLINDER and kind != FUNNEL:  # the axis region: the centre within a few a / 100
-        inner = max(inner, launch_q(p, AXIS_FRACTION * p[P_RADIUS]))
     p[P_R_VERTEX] = inner
+    if kind != CYLINDER and kind != FUNNEL:  # the axis region: the centre within a few a / 100
+        p[P_R_VERTEX] = max(inner, launch_q(p, AXIS_FRACTION * p[P_RADIUS]))
 
 
 @kernel

@@ -1,0 +1,192 @@
+"""Maps on surfaces of revolution through the API and survey files (engine.api.launch_survey with
+a surface, engine.surveysurface, engine.surface_eval): the integrated maps against Routh's
+reduction at 40 digits (tests/surface_cases.py, computed without the engine), the exact and
+integrated maps against each other, the fate maps against the 40-digit fates, and the survey
+file's refusals."""
+
+import math
+
+import numpy as np
+import pytest
+from surface_cases import BY_ID, stored
+
+import engine
+from engine.surfaces import Bowl, Cone, Funnel, Paraboloid, PowerLaw, Profile
+from engine.surveyfile import SurveyError, parse_survey
+
+ENGINE = {
+    "bowl": Bowl(1.0),
+    "paraboloid": Paraboloid(0.5),
+    "funnel": Funnel(0.05, 0.02),
+    "deep_funnel": Funnel(0.05, 0.1),
+    "power3": PowerLaw(0.5, 3.0),
+    "power1.5": PowerLaw(1.0, 1.5),
+    "cone": Cone(0.6),
+}
+#: The 40-digit cases launched at a turning point (u0 = 0) on the engine's own surfaces.
+TURNING = ("bowl-1", "bowl-2", "bowl-3", "bowl-4", "bowl-6", "paraboloid-1", "paraboloid-2",
+           "paraboloid-3", "paraboloid-5", "funnel-1", "funnel-2", "funnel-3", "funnel-5",
+           "power3-1", "power1.5-1", "cone-1")  # fmt: skip
+RTOL = 1e-11
+
+
+def _scene(case, **extra):
+    return engine.Scene(M=case.M, g=case.g, a=case.a, k=case.k, **extra)
+
+
+def _one(ds, name):
+    return float(ds[name].values.reshape(-1)[0])
+
+
+@pytest.mark.parametrize("cid", TURNING)
+def test_integrated_periods_meet_the_40_digit_reduction(cid):
+    """dop853's one-period map from each launch: period and apsidal angle within 100 rtol of
+    Routh's reduction at 40 digits (the integrators' stated accuracy), the turning points (the
+    exact map's) within 1e-12."""
+    case = BY_ID[cid]
+    ref = stored(cid)
+    ds = engine.launch_survey(surface=ENGINE[case.surface], rho0=case.rho0, v0=case.v0,
+                              w0=case.w0, scene=_scene(case), method="dop853",
+                              rtol=RTOL)  # fmt: skip
+    assert ds.cone.names("orbit_class").values.reshape(-1)[0] == "bounded"
+    assert int(ds.status.values.reshape(-1)[0]) == 0
+    assert _one(ds, "period") == pytest.approx(float(ref["period"]), rel=100 * RTOL)
+    psi = abs(float(ref["apsidal_angle"]))
+    assert _one(ds, "apsidal_angle") == pytest.approx(psi, rel=100 * RTOL)
+    for name in ("rho_min", "rho_max"):
+        assert _one(ds, name) == pytest.approx(float(ref[name]), rel=1e-12)
+
+
+def test_exact_and_integrated_maps_agree_on_a_grid():
+    """On a bowl and a funnel, every bounded launch's period and apsidal angle by Routh's
+    reduction and by rk45 agree within 100 rtol; every other class has no integrated period."""
+    for surface, rho0 in ((Bowl(0.5), [0.1, 0.25, 0.4]), (Funnel(0.05, 0.02), [0.05, 0.1, 0.2])):
+        kw = dict(surface=surface, rho0=rho0, v0=[0.3, 0.8, 1.6], w0=[-1.0, 0.0, 2.0])
+        exact = engine.launch_survey(**kw)
+        rk = engine.launch_survey(**kw, method="rk45", rtol=1e-10)
+        bounded = exact.orbit_class.values == 1
+        assert bounded.sum() >= 10
+        np.testing.assert_array_equal(rk.orbit_class.values, exact.orbit_class.values)
+        for name in ("period", "apsidal_angle"):
+            np.testing.assert_allclose(rk[name].values[bounded], exact[name].values[bounded],
+                                       rtol=1e-8)  # fmt: skip
+            assert np.isnan(rk[name].values[~bounded]).all()
+
+
+@pytest.mark.parametrize(
+    "cid, extra, fate",
+    [
+        ("rim", {"rim": 0.35}, "spilled"),  # the bowl's edge 0.35 m from the axis
+        ("hole", {"rim": 10.0}, "vertex"),  # the funnel's hole: its inner end
+        ("slip", {"mu": 0.165}, "slipped"),
+    ],
+)
+def test_fates_meet_the_40_digit_reduction(cid, extra, fate):
+    """The fate map follows each launch to the rim, the hole or the friction limit: the fate,
+    its time and azimuth within 1e-8 relative of the 40-digit fate (rtol 1e-11)."""
+    case = BY_ID[cid]
+    ref = stored(cid)
+    ds = engine.launch_survey(surface=ENGINE[case.surface], rho0=case.rho0, v0=case.v0,
+                              w0=case.w0, scene=_scene(case, **extra), method="dop853",
+                              rtol=RTOL, horizon_time=100.0)  # fmt: skip
+    assert ds.cone.names("fate").values.reshape(-1)[0] == fate
+    assert _one(ds, "fate_time") == pytest.approx(float(ref["fate_time"]), rel=1e-8)
+    assert abs(_one(ds, "fate_theta")) == pytest.approx(abs(float(ref["fate_azimuth"])), rel=1e-8)
+    assert _one(ds, "invariant_drift") < 1e-8
+
+
+def test_a_profile_of_a_paraboloid_is_the_paraboloid():
+    """A measured meridian sampled from z = rho^2/(2R) (its Chebyshev fit is exact) maps as the
+    paraboloid does."""
+    rho = np.linspace(0.0, 0.8, 30)
+    profile = Profile(tuple(rho), tuple(rho**2 / 1.0))
+    a = engine.launch_survey(surface=profile, rho0=[0.2, 0.4], v0=[0.6, 1.2], w0=[0.0])
+    b = engine.launch_survey(surface=Paraboloid(0.5), rho0=[0.2, 0.4], v0=[0.6, 1.2], w0=[0.0])
+    for name in ("rho_min", "rho_max", "period", "apsidal_angle"):
+        np.testing.assert_allclose(a[name].values, b[name].values, rtol=1e-11)
+
+
+def test_a_profile_too_rough_for_its_curvature_is_refused():
+    rho = np.linspace(0.0, 0.5, 60)
+    z = rho**2 + 1e-3 * np.random.default_rng(0).standard_normal(rho.size)
+    with pytest.raises(ValueError, match="no smooth meridian"):
+        Profile(tuple(rho), tuple(z))
+
+
+def test_symplectic_is_refused_on_a_surface_with_its_reason():
+    with pytest.raises(ValueError, match="separable split") as err:
+        engine.launch_survey(surface=Bowl(0.5), rho0=0.2, v0=1.0, w0=0.0, method="symplectic")
+    assert "exact, rk45, dop853" in str(err.value)
+
+
+SURVEY = """
+title = "a bowl"
+[surface]
+kind = "bowl"
+radius = 0.5
+[axes.rho0]
+values = [0.1, 0.3]
+[axes.v0]
+values = [0.5, 1.0]
+[axes.w0]
+values = [0.0]
+"""
+
+
+def test_a_surface_survey_file_is_the_apis_map():
+    ds = parse_survey(SURVEY).run()
+    api = engine.launch_survey(surface=Bowl(0.5), rho0=[0.1, 0.3], v0=[0.5, 1.0], w0=[0.0])
+    assert ds.attrs["surface_kind"] == "bowl" and ds.attrs["surface_radius"] == 0.5
+    assert ds.attrs["map_kind"] == "surface exact"
+    for name in ("orbit_class", "rho_min", "rho_max", "period", "apsidal_angle"):
+        np.testing.assert_array_equal(ds[name].values, api[name].values)
+
+
+def test_a_swept_surface_parameter_is_an_axis():
+    text = SURVEY.replace("radius = 0.5\n", "") + "[axes.radius]\nvalues = [0.5, 0.8]\n"
+    ds = parse_survey(text).run()
+    assert ds.orbit_class.dims == ("radius", "rho0", "v0", "w0")
+    one = engine.launch_survey(surface=Bowl(0.8), rho0=[0.1, 0.3], v0=[0.5, 1.0], w0=[0.0])
+    np.testing.assert_array_equal(ds.period.values[1], one.period.values)
+
+
+@pytest.mark.parametrize(
+    "edit, key, words",
+    [
+        (('kind = "bowl"', 'kind = "bowel"'), "surface.kind", "did you mean 'bowl'"),
+        (("radius = 0.5\n", ""), "surface.radius", "missing"),
+        (("radius = 0.5", "radius = -0.5"), "surface", "Bowl.radius must be a finite number > 0"),
+        (("radius = 0.5", "radius = 0.5\nscale = 1.0"), "surface.scale", "unknown"),
+        (("[axes.rho0]", "[axes.z0]"), "axes.z0", ""),
+        (("values = [0.1, 0.3]", "values = [0.1, -0.3]"), "axes.rho0.values[1]", "> 0"),
+    ],
+)
+def test_a_bad_surface_survey_names_its_key(edit, key, words):
+    with pytest.raises(SurveyError) as err:
+        parse_survey(SURVEY.replace(*edit))
+    assert err.value.key == key and words in err.value.problem
+
+
+def test_a_profile_survey_reads_its_file(tmp_path):
+    rho = np.linspace(0.0, 0.8, 30)
+    (tmp_path / "meridian.csv").write_text("\n".join(f"{float(r)!r},{float(r * r)!r}" for r in rho))
+    text = SURVEY.replace(
+        'kind = "bowl"\nradius = 0.5', 'kind = "profile"\nprofile = "meridian.csv"'
+    )
+    (tmp_path / "p.toml").write_text(text)
+    ds = engine.surveyfile.load_survey(tmp_path / "p.toml").run()
+    want = engine.launch_survey(surface=Paraboloid(0.5), rho0=[0.1, 0.3], v0=[0.5, 1.0], w0=[0.0])
+    np.testing.assert_allclose(ds.period.values, want.period.values, rtol=1e-11)
+    with pytest.raises(SurveyError, match="cannot read"):
+        parse_survey(text)  # no file beside a string
+
+
+def test_the_surface_math_is_the_cones_on_a_cone():
+    """A cone given as a surface (the general path: Routh's reduction) maps as the cone's
+    closed form (engine.launch_survey over alpha, r0 = rho0 / sin(alpha))."""
+    alpha = 0.6
+    s = engine.launch_survey(surface=Cone(alpha), rho0=[0.2, 0.5], v0=[0.8, 1.5], w0=[0.0, 1.0])
+    c = engine.launch_survey(alpha=[alpha], r0=np.array([0.2, 0.5]) / math.sin(alpha),
+                             v0=[0.8, 1.5], w0=[0.0, 1.0])  # fmt: skip
+    for name in ("period", "apsidal_angle", "precession_rate"):
+        np.testing.assert_allclose(s[name].values, c[name].values[0], rtol=1e-12)
