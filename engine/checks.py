@@ -76,6 +76,18 @@ def check_surface(surface: Any) -> Surface | None:
     return surface
 
 
+def check_surface_fits(surface: Surface, scene: Scene) -> None:
+    """A measured profile with a trough too sharp for the ball (beyond its inner edge) is
+    refused: no run passes it, and nothing there is a rolling ball's orbit."""
+    trough = getattr(surface, "trough", None)
+    where = trough(scene.a) if trough is not None else None
+    if where is not None:
+        raise PlanError("surface", f"a ball of radius a = {scene.a!r} m does not fit in the "
+                        f"profile's trough at rho = {where:.6g} m (its radius of curvature "
+                        "there is below a): smooth the profile or take a smaller ball",
+                        whole=True)  # fmt: skip
+
+
 def check_surface_method(method: Method, scene: Scene) -> None:
     """The method can serve a surface of revolution (the surface model's capabilities), with
     the scene's effects."""

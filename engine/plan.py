@@ -34,6 +34,7 @@ from .checks import (
     check_rtol,
     check_scene,
     check_surface,
+    check_surface_fits,
     check_surface_method,
 )
 from .fates import Horizon
@@ -191,6 +192,7 @@ def map_plan(
     m = check_method(method, scene)
     if surface is not None:
         check_surface_method(m, scene)
+        check_surface_fits(surface, scene)
     rtol = check_rtol(rtol, m)
     circular_tol = check_circular_tol(circular_tol)
     kind = map_kind(m.name, scene, surface)

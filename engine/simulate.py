@@ -20,8 +20,7 @@ from .kernels.cone import (
 from .kernels.cone_starts import initial_state, orbit_start, tolerance_scales
 from .kernels.fate import REST_SPEED
 from .kernels.geometry import BOUNDED, CIRCULAR, CIRCULAR_TOL, CLASS_NAMES, HYPERBOLIC, ideal_orbit
-from .kernels.layouts import P_V_REST
-from .kernels.model import ATTITUDE
+from .kernels.layouts import ATTITUDE, P_V_REST
 from .kernels.protocol import (
     BUFFER_FULL,
     FAILURE,

@@ -189,7 +189,8 @@ class Profile(Surface):
     4 points, rho increasing), fitted by a Chebyshev series of degree at most
     :data:`engine.kernels.meridian.PROFILE_TERMS` - 1 (least squares); refused where the fit
     misses a point by more than :data:`PROFILE_TOL` of the height range (not smooth enough for
-    its curvature to mean anything) or where the fitted meridian turns down."""
+    its curvature to mean anything). Its wall may fall as well as rise (a ring-shaped gutter);
+    where it is too sharp for the ball, a survey refuses it (:meth:`trough`)."""
 
     rho: tuple[float, ...] = ()
     z: tuple[float, ...] = ()
@@ -222,9 +223,6 @@ class Profile(Surface):
                 f"{degree} misses one by {miss:.3g} m, more than {PROFILE_TOL:g} of the height "
                 "range): measure more points, or smooth them"
             )
-        grid = np.linspace(-1.0, 1.0, 1001)
-        if np.any(series.deriv()(grid) < 0.0) and np.any(series.deriv()(grid) > 0.0):
-            raise ValueError("Profile: the fitted meridian rises and falls; a bowl's wall rises")
         object.__setattr__(self, "rho", tuple(float(v) for v in rho))
         object.__setattr__(self, "z", tuple(float(v) for v in z))
         object.__setattr__(self, "coefficients", tuple(float(c) for c in series.coef))
@@ -238,6 +236,27 @@ class Profile(Surface):
 
     def slots(self) -> dict[int, float]:
         return {meridian.P_CHEB + j: c for j, c in enumerate(self.coefficients)}
+
+    def trough(self, a: float) -> float | None:
+        """The distance from the axis [m] of the first place beyond the profile's inner edge
+        where a ball of radius ``a`` does not fit (the meridian's concave radius of curvature
+        below a), or None: a run cannot pass such a trough, and the exact map would integrate
+        through the cusp of the centre's surface there."""
+        lo, hi = self.shape
+        series = np.polynomial.chebyshev.Chebyshev(self.coefficients)
+        x = np.linspace(-1.0, 1.0, 4001)
+        half = 0.5 * (hi - lo)
+        d1 = series.deriv()(x) / half
+        d2 = series.deriv(2)(x) / half**2
+        fit = 1.0 - a * d2 / (1.0 + d1 * d1) ** 1.5
+        ok = fit > 0.0
+        if not ok.any():
+            return lo
+        first = int(np.argmax(ok))  # where it starts to fit (the inner end before it)
+        later = np.flatnonzero(~ok[first:])
+        if later.size == 0:
+            return None
+        return float(lo + half * (x[first + later[0]] + 1.0))
 
     def as_attrs(self) -> dict[str, float | str]:
         return {

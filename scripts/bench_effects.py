@@ -38,8 +38,8 @@ from engine.integrated import integrate_points, points
 from engine.kernels.cone import P_COT, P_GC, P_SIN, set_alpha
 from engine.kernels.cone_starts import initial_state as generic_initial_state
 from engine.kernels.cone_starts import orbit_start, tolerance_scales
-from engine.kernels.layouts import P_KK
-from engine.kernels.model import ATTITUDE, RIM, ROLLING_RESISTANCE, SLIP_CHECK
+from engine.kernels.layouts import ATTITUDE, P_KK
+from engine.kernels.model import RIM, ROLLING_RESISTANCE, SLIP_CHECK
 from engine.kernels.orbit import integrate_points as scalar_points
 from engine.kernels.protocol import EPS, brent_next, brent_start, brent_update
 from engine.kernels.rk import ERR_FLOOR, MIN_FACTOR, SAFETY, initial_step

@@ -22,7 +22,7 @@ import numpy as np
 
 import engine
 from engine.kernels.cone import coefficients
-from engine.kernels.orbit import initial_state, orbit_start, tolerance_scales
+from engine.kernels.cone_starts import initial_state, orbit_start, tolerance_scales
 from engine.kernels.roots import circular_radius
 
 M, G, K = 1.0, 9.81, 0.4

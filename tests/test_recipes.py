@@ -88,9 +88,9 @@ VARIABLE_ROW = """
 _STATUS_ROW = '    "status": Variable("int8", None, "integrator status", STATUS_FLAGS),'
 _LOSS_STORE = "    out_f[4, i] = loss"
 VARIABLE_EDITS = [
-    ("schema.py", _STATUS_ROW, _STATUS_ROW + VARIABLE_ROW),
+    ("variables.py", _STATUS_ROW, _STATUS_ROW + VARIABLE_ROW),
     (
-        "schema.py",
+        "variables.py",
         'INTEGRATED = ("n_steps", "energy_drift", "status")',
         'INTEGRATED = ("n_steps", "energy_drift", "status", "apsidal_degrees")',
     ),

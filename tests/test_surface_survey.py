@@ -190,3 +190,13 @@ def test_the_surface_math_is_the_cones_on_a_cone():
                              v0=[0.8, 1.5], w0=[0.0, 1.0])  # fmt: skip
     for name in ("period", "apsidal_angle", "precession_rate"):
         np.testing.assert_allclose(s[name].values, c[name].values[0], rtol=1e-12)
+
+
+def test_a_profile_trough_too_sharp_for_the_ball_is_refused():
+    """A gutter z = (rho - 0.3)^2 / (2 r) of radius of curvature r = 5 mm refuses a 1 cm ball,
+    naming where; a 2 mm ball fits."""
+    rho = np.linspace(0.25, 0.35, 40)
+    gutter = Profile(tuple(rho), tuple((rho - 0.3) ** 2 / 0.01))
+    with pytest.raises(ValueError, match=r"does not fit in the profile's trough at rho = 0\.29"):
+        engine.launch_survey(surface=gutter, rho0=0.32, v0=0.2, w0=0.0, scene=engine.Scene(a=0.01))
+    assert gutter.trough(0.002) is None

@@ -36,7 +36,7 @@ from .lanes_step import (
     split_owned,
     take_point,
 )
-from .model import N_PARAMS, period_start, rhs, set_point
+from .model import N_PARAMS, period_start, set_point
 from .orbit import (
     period_apsides,
     reduce_period,
@@ -51,6 +51,7 @@ from .protocol import (
     start_protocol,
     terminal_between,
 )
+from .rates import rhs
 from .rk import ERR_FLOOR, initial_step, step_allowed
 from .rk_codegen import rk_dense_stages
 from .rk_events import apsis_crossed, apsis_newton, step_events

@@ -34,8 +34,9 @@ from numba.extending import intrinsic, overload
 from .._jit import kernel
 from .branchless import keep, pick
 from .layouts import state_size_of
-from .model import MODEL_ROWS, N_PARAMS, model_of_key, rates5, rates6, rates9, rates10
+from .model import MODEL_ROWS, N_PARAMS, model_of_key
 from .protocol import OK, TERMINAL_EFFECTS, terminal_between
+from .rates import rates5, rates6, rates9, rates10
 from .rk import clip_step, step_allowed, step_decide, step_error
 from .rk_codegen import GEN_OPTS, literal_int, rk_method_id, unrolled_step_lines
 from .rk_events import apsis_crossed

@@ -104,7 +104,8 @@ def touching(p, q):
     if kind == BOWL:
         sq = math.sin(q)
         cq = math.cos(q)
-        return s1 * sq, s1 * (1.0 - cq), s1 * cq, s1 * sq, -s1 * sq, s1 * cq
+        sh = math.sin(0.5 * q)  # R (1 - cos q) = 2 R sin^2(q/2), without the cancellation
+        return s1 * sq, 2.0 * s1 * sh * sh, s1 * cq, s1 * sq, -s1 * sq, s1 * cq
     if kind == PARABOLOID:
         return q, 0.5 * q * q / s1, 1.0, q / s1, 0.0, 1.0 / s1
     if kind == FUNNEL:

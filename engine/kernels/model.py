@@ -32,9 +32,8 @@ from numba.np.unsafe.ndarray import to_fixed_tuple
 
 from .._jit import kernel
 from . import cone, cone_starts, surface, surface_starts
-from .effects import DISSIPATIVE, EFFECT_BITS, REVOLUTIONS
+from .effects import EFFECT_BITS, REVOLUTIONS
 from .layouts import (
-    ATTITUDE,
     MODEL_BASE,
     P_G,
     P_INV_M1K,
@@ -46,7 +45,6 @@ from .layouts import (
     P_RIM,
     P_THETA_MAX,
     P_V_REST,
-    state_size,
 )
 
 # Effect bits (combine with |), from the effects table.
@@ -328,18 +326,6 @@ check_interface(MODELS)
 
 # ----------------------------------------------------------- what every model shares
 @kernel
-def quaternion_rate(r, theta, u, v, w, q0, q1, q2, q3, p, effects):
-    """qdot = 1/2 (0, omega) * q: q maps body axes to the fixed frame, omega in the fixed frame."""
-    wx, wy, wz = omega_fixed(r, theta, u, v, w, p, effects)
-    return (
-        0.5 * (-wx * q1 - wy * q2 - wz * q3),
-        0.5 * (wx * q0 + wy * q3 - wz * q2),
-        0.5 * (wy * q0 + wz * q1 - wx * q3),
-        0.5 * (wz * q0 + wx * q2 - wy * q1),
-    )
-
-
-@kernel
 def rim_margin(y, p):
     """Event function of the rim: the meridian coordinate past the rim's (:data:`.layouts.P_RIM`,
     set by the model) [m] (>= 0: the sphere has left the surface)."""
@@ -361,52 +347,3 @@ def kinetic_energy(y, p):
 def energy(y, p, effects):
     """The total energy E [J] of the state y."""
     return invariants(y, p, effects)[0]
-
-
-@kernel
-def rates5(y0, y1, y2, y3, y4, p, effects):
-    """dy/dt of a 5-component state given as scalars (a tuple)."""
-    return motion_rates(y0, y2, y3, y4, p, effects)
-
-
-@kernel
-def rates6(y0, y1, y2, y3, y4, y5, p, effects):
-    """dy/dt of the state with the work the effects took (y5)."""
-    a, b, c, d, e = motion_rates(y0, y2, y3, y4, p, effects)
-    return a, b, c, d, e, dissipated_power(y0, y2, y3, y4, p, effects)
-
-
-@kernel
-def rates9(y0, y1, y2, y3, y4, y5, y6, y7, y8, p, effects):
-    """dy/dt of a 9-component state (with the attitude quaternion) given as scalars."""
-    a, b, c, d, e = motion_rates(y0, y2, y3, y4, p, effects)
-    q0, q1, q2, q3 = quaternion_rate(y0, y1, y2, y3, y4, y5, y6, y7, y8, p, effects)
-    return a, b, c, d, e, q0, q1, q2, q3
-
-
-@kernel
-def rates10(y0, y1, y2, y3, y4, y5, y6, y7, y8, y9, p, effects):
-    """dy/dt of the state with the attitude quaternion and the work the effects took."""
-    a, b, c, d, e = motion_rates(y0, y2, y3, y4, p, effects)
-    q0, q1, q2, q3 = quaternion_rate(y0, y1, y2, y3, y4, y5, y6, y7, y8, p, effects)
-    return a, b, c, d, e, q0, q1, q2, q3, dissipated_power(y0, y2, y3, y4, p, effects)
-
-
-@kernel
-def rhs(y, p, effects, out, row):
-    """dy/dt of the scene ``effects`` into the row ``row`` of the 2-D array ``out``."""
-    a, b, c, d, e = motion_rates(y[0], y[2], y[3], y[4], p, effects)
-    out[row, 0] = a
-    out[row, 1] = b
-    out[row, 2] = c
-    out[row, 3] = d
-    out[row, 4] = e
-    if effects & ATTITUDE:
-        q0, q1, q2, q3 = quaternion_rate(y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], y[8], p,
-                                         effects)  # fmt: skip
-        out[row, 5] = q0
-        out[row, 6] = q1
-        out[row, 7] = q2
-        out[row, 8] = q3
-    if effects & DISSIPATIVE:
-        out[row, state_size(effects) - 1] = dissipated_power(y[0], y[2], y[3], y[4], p, effects)

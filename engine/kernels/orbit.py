@@ -118,6 +118,7 @@ def reduce_period(effects, p, y0, res, ev_t, ev_kind, ev_y):
     """(status, T, psi, precession, steps, drift, loss) from a run that stopped at its
     :func:`period_apsides`-th apsis. Conservative: T = twice the time to r_max, the drift
     measured at r_max; dissipative: T = the time to the next r_min, drift and loss there."""
+    literally(effects)  # the model's kernels are picked by it (a call from Python too)
     nan = math.nan
     status = res[0]
     n_acc = res[1]

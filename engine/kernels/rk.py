@@ -33,7 +33,7 @@ from numba import literally
 from .._jit import kernel
 from .branchless import pick, power
 from .layouts import ATTITUDE, state_size
-from .model import domain_floor, param_tuple, rhs
+from .model import domain_floor, param_tuple
 from .protocol import (
     BUFFER_FULL,
     EPS,
@@ -49,6 +49,7 @@ from .protocol import (
     start_protocol,
     terminal_between,
 )
+from .rates import rhs
 from .rk_codegen import controller, rk_attempt, rk_dense_stages, tableau
 from .rk_events import apsis_crossed, rk_dense, rk_dense_rate, step_events
 

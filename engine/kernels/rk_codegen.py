@@ -25,7 +25,7 @@ from numba.core import errors, types
 from numba.extending import overload
 
 from .layouts import N_BASE, state_size, state_size_of
-from .model import rates5, rates6, rates9, rates10, rhs
+from .rates import rates5, rates6, rates9, rates10, rhs
 from .tableaux import RK_TABLEAUX
 
 GEN_OPTS = {"error_model": "numpy", "fastmath": False, "nogil": True}

@@ -83,6 +83,25 @@ def _fits_from(p, q_lo, q_hi, margin):
 
 
 @kernel
+def _axis(p, lo, hi):
+    """The q in [lo, hi] where the centre reaches the axis (rho = 0; a cone's contact slant
+    a cot(alpha)), by bisection."""
+    if not math.isfinite(hi):
+        hi = max(2.0 * abs(lo), 1.0)
+        while centre(p, hi)[0] < 0.0:
+            hi *= 2.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if centre(p, mid)[0] < 0.0:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo <= 4e-16 * abs(hi):
+            break
+    return hi
+
+
+@kernel
 def set_point(p, X, i):
     """Point i's shape into p, and its meridian parameter's range (module docstring)."""
     p[P_SHAPE1] = X[X_SHAPE1, i]
@@ -102,6 +121,8 @@ def set_point(p, X, i):
         q_lo, q_hi = 0.0, rim
     else:
         q_lo, q_hi = 0.0, rim
+    if kind != CYLINDER and centre(p, q_lo)[0] < 0.0:  # the centre reaches the axis above q_lo
+        q_lo = _axis(p, q_lo, q_hi)
     floor = q_lo if kind != FUNNEL else 0.0  # a funnel's meridian goes on below its hole
     inner = q_lo
     if kind != CYLINDER:  # where the sphere stops fitting, and the axis region
@@ -123,8 +144,9 @@ def set_point(p, X, i):
 @kernel
 def launch_q(p, pos):
     """The meridian parameter q where the centre is at distance ``pos`` [m] from the axis (the
-    cylinder: at height ``pos``), by bisection on [Q_LO, Q_HI] (rho grows with q); NaN where
-    no q of the range has it."""
+    cylinder: at height ``pos``) on [Q_LO, Q_HI] (rho grows with q): Newton's steps on
+    rho(q) - pos (d rho/dq = sigma cos b) kept inside a bracket that bisection shrinks where a
+    step leaves it; NaN where no q of the range has it."""
     if p[P_KIND] == CYLINDER:
         return pos
     lo = p[P_Q_LO]
@@ -137,15 +159,23 @@ def launch_q(p, pos):
             hi *= 2.0
     if not (centre(p, lo)[0] <= pos <= centre(p, hi)[0]):
         return math.nan
+    q = 0.5 * (lo + hi)
     for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if centre(p, mid)[0] < pos:
-            lo = mid
+        rho, z, cb, sb, kappa, sigma, fit = centre(p, q)
+        f = rho - pos
+        if f < 0.0:
+            lo = q
         else:
-            hi = mid
-        if hi - lo <= 4e-16 * abs(hi):
-            break
-    return 0.5 * (lo + hi)
+            hi = q
+        slope = sigma * cb
+        step = f / slope if slope > 0.0 else math.inf
+        nxt = q - step
+        if not (lo < nxt < hi):  # outside the bracket: bisect
+            nxt = 0.5 * (lo + hi)
+        if abs(nxt - q) <= 4e-16 * abs(q) or hi - lo <= 4e-16 * abs(hi):
+            return nxt
+        q = nxt
+    return q
 
 
 @kernel

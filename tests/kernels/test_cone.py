@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from model_oracle import invariants, rhs, state_from_invariants
 
 from engine.kernels import cone, layouts, model
+from engine.kernels import rates as state_rates
 from engine.kernels.cone import coefficients, potential, radial_energy
 from engine.kernels.effects import ROLLING_EFFECTS
 from engine.kernels.geometry import ideal_orbit, scene_params
@@ -170,7 +171,7 @@ RNG = np.random.default_rng(7)
 @numba.njit
 def _rates(y, p, effects):
     out = np.empty((1, y.shape[0]))
-    model.rhs(y, p, numba.literally(effects), out, 0)
+    state_rates.rhs(y, p, numba.literally(effects), out, 0)
     return out[0]
 
 
@@ -261,7 +262,7 @@ def test_quaternion_rate_keeps_norm_and_rolls():
         alpha = RNG.uniform(0.1, 1.4)
         p = _params(Scene(a=RNG.uniform(0.001, 0.5), attitude=True), alpha)
         y = random_state(9)
-        f = rates(y, p, model.ATTITUDE)
+        f = rates(y, p, layouts.ATTITUDE)
         assert abs(y[5:] @ f[5:]) <= 1e-13 * np.linalg.norm(f[5:])
         v = np.array(cone.contact_velocity(y, f, p))
         speed = math.sqrt(y[2] ** 2 + y[3] ** 2)
@@ -273,7 +274,7 @@ def test_contact_velocity_detects_a_wrong_convention():
     alpha = 0.7
     p = _params(Scene(attitude=True), alpha)
     y = random_state(9)
-    f = rates(y, p, model.ATTITUDE)
+    f = rates(y, p, layouts.ATTITUDE)
     wx, wy, wz = (2 * c for c in cone.omega_fixed(y[0], y[1], y[2], y[3], y[4], p))
     q0, q1, q2, q3 = y[5:]
     wrong = f.copy()  # 1/2 q (0, omega): omega taken in body axes
@@ -304,7 +305,7 @@ def test_effects_mask_and_state_size():
     assert sc.effects_mask == ROLLING_EFFECTS
     assert Scene(rim=1.0).effects_mask == model.RIM
     assert layouts.state_size(0) == 5
-    assert layouts.state_size(model.ATTITUDE) == 9
+    assert layouts.state_size(layouts.ATTITUDE) == 9
 
 
 def test_parameter_array_layout():

@@ -7,7 +7,7 @@ import pytest
 from cases import HARD, P003, integrate
 
 import engine
-from engine.kernels.orbit import initial_state, orbit_start
+from engine.kernels.cone_starts import initial_state, orbit_start
 from engine.kernels.rk import rk_fixed
 from engine.kernels.tableaux import RK_TABLEAUX
 from engine.scene import Scene
