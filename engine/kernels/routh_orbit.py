@@ -65,7 +65,7 @@ from .routh import (
     radial_f,
 )
 from .routh_quad import quadrature, radial_period
-from .routh_well import circular_q, value, well, well_root
+from .routh_well import NARROWER, circular_q, value, well, well_root
 from .surface_starts import X_POS, X_U, X_V, X_W, launch_q
 
 #: Doublings towards infinity before F(inf) decides.
@@ -172,7 +172,11 @@ def _in_well(p, edges, coef, meta, c1, c2, e0, q0, u0, qc, hw, x1, x2):
     turning points near x1, x2 in x = (q - q_c)/hw); ok False where the well's series do not
     converge or its turning points are not inside it."""
     nan = math.nan
-    H, g, S, R, tail = well(p, edges, coef, meta, c1, c2, qc, hw)
+    rho, z, cb, sb, kap, sig, fit = centre(p, qc)
+    narrow = hw * sig <= NARROWER * rho
+    H, g, S, R, tail = well(p, edges, coef, meta, c1, c2, qc, hw, narrow)
+    if narrow and not tail <= WELL_TOL:  # the wider rule
+        H, g, S, R, tail = well(p, edges, coef, meta, c1, c2, qc, hw, False)
     if not tail <= WELL_TOL:
         return False, nan, nan, nan, nan
     delta = u0 * u0 + value(H, (q0 - qc) / hw)
