@@ -254,8 +254,9 @@ def test_funnel_escape_speed():
 def test_classes_at_the_ends():
     """A bowl's rim spills; a measured trough z = A (rho - 0.5)^2 - B (rho - 0.5)^3 on
     [0.5, 1.5] curves more sharply than the ball near its inner edge (unfit there: the ball
-    wedges), while a launch that stays clear of it is bounded; a launch off the surface or
-    not finite is no orbit."""
+    wedges), while a launch that stays clear of it is bounded; the circular orbits of
+    z = -c/rho^3 are unstable; a point particle on a cylinder falls (hyperbolic); a launch off
+    the surface or not finite is no orbit."""
     o = orbits(mer.BOWL, (1.0, 0.0), [(0.5, 3.0, 0.0, 0.0)], rim=0.8)[0]
     assert o["class"] == "spills"
     p = params(mer.BOWL, rim=0.8)
@@ -269,6 +270,19 @@ def test_classes_at_the_ends():
     X = np.array([[0.5, 1.5, 1.0, 0.3, 0.0, -2.0], [0.5, 1.5, 1.0, 6.5, 0.0, 0.0]]).T
     wedged, clear = routh.exact_map(p, X)["orbit_class"]
     assert CLASS_NAMES[wedged] == "unfit" and CLASS_NAMES[clear] == "bounded"
+    # z = -c/rho^3 (a profile): its circular orbits are unstable (U'' < 0 where U' = 0)
+    p = params(mer.PROFILE, a=0.01)
+    lo, hi, c = 0.5, 3.0, 0.05
+    fit = np.polynomial.chebyshev.Chebyshev.interpolate(lambda r: -c / r**3, 23, domain=[lo, hi])
+    p[mer.P_CHEB : mer.P_CHEB + 24] = fit.coef
+    set_point(p, np.array([[lo, hi, 1.0, 0.0, 0.0]]).T, 0)
+    rho, z, cb, sb = mer.centre(p, launch_q(p, 1.0))[:4]
+    vc = math.sqrt(9.81 * rho * sb / (cb * 1.4))
+    X = np.array([[lo, hi, 1.0, vc, 0.0, 0.0]]).T
+    assert CLASS_NAMES[routh.exact_map(p, X)["orbit_class"][0]] == "unstable_circular"
+    # a point particle on a cylinder (k = 0) falls for ever: no turning point below
+    o = orbits(mer.CYLINDER, (0.5, 0.0), [(0.0, 1.0, 0.3, 0.0)], k=0.0)[0]
+    assert o["class"] == "hyperbolic" and o["rho_max"] == 0.0
     bad = orbits(mer.BOWL, (1.0, 0.0), [(2.0, 1.0, 0.0, 0.0), (0.3, math.nan, 0.0, 0.0),
                                         (0.0, 1.0, 0.0, 0.0)], rim=0.8)  # fmt: skip
     assert [o["class"] for o in bad] == ["no_orbit"] * 3

@@ -11,18 +11,25 @@ a linear system whose coefficients depend on the surface only (Routh). Its funda
 Phi (Phi(q_ref) = I, det Phi = 1) is built once per surface (``engine.routh``) as Chebyshev
 panels in the meridian parameter q (and in x = 1/q on an infinite tail) and reaches the
 kernels as three arrays, a *table*: ``edges`` (the panels' ends in q, ascending; the last may be
-inf), ``coef`` [panel, NC, 4] (the Chebyshev coefficients of Phi11, Phi12, Phi21, Phi22 in the
-panel's variable mapped to [-1, 1]) and ``meta`` (:data:`META`). The table's variables (its
-*mode*): (L, W) with W = w - L tan(b)/rho, which are the cone's constants L_z/M and h (there
-kappa = 0: Phi = I), or (L, w) on the bowl (regular up to its equator, where tan b diverges),
-or the cylinder's closed form (L constant, w linear in the height: no panels).
+inf), ``coef`` [panel, NC, 4] (the Chebyshev coefficients of Phi - I: Phi11 - 1, Phi12, Phi21,
+Phi22 - 1, in the panel's variable mapped to [-1, 1]; Phi - I keeps its digits where Phi ~ I)
+and ``meta`` (:data:`META`). The table's variables (its *mode*): (L, W) with W = w - L
+tan(b)/rho, which are the cone's constants L_z/M and h (there kappa = 0: Phi = I exactly, no
+coefficient), or (L, w) on the bowl (regular up to its equator, where tan b diverges), or the
+cylinder's closed form (L constant, w linear in the height: no panels). In (L, W)
+
+    dL/ds = -k' kappa (tan(b) L + rho W),   dW/ds = kappa tan(b) (k' W - L tan(b)/((1+k) rho)),
+
+every coefficient a multiple of kappa, regular at a smooth axis (tan(b)/rho -> kappa there).
 
 An orbit's two linear integrals are the constants c = Phi(q0)^-1 (L0, W0) of its launch. What
 is left is the radial problem of one degree of freedom, u = ds/dt:
 
     u^2 = F(q) = e - U(q),  U = [k w^2 + 2 g z] / (1+k) + L^2/rho^2,  e = u0^2 + U(q0),
 
-solved by :mod:`.routh_orbit` (turning points, radial period, apsidal angle).
+(the energy; du/dt = -U'(s)/2 is the rolling equations' meridian acceleration), solved by
+:mod:`.routh_orbit` (turning points, classes), :mod:`.routh_quad` (period, apsidal angle) and
+:mod:`.routh_well` (narrow orbits).
 
 **The integrals' normalisation** (``routh_L`` [kg m^2/s], ``routh_w`` [m/s]): M L and
 w - L tan(b)/rho of the orbit's solution at the surface's reference point q_ref: the inner end

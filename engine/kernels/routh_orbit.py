@@ -65,7 +65,7 @@ from .routh import (
     radial_f,
 )
 from .routh_quad import quadrature, radial_period
-from .routh_well import circular_q, value, well, well_root
+from .routh_well import NARROWER, circular_q, value, well, well_root
 from .surface_starts import X_POS, X_U, X_V, X_W, launch_q
 
 #: Doublings towards infinity before F(inf) decides.
@@ -81,11 +81,15 @@ ECCENTRIC = 4.0
 
 
 @kernel
-def _root(p, edges, coef, meta, c1, c2, e0, qa, fa, qb, fb):
-    """The root of F between qa (F = fa >= 0) and qb (F = fb < 0): Newton kept in the bracket."""
-    q = qb - fb * (qb - qa) / (fb - fa)  # the secant; the middle where qa is a root itself
-    if not (fa > 0.0 and min(qa, qb) < q < max(qa, qb)):  # (the launch: F = 0 there)
-        q = 0.5 * (qa + qb)
+def _root(p, edges, coef, meta, c1, c2, e0, qa, fa, qb, fb, guess):
+    """The root of F between qa (F = fa >= 0) and qb (F = fb < 0): Newton kept in the bracket,
+    from ``guess`` where it lies inside, else from the secant point, or the middle where qa
+    is a root itself (the launch: F = 0 there; the secant would return it)."""
+    q = guess
+    if not (min(qa, qb) < q < max(qa, qb)):
+        q = qb - fb * (qb - qa) / (fb - fa)
+        if not (fa > 0.0 and min(qa, qb) < q < max(qa, qb)):
+            q = 0.5 * (qa + qb)
     for _ in range(100):
         F, Fq, sig, lr2, rho, z = radial_f(p, edges, coef, meta, c1, c2, e0, q)
         if F == 0.0:
@@ -104,17 +108,19 @@ def _root(p, edges, coef, meta, c1, c2, e0, qa, fa, qb, fb):
 
 
 @kernel
-def _turn(p, edges, coef, meta, c1, c2, e0, q0, q_end, axis_end, hint):
-    """(found, q): the first root of F from q0 (F >= 0) towards the end q_end, or (False,
-    q_end) where F stays >= 0 to the end (module docstring). ``hint``: a first sample beyond
-    the root q0 + hint (from the harmonic estimate of the well; 0: none), used where it is on
-    the way to the end and F < 0 there."""
-    qp = q0
-    fp = max(radial_f(p, edges, coef, meta, c1, c2, e0, q0)[0], 0.0)
+def _turn(p, edges, coef, meta, c1, c2, e0, q0, f0, q_end, axis_end, hint):
+    """(found, q): the first root of F from q0 (F = f0 >= 0) towards the end q_end, or (False,
+    q_end) where F stays >= 0 to the end (module docstring). ``hint``: from a launch at a
+    turning point, 2.5 times the way to the harmonic well's centre: a first sample beyond the
+    other root, used where it is on the way to the end and F < 0 there (Newton then starts at
+    the harmonic estimate, 0.8 hint)."""
+    qp, fp = q0, f0
+    nan = math.nan
     if hint != 0.0 and (q0 + hint - q_end) * hint < 0.0:
         f = radial_f(p, edges, coef, meta, c1, c2, e0, q0 + hint)[0]
         if f < 0.0:
-            return True, _root(p, edges, coef, meta, c1, c2, e0, q0, fp, q0 + hint, f)
+            return True, _root(p, edges, coef, meta, c1, c2, e0, q0, fp, q0 + hint, f,
+                               q0 + 0.8 * hint)  # fmt: skip
     if math.isfinite(q_end):
         span = q_end - q0
         frac = 1.0 / 128.0
@@ -125,13 +131,13 @@ def _turn(p, edges, coef, meta, c1, c2, e0, q0, q_end, axis_end, hint):
                 break
             f = radial_f(p, edges, coef, meta, c1, c2, e0, q)[0]
             if f < 0.0:
-                return True, _root(p, edges, coef, meta, c1, c2, e0, qp, fp, q, f)
+                return True, _root(p, edges, coef, meta, c1, c2, e0, qp, fp, q, f, nan)
             qp, fp = q, f
         if axis_end:  # the barrier at the axis is closer than 2^-200 of the way: none
             return False, q_end
         f = radial_f(p, edges, coef, meta, c1, c2, e0, q_end)[0]
         if f < 0.0:
-            return True, _root(p, edges, coef, meta, c1, c2, e0, qp, fp, q_end, f)
+            return True, _root(p, edges, coef, meta, c1, c2, e0, qp, fp, q_end, f, nan)
         return False, q_end
     up = q_end > 0.0
     d = max(abs(q0), meta[RHO_CYL] if meta[MODE] == MODE_CYLINDER else 1e-300) / 16.0
@@ -148,7 +154,7 @@ def _turn(p, edges, coef, meta, c1, c2, e0, q0, q_end, axis_end, hint):
             return False, q_end
         f = radial_f(p, edges, coef, meta, c1, c2, e0, q)[0]
         if f < 0.0:
-            return True, _root(p, edges, coef, meta, c1, c2, e0, qp, fp, q, f)
+            return True, _root(p, edges, coef, meta, c1, c2, e0, qp, fp, q, f, nan)
         qp, fp = q, f
     return False, q_end
 
@@ -166,7 +172,11 @@ def _in_well(p, edges, coef, meta, c1, c2, e0, q0, u0, qc, hw, x1, x2):
     turning points near x1, x2 in x = (q - q_c)/hw); ok False where the well's series do not
     converge or its turning points are not inside it."""
     nan = math.nan
-    H, g, S, R, tail = well(p, edges, coef, meta, c1, c2, qc, hw)
+    rho, z, cb, sb, kap, sig, fit = centre(p, qc)
+    narrow = hw * sig <= NARROWER * rho
+    H, g, S, R, tail = well(p, edges, coef, meta, c1, c2, qc, hw, narrow)
+    if narrow and not tail <= WELL_TOL:  # the wider rule
+        H, g, S, R, tail = well(p, edges, coef, meta, c1, c2, qc, hw, False)
     if not tail <= WELL_TOL:
         return False, nan, nan, nan, nan
     delta = u0 * u0 + value(H, (q0 - qc) / hw)
@@ -223,11 +233,12 @@ def orbit(p, edges, coef, meta, q0, u0, v0, w0):
     elif u0 == 0.0 and Us0 < 0.0:
         found1, q1 = True, q0
     else:
-        found1, q1 = _turn(p, edges, coef, meta, c1, c2, e0, q0, lo_end, axis, hint)
+        found1, q1 = _turn(p, edges, coef, meta, c1, c2, e0, q0, u0 * u0, lo_end, axis, hint)
     if u0 == 0.0 and Us0 > 0.0:
         found2, q2 = True, q0
     else:
-        found2, q2 = _turn(p, edges, coef, meta, c1, c2, e0, q0, meta[Q_B], False, hint)
+        found2, q2 = _turn(p, edges, coef, meta, c1, c2, e0, q0, u0 * u0, meta[Q_B], False,
+                           hint)  # fmt: skip
     rmin = _position(p, meta, q1) if found1 or not axis else 0.0
     outer = meta[OUTER]
     rmax = _position(p, meta, q2) if found2 or outer == END_RIM else math.inf
@@ -245,9 +256,7 @@ def orbit(p, edges, coef, meta, q0, u0, v0, w0):
     if radial and axis:
         T = radial_period(p, edges, coef, meta, c2, e0, q1, q2)
         return RADIAL, 0.0, rmax, T, nan, nan, IL, Iw
-    rho_m, z_m, sb_m, cb_m, kap_m, sig_m, L_m, w_m = along(p, edges, coef, meta, c1, c2,
-                                                           0.5 * (q1 + q2))  # fmt: skip
-    if (q2 - q1) * sig_m <= NARROW * rho_m:  # a narrow orbit: its well (.routh_well)
+    if (q2 - q1) * sig0 <= NARROW * rho0:  # a narrow orbit: its well (.routh_well)
         qc = circular_q(p, edges, coef, meta, c1, c2, q1, q2)
         hw = 0.6 * (q2 - q1) + abs(0.5 * (q1 + q2) - qc)
         ok, rmin2, rmax2, T, psi = _in_well(p, edges, coef, meta, c1, c2, e0, q0, u0, qc, hw,

@@ -10,11 +10,12 @@ which has no such cancellation (:func:`.routh.potential_ss`):
 
     U(q) - U(q_c) = H(q) = int_{q_c}^q sigma(q') g(q') dq',   g(q') = int_{q_c}^{q'} sigma U'' dq''
 
-(g = dU/ds), each integral a Chebyshev series on :data:`NL` points of the first kind,
-integrated exactly. With delta = u0^2 + H(q0), F = delta - H(q) holds to the rounding of delta
-and H themselves: turning points, period and apsidal angle keep every digit however narrow the
-orbit. sigma and L/rho^2 come as series on the same points. :func:`well` reports the size of
-the series' trailing coefficients; the orbit uses the model only where they are negligible.
+(g = dU/ds), each integral a Chebyshev series on :data:`NL` points of the first kind
+(:data:`NL_NARROW` for the narrowest), integrated exactly. With delta = u0^2 + H(q0),
+F = delta - H(q) holds to the rounding of delta and H themselves: turning points, period and
+apsidal angle keep every digit however narrow the orbit. sigma and L/rho^2 come as series on
+the same points. :func:`well` reports the size of the series' trailing coefficients; the orbit
+uses the model only where they are negligible.
 """
 
 from __future__ import annotations
@@ -26,22 +27,33 @@ import numpy as np
 from .._jit import kernel
 from .routh import along, potential, potential_ss
 
-#: Points of the well's Chebyshev series.
+#: Points of the well's Chebyshev series (:data:`NL_NARROW` for a well narrower than
+#: :data:`NARROWER` of its distance from the axis).
 NL = 16
-_THETA = np.pi * (np.arange(NL) + 0.5) / NL
-XI = np.cos(_THETA)
-_V2C = np.cos(np.outer(np.arange(NL), _THETA)) * (2.0 / NL)
-_V2C[0] *= 0.5
+NL_NARROW = 8
+NARROWER = 0.02
+
+
+def _points(n: int) -> tuple[np.ndarray, np.ndarray]:
+    theta = np.pi * (np.arange(n) + 0.5) / n
+    v2c = np.cos(np.outer(np.arange(n), theta)) * (2.0 / n)
+    v2c[0] *= 0.5
+    return np.cos(theta), v2c
+
+
+XI, _V2C = _points(NL)
+_XI8, _V2C8 = _points(NL_NARROW)
 
 
 @kernel
-def _fit(v):
-    """Chebyshev coefficients of the values v at the points XI."""
-    c = np.zeros(NL)
-    for k in range(NL):
+def _fit(v, v2c):
+    """Chebyshev coefficients of the values v at the points of ``v2c`` (values -> coefficients)."""
+    n = v.shape[0]
+    c = np.zeros(n)
+    for k in range(n):
         s = 0.0
-        for j in range(NL):
-            s += _V2C[k, j] * v[j]
+        for j in range(n):
+            s += v2c[k, j] * v[j]
         c[k] = s
     return c
 
@@ -101,25 +113,28 @@ def circular_q(p, edges, coef, meta, c1, c2, q1, q2):
 
 
 @kernel
-def well(p, edges, coef, meta, c1, c2, qc, hw):
+def well(p, edges, coef, meta, c1, c2, qc, hw, narrow):
     """(H, g, sigma, L/rho^2, tail): Chebyshev series in x = (q - q_c)/hw of the well (module
-    docstring) and the largest relative size of their trailing coefficients."""
-    f = np.empty(NL)
-    sg = np.empty(NL)
-    lr = np.empty(NL)
-    for j in range(NL):
-        rho, z, sb, cb, kap, sig, L, dw = along(p, edges, coef, meta, c1, c2, qc + hw * XI[j])
+    docstring; on NL_NARROW points where ``narrow``, else NL) and the largest relative size of
+    their trailing coefficients."""
+    xi, v2c = (_XI8, _V2C8) if narrow else (XI, _V2C)
+    n = xi.shape[0]
+    f = np.empty(n)
+    sg = np.empty(n)
+    lr = np.empty(n)
+    for j in range(n):
+        rho, z, sb, cb, kap, sig, L, dw = along(p, edges, coef, meta, c1, c2, qc + hw * xi[j])
         f[j] = sig * potential_ss(p, rho, sb, cb, kap, L, c2 + dw)
         sg[j] = sig
         lr[j] = L / (rho * rho)
-    a1 = _fit(f)
+    a1 = _fit(f, v2c)
     g = _integral(a1, hw)
-    for j in range(NL):
-        f[j] = sg[j] * value(g, XI[j])
-    a2 = _fit(f)
+    for j in range(n):
+        f[j] = sg[j] * value(g, xi[j])
+    a2 = _fit(f, v2c)
     H = _integral(a2, hw)
-    S = _fit(sg)
-    R = _fit(lr)
+    S = _fit(sg, v2c)
+    R = _fit(lr, v2c)
     tail = max(max(_tail(a1), _tail(a2)), max(_tail(S), _tail(R)))
     return H, g, S, R, tail
 

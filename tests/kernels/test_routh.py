@@ -169,7 +169,7 @@ def test_well_is_the_potential():
     qc = circular_q(p, t.edges, t.coef, t.meta, c1, c2, 0.1, 1.5)
     assert abs(U(qc)[1]) <= 1e-14 * abs(U(0.1)[1])
     hw = 0.05 * qc
-    H, g, S, R, tail = well(p, t.edges, t.coef, t.meta, c1, c2, qc, hw)
+    H, g, S, R, tail = well(p, t.edges, t.coef, t.meta, c1, c2, qc, hw, False)
     assert tail <= 1e-14
     for x in (-1.0, -0.5, 0.3, 0.9):
         q = qc + hw * x
