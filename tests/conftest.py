@@ -24,6 +24,8 @@ SLOW = {
     "test_enospc.py",
     "test_package_writes.py",
     "test_report_browser.py",
+    "test_surface_oracle.py::test_reduction_on_the_cone_meets_every_shared_case",
+    "test_surface_oracle.py::test_stored_reference_every_case",
 }
 
 
