@@ -131,6 +131,8 @@ def _inspect(
     stored = plan.store.tiling
     if block_points is not None and stored != Tiling.for_grid(run.shape, block_points):
         warn(f"resuming with the unfinished run's block size {math.prod(stored.block):,}")
+    if (expect := getattr(plan.store, "expect", None)) is not None:
+        expect(run)  # what the store must hold besides its blocks (Zarr: its metadata)
     plan.scan = plan.store.scan()
     return plan
 
@@ -212,9 +214,11 @@ def run_survey(
         raise RunError(f"output directory does not exist: {out.parent}")
     if why := fmt.unavailable():
         raise RunError(why)  # an optional dependency: refused before anything is written
-    with _take_lock(out, command):
+    stores: list[Any] = []  # whose held files are let go when the run ends, however
+    with _take_lock(out, command), _letting_go(stores):
         asked = None if block_points is None else run.output.block_points
         plan = _inspect(out, run, overwrite, asked, warn)
+        stores.append(plan.store)
         tiling = (
             plan.store.tiling
             if plan.store is not None
@@ -242,6 +246,7 @@ def run_survey(
             raise RunFailed(f"{exc}; nothing was written") from None
         try:
             store = _prepare(out, run, plan, tiling, warn)
+            stores.append(store)
             once = dict(fingerprint=plan.fp, command=command, overwrite=overwrite)
             blocks = _compute(store, backend, run, pending, len(done), progress, on_block)
             ended: list[float] = []  # when the last block was stored
@@ -271,6 +276,18 @@ def run_survey(
         blocks_reused=len(done),
         path=out,
     )
+
+
+@contextlib.contextmanager
+def _letting_go(stores: list[Any]) -> Iterator[None]:
+    """Let go, at the end, of the files the ``stores`` hold (a Zarr run holds its files from
+    when it checked them to its commit: :mod:`engine.io.hold`)."""
+    try:
+        yield
+    finally:
+        for store in stores:
+            if (release := getattr(store, "release", None)) is not None:
+                release()
 
 
 def _prepare(

@@ -51,7 +51,6 @@ from .chunkfile import block_codec
 from .codecs import COMPRESSIONS, DEFAULT_COMPRESSION, level
 from .manifest import Manifest
 from .space import output_bytes
-from .zarrlayout import ZarrView
 from .zarrstore import RunStore
 
 __all__ = ["FORMATS", "OutputFormat", "format_for", "formats_text", "register", "unregister"]
@@ -182,7 +181,7 @@ ZARR = OutputFormat(
     run_bytes=_zarr_run_bytes,
     output_bytes=_lazy(".zarr", "output_bytes"),
     open_result=_lazy(".results", "open_zarr"),
-    open_view=ZarrView,
+    open_view=_lazy(".zarr", "open_view"),
     write_copy=_lazy(".convert", "to_zarr"),
     write_survey=_lazy(".zarr", "write_survey"),
 )
