@@ -49,11 +49,12 @@ from .io.blocks import BlockStore, Scan, check_parts_dir, remove_store
 from .io.codecs import level
 from .io.leftovers import is_debris
 from .io.lock import Locked, LockError, OutputLock, describe_holder
-from .io.manifest import fingerprint, parts_dir, read_manifest
+from .io.manifest import fingerprint, parts_dir, read_manifest, survey_families
 from .io.space import free_bytes
 from .io.summary import Summary
 from .io.zarrstore import RunStore
 from .plan import RunPlan, plan_from_survey
+from .precision import PrecisionError
 from .progress import format_bytes
 from .runstats import AlreadyComplete, RunError, RunFailed, RunStats
 
@@ -239,6 +240,11 @@ def run_survey(
         compiling = getattr(progress, "compiling", contextlib.nullcontext)
         with compiling():  # a first run's compile is announced, not a silent wait
             evaluate_block(run, tuple(slice(0, 1) for _ in run.dims))
+        if run.output.precision == "single":  # r_circ, V_min: checked before anything is written
+            try:
+                survey_families(run)
+            except PrecisionError as exc:
+                raise RunError(str(exc)) from None
         t0 = time.perf_counter()
         try:
             backend = open_backend(scheduler, workers)
@@ -256,6 +262,8 @@ def run_survey(
                 pending=pending, incoming=incoming, warn=warn,
             )  # fmt: skip
             t1 = ended[0] if ended else t0
+        except PrecisionError as exc:  # a value the survey's precision cannot hold
+            raise RunError(_refused_late(stores, exc)) from None
         finally:
             backend.close()
         try:
@@ -276,6 +284,17 @@ def run_survey(
         blocks_reused=len(done),
         path=out,
     )
+
+
+def _refused_late(stores: list[Any], exc: PrecisionError) -> str:
+    """The refusal of a survey found while it ran (a value ``precision = "single"`` cannot
+    store: the same command would meet it again, and a survey of another precision resumes
+    nothing): the run's store removed, nothing left under the output's name."""
+    store = stores[-1] if stores else None
+    if store is None:
+        return str(exc)
+    store.remove()
+    return f"{exc}; the blocks computed so far were removed (nothing to resume)"
 
 
 @contextlib.contextmanager

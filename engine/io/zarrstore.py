@@ -360,9 +360,11 @@ def _separator(meta: dict) -> str | None:
 
 
 def parts_state(root: Path) -> dict[str, Any]:
-    """What an unfinished Zarr run says (``read_info``): OutputError if it cannot be read.
-    Blocks are counted from the journal, not verified."""
+    """What an unfinished Zarr run says (``read_info``): OutputError if it cannot be read, or
+    cannot be resumed (what :meth:`RunStore.open` refuses: the rerun's refusal). Blocks are
+    counted from the journal, not verified."""
     m = read_manifest(root)
+    RunStore.open(root)  # what the rerun opens; its metadata it makes whole again
     journal = read_journal(root, list(m.names), m.tiling.nblocks)
     return {
         "complete": False,
