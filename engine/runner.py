@@ -264,6 +264,8 @@ def run_survey(
             t1 = ended[0] if ended else t0
         except PrecisionError as exc:  # a value the survey's precision cannot hold
             raise RunError(_refused_late(stores, exc)) from None
+        except ValueError as exc:  # from what was written (a damaged store), not the survey's
+            raise RunFailed(f"the run stopped after it began to write ({exc})") from None
         finally:
             backend.close()
         try:

@@ -237,3 +237,44 @@ def test_convert_of_a_damaged_store_is_one_line(work, capsys, reference, damage)
     status, out, err = cli(capsys, "convert", "out.zarr", "out.nc")
     assert status == 2 and err.startswith("conesurvey: error: ") and err.count("\n") == 1, err
     assert "Traceback" not in err and not (work / "out.nc").exists(), err
+
+
+def test_any_value_error_after_writing_began_is_not_blamed_on_the_survey(work, capsys, monkeypatch):
+    """What a damaged store made zarr raise in the commit before the commit checked it (a
+    JSONDecodeError is a ValueError): exit 1, resumable, the survey file not named."""
+    from engine.io import zarr as zarr_io
+
+    def damaged(*args, **kwargs):
+        raise json.JSONDecodeError("Expecting ':' delimiter", "{}", 1)
+
+    monkeypatch.setattr(zarr_io, "commit_store", damaged)
+    status, _, err = cli(capsys, *ARGS)
+    assert status == 1 and "Expecting ':' delimiter" in err and "s.toml" not in err, err
+    assert "the run is resumable" in err and err.count("\n") == 1, err
+    monkeypatch.undo()
+    monkeypatch.chdir(work)
+    status, _, err = cli(capsys, *ARGS)
+    assert status == 0, err
+
+
+def _record_damaged(parts: Path) -> None:
+    (parts / "commit.json").write_text("{not json")
+
+
+def _store_a_file(parts: Path) -> None:
+    shutil.rmtree(parts / "store.zarr")
+    (parts / "store.zarr").write_text("not a store")
+
+
+@pytest.mark.parametrize("damage", [_record_damaged, _store_a_file], ids=["record", "store"])
+def test_info_says_what_the_rerun_does(work, capsys, partial, damage):
+    """An unfinished run the rerun cannot resume: ``info`` says so (and how out), the rerun
+    refuses for the same reason, and what ``info`` advises then works."""
+    shutil.copytree(partial, work / "out.zarr.parts")
+    damage(work / "out.zarr.parts")
+    _, out, _ = cli(capsys, "info", "out.zarr")
+    assert "cannot be resumed" in out and "--overwrite" in out, out
+    status, _, err = cli(capsys, *ARGS)
+    assert status == 2 and "cannot resume" in err and "--overwrite" in err, err
+    status, _, err = cli(capsys, *ARGS, "--overwrite")
+    assert status == 0, err
