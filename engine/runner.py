@@ -141,7 +141,7 @@ def _inspect(
 def _check_space(out: Path, run: RunPlan, tiling: Tiling, pending: list[int]) -> None:
     """RunError unless the blocks still to compute and the output merged beside all of them
     fit on the output's file system."""
-    blocks, merged = run.output.format.run_bytes(run.variables, tiling, pending)
+    blocks, merged = run.output.format.run_bytes(run, tiling, pending, out.parent)
     free = shutil.disk_usage(out.parent).free
     if blocks + merged > free:
         raise RunError(

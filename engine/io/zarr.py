@@ -297,6 +297,9 @@ def open_view(path: Path) -> ZarrView:
     consolidated metadata (damaged: ``info --verify`` says so too)."""
     path = Path(path)
     check_tree(path)
+    attrs = read_meta(path / META).get("attributes")
+    if isinstance(attrs, dict) and UNFINISHED_ATTR in attrs:
+        raise OutputError(f"{path} is an unfinished run's store; finish the run first")
     if problem := metadata_problem(path):
         raise OutputError(f"{path} is damaged: {problem}")
     return ZarrView(path)
