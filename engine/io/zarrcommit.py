@@ -201,16 +201,12 @@ def commit_store(
     record: tuple[Path, str] | None = None,
 ) -> tuple[str, bytes]:
     """The final commit of the store ``path`` (steps 1 and 2 above), whose files were checked
-    against its skeleton ``files``: debris of dead writers removed, the root's attributes
+    against its skeleton ``files`` (:func:`engine.io.zarrverify.check_store`, which also
+    removed the debris of dead writers and refused anything else): the root's attributes
     replaced by ``attrs`` plus the content checksum (``hasher``, whose values were all added;
     the arrays' headers from ``files``, not from the disk), the consolidated metadata (from
     ``files``), all durable. ``record``: (the run's directory, the run's id) where a commit
     record is kept. Returns the checksum and the root's new bytes."""
-    check_tree(path)
-    for dirpath, _, filenames in os.walk(path):
-        for name in filenames:
-            if name.startswith(".") and name.endswith(".tmp"):
-                os.unlink(Path(dirpath) / name)
     final = {k: json_attr(v) for k, v in attrs.items() if k != CHECKSUM_ATTR}
     final[CHECKSUM_ATTR] = hasher.finish(ZarrView(path, final, files=files))
     root = {

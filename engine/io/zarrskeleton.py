@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import os
 import shutil
-import stat
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -143,29 +142,38 @@ def _dirs(keys: Iterable[str]) -> set[str]:
     return out
 
 
-def extra_entries(store: Path, expected: Iterable[str], chunks: Iterable[str]) -> list[str]:
+def extra_entries(
+    store: Path,
+    expected: Iterable[str],
+    chunks: Iterable[str],
+    temporaries: list[str] | None = None,
+) -> list[str]:
     """The entries of ``store`` (relative paths, not followed) that are neither a skeleton key
     (``expected``), a chunk key of a block (``chunks``), a directory leading to one, nor a
-    writer's temporary file (``.NAME.<hex>.tmp``, removed by the commit): what the run did not
-    write. A link, a FIFO or a device at any name is one."""
+    writer's temporary file (``.NAME.<hex>.tmp``, put in ``temporaries`` if given): what the
+    run did not write. A link, a FIFO or a device at any name is one. One pass of ``scandir``
+    (the kinds come with the names: no ``stat`` a file)."""
     files = set(expected) | set(chunks)
     dirs = _dirs(files)
-    extra = []
-    for dirpath, dirnames, filenames in os.walk(store, followlinks=False):
-        rel = Path(dirpath).relative_to(store).as_posix()
-        prefix = "" if rel == "." else rel + "/"
-        for name in list(dirnames):
-            key = prefix + name
-            if key not in dirs or os.path.islink(store / key):
-                extra.append(key)
-                dirnames.remove(name)
-        for name in filenames:
-            key = prefix + name
-            if name.startswith(".") and name.endswith(".tmp"):
-                continue
-            mode = os.lstat(store / key).st_mode
-            if key not in files or not stat.S_ISREG(mode):
-                extra.append(key)
+    extra: list[str] = []
+    todo = [("", str(store))]
+    while todo:
+        prefix, path = todo.pop()
+        with os.scandir(path) as entries:
+            for entry in entries:
+                key = prefix + entry.name
+                if entry.is_dir(follow_symlinks=False):
+                    if key in dirs:
+                        todo.append((key + "/", entry.path))
+                    else:
+                        extra.append(key)
+                elif not entry.is_file(follow_symlinks=False):
+                    extra.append(key)
+                elif entry.name.startswith(".") and entry.name.endswith(".tmp"):
+                    if temporaries is not None:
+                        temporaries.append(key)
+                elif key not in files:
+                    extra.append(key)
     return sorted(extra)
 
 

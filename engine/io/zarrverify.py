@@ -102,14 +102,19 @@ def check_store(
     SHA-256 its receipt records. Every file is then held, or was hashed here."""
     blocks = sorted(receipts)
     chunks = [k for i in blocks for k in keys(i)]
-    if extra := extra_entries(store, files, chunks):
+    debris: list[str] = []  # writers that died midway left these: removed
+    extra = extra_entries(store, files, chunks, debris)
+    for key in debris:
+        os.unlink(store / key)
+    if extra:
         more = f" (and {len(extra) - 1} more)" if len(extra) > 1 else ""
         raise OutputError(f"{store} holds {extra[0]}{more}, which the run did not write; "
                           "the next run removes it")  # fmt: skip
+    where = f"{store}/"
     for key, data in files.items():
-        if key != META and not held.intact(key, store / key):  # the root: replaced next
+        if key != META and not held.intact(key, where + key):  # the root: replaced next
             hold_file(held, store, key, data)
-    todo = [i for i in blocks if not all(held.intact(k, store / k) for k in keys(i))]
+    todo = [i for i in blocks if not all(held.intact(k, where + k) for k in keys(i))]
     for i in todo:
         for key in keys(i):
             held.drop(key)
@@ -135,8 +140,9 @@ def check_store(
 def check_held(held: HeldFiles, store: Path) -> None:
     """OutputError unless every file ``held`` holds is still held, unbroken, under its name
     in ``store``."""
+    where = f"{store}/"
     for key in held.keys():
-        if not held.intact(key, store / key):
+        if not held.intact(key, where + key):
             raise OutputError(
                 f"{key} of {store} was opened for writing or replaced during the commit; "
                 "the next run checks it again"

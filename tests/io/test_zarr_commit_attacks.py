@@ -277,7 +277,8 @@ def test_a_change_between_the_write_and_the_lease_is_caught(work, capsys):
     proc = subprocess.run([sys.executable, "-c", BEFORE_LEASE, *ARGS], cwd=work, env=runs.env(),
                           capture_output=True, text=True, timeout=300)  # fmt: skip
     assert proc.returncode == 1, proc.stderr
-    assert "changed while it was written" in proc.stderr and proc.stderr.count("\n") == 1
+    err = proc.stderr
+    assert "changed while it was written" in err and err.count("\n") == 1, err
     assert not os.path.lexists(work / "out.zarr")
     status, _, err = cli(capsys, *ARGS)
     assert status == 0, err
