@@ -216,7 +216,7 @@ def run_survey(
     if why := fmt.unavailable():
         raise RunError(why)  # an optional dependency: refused before anything is written
     stores: list[Any] = []  # whose held files are let go when the run ends, however
-    with _take_lock(out, command), _letting_go(stores):
+    with _take_lock(out, command), _ending(stores):
         asked = None if block_points is None else run.output.block_points
         plan = _inspect(out, run, overwrite, asked, warn)
         stores.append(plan.store)
@@ -241,10 +241,7 @@ def run_survey(
         with compiling():  # a first run's compile is announced, not a silent wait
             evaluate_block(run, tuple(slice(0, 1) for _ in run.dims))
         if run.output.precision == "single":  # r_circ, V_min: checked before anything is written
-            try:
-                survey_families(run)
-            except PrecisionError as exc:
-                raise RunError(str(exc)) from None
+            survey_families(run)
         t0 = time.perf_counter()
         try:
             backend = open_backend(scheduler, workers)
@@ -262,10 +259,9 @@ def run_survey(
                 pending=pending, incoming=incoming, warn=warn,
             )  # fmt: skip
             t1 = ended[0] if ended else t0
-        except PrecisionError as exc:  # a value the survey's precision cannot hold
-            raise RunError(_refused_late(stores, exc)) from None
         except ValueError as exc:  # from what was written (a damaged store), not the survey's
-            raise RunFailed(f"the run stopped after it began to write ({exc})") from None
+            why = f"the run stopped after it began to write ({exc})"
+            raise exc if isinstance(exc, PrecisionError) else RunFailed(why) from None
         finally:
             backend.close()
         try:
@@ -288,23 +284,18 @@ def run_survey(
     )
 
 
-def _refused_late(stores: list[Any], exc: PrecisionError) -> str:
-    """The refusal of a survey found while it ran (a value ``precision = "single"`` cannot
-    store: the same command would meet it again, and a survey of another precision resumes
-    nothing): the run's store removed, nothing left under the output's name."""
-    store = stores[-1] if stores else None
-    if store is None:
-        return str(exc)
-    store.remove()
-    return f"{exc}; the blocks computed so far were removed (nothing to resume)"
-
-
 @contextlib.contextmanager
-def _letting_go(stores: list[Any]) -> Iterator[None]:
-    """Let go, at the end, of the files the ``stores`` hold (a Zarr run holds its files from
-    when it checked them to its commit: :mod:`engine.io.hold`)."""
+def _ending(stores: list[Any]) -> Iterator[None]:
+    """However the run ends, the files the ``stores`` hold are let go (:mod:`engine.io.hold`).
+    A value the survey's precision cannot hold is the survey's refusal: the run's store is
+    removed (the same command would meet it again; another precision resumes nothing)."""
     try:
         yield
+    except PrecisionError as exc:
+        if (store := next((s for s in reversed(stores) if s is not None), None)) is None:
+            raise RunError(str(exc)) from None
+        store.remove()
+        raise RunError(f"{exc}; the blocks computed so far were removed") from None
     finally:
         for store in stores:
             if (release := getattr(store, "release", None)) is not None:

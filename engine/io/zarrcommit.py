@@ -8,8 +8,9 @@ A store is committed in three steps, each atomic (README, "Guarantees"; docs/gua
    which makes the store an unfinished run again, then verifies the blocks and commits anew;
 2. the root's ``zarr.json`` is replaced, through a temporary file and a rename, by the final
    one: the provenance attributes with the content checksum, and the consolidated metadata
-   (each array's ``zarr.json`` as it is on disk, so that a reader with or without
-   consolidated metadata sees the same arrays);
+   (each array's ``zarr.json`` as the plan makes it, :mod:`engine.io.zarrskeleton`, which the
+   store was checked to hold byte for byte, so that a reader with or without consolidated
+   metadata sees the same arrays);
 3. the store is renamed to its output name (:func:`engine.io.zarr.put_in_place`); the run's
    directory, record included, is removed after.
 
