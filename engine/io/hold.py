@@ -30,6 +30,7 @@ import errno
 import os
 import signal
 import threading
+import time
 from dataclasses import dataclass
 
 try:
@@ -46,6 +47,8 @@ LEASE_FILE_SYSTEMS = frozenset({"ext2", "ext3", "ext4", "xfs", "tmpfs", "ramfs",
 #: What :meth:`HeldFiles.hold` did: held; not held (the commit hashes the file again); busy
 #: (another process has the file open for writing, or a writable mapping of it).
 HELD, NOT_HELD, BUSY = "held", "not held", "busy"
+#: Pauses [s] before a busy file is taken for one another process holds open for writing.
+_RETRIES = (0.001, 0.005, 0.02, 0.05)
 #: Descriptors left to the rest of the process when the run holds its files.
 RESERVE = 512
 _F_SETLEASE = getattr(fcntl, "F_SETLEASE", None)
@@ -152,6 +155,11 @@ class HeldFiles:
                 return NOT_HELD
             self._room -= 1
         got = _lease(fd)
+        for pause in _RETRIES:  # a fork elsewhere in the process shares writable descriptors
+            if got != BUSY:  # until its exec (closed there): busy for a moment, not for long
+                break
+            time.sleep(pause)
+            got = _lease(fd)
         with self._lock:
             if got == HELD:
                 self._files[key] = _Held(fd, st.st_dev, st.st_ino, st.st_size)
