@@ -182,16 +182,6 @@ class HeldFiles:
             return False
         return (st.st_dev, st.st_ino, st.st_size) == (h.dev, h.ino, h.size)
 
-    def renew(self, key: str) -> str:
-        """Take the lease of the held ``key`` again after it was broken: HELD, or BUSY while
-        another process has the file open for writing (or NOT_HELD)."""
-        h = self._files.get(key)
-        if h is None:
-            return NOT_HELD
-        with contextlib.suppress(OSError):  # a broken lease stays "breaking" until let go
-            fcntl.fcntl(h.fd, _F_SETLEASE, fcntl.F_UNLCK)
-        return _lease(h.fd)
-
     def drop(self, key: str) -> None:
         """Let go of ``key`` (its descriptor closed, its lease gone)."""
         with self._lock:
