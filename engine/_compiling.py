@@ -19,6 +19,7 @@ environment variable ``CONESURVEY_COMPILE_NOTICES=0`` silences the API's notices
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import os
 import sys
@@ -42,6 +43,8 @@ __all__ = [
 
 #: Seconds a compile may take before it is announced (a load from numba's cache takes less).
 COMPILE_DELAY = 1.0
+#: Seconds between two compiles that make them one notice (an API call compiles several).
+GRACE = 1.0
 COMPILE_MESSAGE = "compiling kernels (first run only, cached)"
 LOAD_MESSAGE = "loading the compiled kernels from the cache"
 #: The compile message where the cache is off.
@@ -107,12 +110,13 @@ class Notice:
         self._thread = threading.Thread(target=self._tick, name="conesurvey-compiling", daemon=True)
         self._thread.start()
 
-    def stop(self) -> float:
-        """End the wait; say how long it took if it was announced. Returns its seconds."""
+    def stop(self, until: float | None = None) -> float:
+        """End the wait (it ended at ``until``, a ``time.monotonic()``; default now); say how
+        long it took if it was announced. Returns its seconds."""
         self._stop.set()
         if self._thread is not None:
             self._thread.join()
-        took = time.monotonic() - self.began
+        took = (time.monotonic() if until is None else until) - self.began
         if self._shown.is_set():
             span = format_duration(took)
             done = (
@@ -127,8 +131,10 @@ class Notice:
 
 
 class _Compiles(event.Listener):
-    """numba's compile events, announced as a :class:`Notice` on stderr: from the start of an
-    outermost compile (a kernel's callees compile inside it) to its end."""
+    """numba's compile events, announced as one :class:`Notice` on stderr: from the start of
+    an outermost compile (a kernel's callees compile inside it) to the end of the last of the
+    compiles that follow each other within :data:`GRACE` s (one API call compiles several
+    entry points in a row: one notice, with their time together)."""
 
     def __init__(self) -> None:
         self.enabled = os.environ.get("CONESURVEY_COMPILE_NOTICES", "1") not in ("0", "false")
@@ -137,6 +143,8 @@ class _Compiles(event.Listener):
         self._depth = threading.local()
         self._active = 0
         self._notice: Notice | None = None
+        self._ended = 0.0  # when the last outermost compile ended
+        self._generation = 0  # a compile that starts cancels the close pending before it
 
     def on_start(self, ev: event.Event) -> None:
         depth = getattr(self._depth, "n", 0)
@@ -145,7 +153,8 @@ class _Compiles(event.Listener):
             return
         with self._lock:
             self._active += 1
-            if self._active == 1 and self.enabled and not self.quiet:
+            self._generation += 1
+            if self._notice is None and self.enabled and not self.quiet:
                 self._notice = Notice()
                 self._notice.start()
 
@@ -158,13 +167,32 @@ class _Compiles(event.Listener):
             return
         with self._lock:
             self._active -= 1
-            if self._active == 0 and self._notice is not None:
-                notice, self._notice = self._notice, None
-                notice.stop()
+            if self._active or self._notice is None:
+                return
+            self._ended = time.monotonic()
+            closer = threading.Timer(GRACE, self._close, args=(self._generation,))
+            closer.daemon = True  # at exit, :meth:`flush` says it instead
+            closer.start()
+
+    def _close(self, generation: int | None = None) -> None:
+        """End the notice if no compile started since the one that ended (``generation``;
+        None: in any case, the interpreter is exiting)."""
+        with self._lock:
+            if self._notice is None or self._active and generation is not None:
+                return
+            if generation is not None and generation != self._generation:
+                return
+            notice, self._notice = self._notice, None
+        notice.stop(until=self._ended or None)
+
+    def flush(self) -> None:
+        """At exit: say how long the last compile took, without waiting for the grace."""
+        self._close(None)
 
 
 _LISTENER = _Compiles()
 _LISTENING = False
+atexit.register(_LISTENER.flush)
 
 
 def listen(kept: bool) -> None:
