@@ -39,6 +39,7 @@ __all__ = [
     "format_duration",
     "quiet",
     "set_compile_notices",
+    "settle",
 ]
 
 #: Seconds a compile may take before it is announced (a load from numba's cache takes less).
@@ -88,15 +89,27 @@ class Notice:
         self.message = LOAD_MESSAGE if cached else COMPILE_MESSAGE if KEPT else UNCACHED_MESSAGE
         self._stop = threading.Event()
         self._shown = threading.Event()
+        self._held = threading.Event()  # between two compiles: nothing to show meanwhile
         self._thread: threading.Thread | None = None
         self.began = time.monotonic()
 
     def line(self) -> str:
         return f"{self.label}: {self.message}  {format_duration(time.monotonic() - self.began)}"
 
+    def hold(self) -> None:
+        """Nothing is being waited for now (a compile ended; another may follow)."""
+        self._held.set()
+
+    def go(self) -> None:
+        """The wait goes on (another compile started)."""
+        self._held.clear()
+
     def _tick(self) -> None:
         wait = self.delay
         while not self._stop.wait(wait):
+            if self._held.is_set():
+                wait = 0.1
+                continue
             if self.tty:
                 self.stream.write("\r" + self.line())
             elif not self._shown.is_set():
@@ -154,7 +167,9 @@ class _Compiles(event.Listener):
         with self._lock:
             self._active += 1
             self._generation += 1
-            if self._notice is None and self.enabled and not self.quiet:
+            if self._notice is not None:
+                self._notice.go()
+            elif self.enabled and not self.quiet:
                 self._notice = Notice()
                 self._notice.start()
 
@@ -170,6 +185,7 @@ class _Compiles(event.Listener):
             if self._active or self._notice is None:
                 return
             self._ended = time.monotonic()
+            self._notice.hold()
             closer = threading.Timer(GRACE, self._close, args=(self._generation,))
             closer.daemon = True  # at exit, :meth:`flush` says it instead
             closer.start()
@@ -189,6 +205,14 @@ class _Compiles(event.Listener):
         """At exit: say how long the last compile took, without waiting for the grace."""
         self._close(None)
 
+    def settle(self) -> None:
+        """If no compile is running, end the notice now (not after the grace)."""
+        with self._lock:
+            if self._active:
+                return
+            generation = self._generation
+        self._close(generation)
+
 
 _LISTENER = _Compiles()
 _LISTENING = False
@@ -203,6 +227,12 @@ def listen(kept: bool) -> None:
     if not _LISTENING:
         event.register("numba:compile", _LISTENER)
         _LISTENING = True
+
+
+def settle() -> None:
+    """Say now how long the compiles that just ended took, if they were announced (before a
+    line that should follow it: a progress reporter's)."""
+    _LISTENER.settle()
 
 
 def set_compile_notices(enabled: bool) -> bool:

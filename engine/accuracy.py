@@ -20,8 +20,9 @@ and is compared with a reference:
   ``energy_lost``.
 
 A setting's ``error`` is the largest of these over the sample; its cost is the wall time per
-point of the map on this machine (numba's threads; timed on a sub-grid large enough to take
-:data:`MIN_TIME` s, best of ``repeats``), and ``survey_seconds`` that time for the whole grid.
+point of the map on this machine (numba's threads; timed on a sub-grid of the survey large
+enough to take :data:`MIN_TIME` s, the best of ``repeats`` rounds that time every setting in
+turn), and ``survey_seconds`` that time for the whole grid.
 :func:`recommend` picks the fastest setting whose error meets a target.
 """
 
@@ -139,21 +140,23 @@ def _flat(plan: RunPlan) -> dict[str, np.ndarray]:
     return {k: np.asarray(v).reshape(-1) for k, v in out.items()}
 
 
-def _seconds_per_point(plan: RunPlan, repeats: int, min_time: float, full: int) -> float:
-    """Best-of-``repeats`` wall time per point of the map of ``plan`` (a sub-grid that takes
-    about ``min_time`` s, at most the survey's ``full`` points)."""
-    t0 = time.perf_counter()
-    _flat(plan)
-    took = max(time.perf_counter() - t0, 1e-6)
-    want = min(full, MAX_TIMING_POINTS, int(plan.size * min_time / took))
-    timed = _even_grid(plan, want) if want > 2 * plan.size else plan
-    slices = tuple(slice(None) for _ in timed.dims)
-    best = math.inf
+def _timing_grid(full: RunPlan, sample: int, took: float, min_time: float) -> RunPlan:
+    """A sub-grid of the survey ``full`` (evenly spaced values) whose map takes about
+    ``min_time`` s, from ``took`` s for ``sample`` points; at most the whole grid."""
+    want = int(sample * min_time / max(took, 1e-6))
+    return _even_grid(full, max(sample, min(full.size, MAX_TIMING_POINTS, want)))
+
+
+def _seconds_per_point(grids: list[RunPlan], repeats: int) -> np.ndarray:
+    """Wall time per point of each map of ``grids``: the best of ``repeats`` rounds, each
+    round timing every map once in turn (a burst of load hits them alike)."""
+    best = np.full(len(grids), np.inf)
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        evaluate_block(timed, slices)
-        best = min(best, time.perf_counter() - t0)
-    return best / timed.size
+        for s, g in enumerate(grids):
+            t0 = time.perf_counter()
+            evaluate_block(g, tuple(slice(None) for _ in g.dims))
+            best[s] = min(best[s], time.perf_counter() - t0)
+    return best / np.array([g.size for g in grids])
 
 
 def _rel(x: np.ndarray, ref: np.ndarray) -> np.ndarray:
@@ -242,14 +245,17 @@ def work_precision(
     shape = (len(settings), keep.size)
     err = {q: np.full(shape, np.nan) for q in quantities}
     per = {k: np.full(len(settings), np.nan) for k in ("error", "median_error", "steps")}
-    per["seconds_per_point"] = np.full(len(settings), np.nan)
     failed = np.zeros(len(settings), np.int64)
     differs = np.zeros(shape, np.int8)
     turning = np.arange(min(TURNING_ORBITS, keep.size))
+    grids = []
     for s, (name, rtol) in enumerate(settings):
-        p = _setting(small, name, rtol if METHODS[name].integrates else REFERENCE_RTOL)
-        res = {k: v[keep] for k, v in _flat(p).items()}
-        per["seconds_per_point"][s] = _seconds_per_point(p, repeats, min_time, plan.size)
+        r = rtol if METHODS[name].integrates else REFERENCE_RTOL
+        res = {k: v[keep] for k, v in _flat(_setting(small, name, r)).items()}
+        t0 = time.perf_counter()  # again, its kernels loaded: how long the sample takes
+        evaluate_block(_setting(small, name, r), tuple(slice(None) for _ in small.dims))
+        took = time.perf_counter() - t0
+        grids.append(_timing_grid(_setting(plan, name, r), small.size, took, min_time))
         if not METHODS[name].integrates:
             per["error"][s] = per["median_error"][s] = EXACT_ERROR
             continue
@@ -271,6 +277,7 @@ def work_precision(
         worst = np.where(ok & ~differs[s].astype(bool), worst, np.inf)
         per["error"][s] = float(np.max(worst, initial=0.0))
         per["median_error"][s] = float(np.median(worst)) if worst.size else math.nan
+    per["seconds_per_point"] = _seconds_per_point(grids, repeats)
     return _dataset(plan, small, settings, o, err, per, failed, differs if fates else None)
 
 

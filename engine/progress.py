@@ -38,6 +38,7 @@ from ._compiling import (  # the one notice of a compile, the API's and the CLI'
     Notice,
     announcing,
     format_duration,
+    settle,
 )
 
 __all__ = [
@@ -197,6 +198,7 @@ class Progress:
         return columns if columns > 0 else shutil.get_terminal_size((80, 24)).columns or 80
 
     def _show(self, now: float) -> None:
+        settle()  # a compile that ended says so before this line
         if self.tty:
             columns = self._columns()
             line = self.bar_line(now, columns)

@@ -43,7 +43,8 @@ Prints, with the machine load before and after:
 
 Per core means CPU time (``time.process_time``, best of the rounds): on a machine shared with
 other jobs a process's wall time includes the time it waits for a core, its CPU time does not.
-Wall times are printed too. scipy is a benchmark extra (``pip install conesurvey[bench]``).
+Wall times are printed too. scipy is a benchmark extra (``.venv/bin/pip install '.[bench]'`` in
+the checkout).
 """
 
 from __future__ import annotations

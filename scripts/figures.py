@@ -16,9 +16,9 @@ Figures:
 - ``free_fall_orbits.png``: free-fall ellipse-like and hyperbola-like orbits from the closed form
   W = 1/r = (|B|/(2A)) (e cos(Omega (theta - theta0)) - sign(B)).
 
-matplotlib is a benchmark/figure extra (``pip install conesurvey[bench]``), not a runtime
-dependency. Every figure's numbers are cross-checked against ``engine.evaluate`` and the check is
-printed.
+matplotlib is a benchmark/figure extra (``.venv/bin/pip install '.[bench]'`` in the checkout),
+not a runtime dependency. Every figure's numbers are cross-checked against ``engine.evaluate``
+and the check is printed.
 """
 
 from __future__ import annotations

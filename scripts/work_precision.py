@@ -60,6 +60,7 @@ import math
 import os
 import platform
 import sys
+import textwrap
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -956,8 +957,6 @@ def report(orbits, rtols, threads, R, tex, orc, subset, B) -> None:
         )
         print(f"  {str(orbits['name'][i]):38s} {cells}")
 
-    import textwrap
-
     print("\nnear the class boundaries. " + textwrap.fill(CLASS_NOTE, 98, subsequent_indent="  "))
     print("fractions of the slice points:")
     print(
@@ -1133,8 +1132,8 @@ def plot_peers(ds: xr.Dataset, png: Path) -> None:
                         textcoords="offset points", xytext=(4, 3))  # fmt: skip
     ax.set_xlabel("CPU time per orbit [s] (one thread)")
     ax.set_ylabel("largest relative error of the apsidal angle [1]")
-    ax.set_title(f"{ds.attrs['title']}\n{ds.attrs['orbits']}; load average "
-                 f"{ds.attrs['load_average']}", fontsize=9)  # fmt: skip
+    sub = textwrap.fill(f"{ds.attrs['orbits']}; load average {ds.attrs['load_average']}", 90)
+    ax.set_title(f"{ds.attrs['title']}\n{sub}", fontsize=9)
     ax.grid(True, which="major", alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()

@@ -114,3 +114,18 @@ def test_the_environment_variable_silences_the_notices():
     )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == "False"  # the setting it replaced: off
+
+
+def test_a_compile_during_a_run_ends_before_the_next_progress_line(
+    announced_at_once, capsys, monkeypatch
+):
+    """A compile outside the reporter's first block (a later block's kernels) is announced
+    by the session's notice; the reporter's next line comes after its end, not before."""
+    monkeypatch.setattr(_compiling, "GRACE", 30.0)
+    progress = Progress(sys.stderr, tty=False)
+    assert fresh_kernel()(10) == 12.0
+    progress(2, 2)
+    err = capsys.readouterr().err
+    lines = err.splitlines(keepends=True)
+    assert lines[0] == STARTED and ENDED.fullmatch(lines[1]), err
+    assert lines[2].startswith("conesurvey: 2/2 points (100.0%)") and len(lines) == 3, err
