@@ -10,14 +10,15 @@ and is compared with a reference:
 - on a scene the closed form describes whole (a one-period map for the integrators), the
   reference is the exact path itself: for each bounded orbit, the relative errors of the
   radial period and the apsidal angle, of the turning points (the apocentre and the next
-  pericentre of one period, integrated by :func:`engine.simulate`, on the first
-  :data:`TURNING_ORBITS` bounded orbits; a one-period map stores the closed form's turning
-  points) and the energy drift over the integration (the map's ``energy_drift``). The closed
-  form's own error is the one it is tested to (docs/api.md, "Accuracy"): :data:`EXACT_ERROR`;
+  pericentre of one period, integrated by :func:`engine.simulate`, on :data:`TURNING_ORBITS`
+  bounded orbits spread evenly over the sample; a one-period map stores the closed form's
+  turning points) and the energy drift over the integration (the map's ``energy_drift``).
+  The closed form's own error is the one it is tested to (docs/api.md, "Accuracy"):
+  :data:`EXACT_ERROR`;
 - on a scene with rolling resistance, a rim, a friction limit or sliding (fate maps), the
-  reference is :data:`REFERENCE_METHOD` at :data:`REFERENCE_RTOL`: the share of points whose fate
-  differs and, where it agrees, the relative errors of ``fate_time``, ``fate_r`` and
-  ``energy_lost``.
+  reference is :data:`REFERENCE_METHOD` at :data:`REFERENCE_RTOL` (at the points where it ends
+  in a fate, not ``no_orbit`` or ``failed``): the share of points whose fate differs and,
+  where it agrees, the relative errors of ``fate_time``, ``fate_r`` and ``energy_lost``.
 
 A setting's ``error`` is the largest of these over the sample; its cost is the wall time per
 point of the map on this machine (numba's threads; timed on a sub-grid of the survey large
@@ -61,7 +62,8 @@ __all__ = [
 SAMPLE_POINTS = 256
 #: The tolerances each integrator is measured at.
 DEFAULT_RTOLS = (1e-4, 1e-6, 1e-8, 1e-10, 1e-12)
-#: Bounded orbits whose turning points are integrated (one ``simulate`` call each, per setting).
+#: Bounded orbits whose turning points are integrated (one ``simulate`` call each, per setting;
+#: spread evenly over the sample's bounded orbits).
 TURNING_ORBITS = 24
 #: The closed form's relative error as tested against 40-digit references (docs/api.md).
 EXACT_ERROR = 1e-12
@@ -232,11 +234,16 @@ def work_precision(
     if fates:  # the closed form draws another map (where rolling ends) on such a scene
         names = [n for n in names if METHODS[n].integrates]
         ref = _flat(_setting(small, REFERENCE_METHOD, REFERENCE_RTOL))
-        keep = np.flatnonzero(ref["fate"] != _code("fate", "no_orbit", kind))
         failed_fate = _code("fate", "failed", kind)
+        none = (_code("fate", "no_orbit", kind), failed_fate)
+        keep = np.flatnonzero(~np.isin(ref["fate"], none))  # where the reference has a fate
     else:
         ref = _flat(_setting(small, "exact", REFERENCE_RTOL))
         keep = np.flatnonzero(ref["orbit_class"] == _code("orbit_class", "bounded", kind))
+    if keep.size == 0:
+        what = "an orbit with a fate" if fates else "a bounded orbit (what integrators follow)"
+        raise ValueError(f"sample: none of its {small.size} points is {what}; a larger sample "
+                         "or another seed may find some")  # fmt: skip
     o = {k: v[keep] for k, v in _invariants(small, ref).items()}
     ref = {k: v[keep] for k, v in ref.items()}
     quantities = _FATE if fates else _PERIODIC
@@ -247,7 +254,7 @@ def work_precision(
     per = {k: np.full(len(settings), np.nan) for k in ("error", "median_error", "steps")}
     failed = np.zeros(len(settings), np.int64)
     differs = np.zeros(shape, np.int8)
-    turning = np.arange(min(TURNING_ORBITS, keep.size))
+    turning = np.unique(np.linspace(0, keep.size - 1, TURNING_ORBITS).round().astype(np.int64))
     grids = []
     for s, (name, rtol) in enumerate(settings):
         r = rtol if METHODS[name].integrates else REFERENCE_RTOL
@@ -261,7 +268,7 @@ def work_precision(
             continue
         ok = res["fate"] != failed_fate if fates else res["status"] == 0
         failed[s] = int(np.sum(~ok))
-        per["steps"][s] = float(np.median(res["n_steps"])) if keep.size else math.nan
+        per["steps"][s] = float(np.median(res["n_steps"]))
         if fates:
             differs[s] = res["fate"] != ref["fate"]
             same = ~differs[s].astype(bool)
@@ -276,7 +283,7 @@ def work_precision(
         worst = np.nanmax(np.stack([err[q][s] for q in quantities]), axis=0, initial=0.0)
         worst = np.where(ok & ~differs[s].astype(bool), worst, np.inf)
         per["error"][s] = float(np.max(worst, initial=0.0))
-        per["median_error"][s] = float(np.median(worst)) if worst.size else math.nan
+        per["median_error"][s] = float(np.median(worst))
     per["seconds_per_point"] = _seconds_per_point(grids, repeats)
     return _dataset(plan, small, settings, o, err, per, failed, differs if fates else None)
 

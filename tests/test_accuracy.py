@@ -233,14 +233,20 @@ def test_api_bad_input_names_the_argument():
             engine.work_precision(survey, **kw)
     with pytest.raises(ValueError, match="^survey must be"):
         engine.work_precision(42)
+    escapes = SURVEY.replace("[axes.alpha]", "[scene]\ng = 0.0\n[axes.alpha]").replace(
+        'values = [0.001, 0.1, 3.0]\nrelative_to = "V_min"', "values = [0.5, 1.0, 2.0]"
+    )  # free fall above the escape energy: every orbit hyperbolic
+    with pytest.raises(ValueError, match="^sample: none of its 24 points is a bounded orbit"):
+        engine.work_precision(load_survey_text(escapes))
     with pytest.raises(ValueError, match="^target must be"):
         recommend(None, 0.0)
 
 
 @pytest.mark.slow  # dop853's fate map (the reference) is a compile of its own
-def test_a_fate_map_is_measured_against_dop853_at_a_tight_tolerance():
+def test_a_fate_map_is_measured_against_dop853_at_a_tight_tolerance(tmp_path, capsys):
     """Rolling resistance: no closed form; each launch's fate, fate time, fate radius and
-    energy lost against dop853 at rtol 1e-13, here through ``engine.launch_survey``."""
+    energy lost against dop853 at rtol 1e-13, here through ``engine.launch_survey``; the
+    command's table counts the fates that differ."""
     text = """\
 method = "rk45"
 [scene]
@@ -265,10 +271,18 @@ values = [0.0]
     ref = engine.launch_survey(**axes, scene=scene, method="dop853", rtol=1e-13,
                                horizon_time=3.0)  # fmt: skip
     got = engine.launch_survey(**axes, scene=scene, method="rk45", rtol=1e-6, horizon_time=3.0)
-    keep = ref.fate.values.reshape(-1) != 0
+    keep = ~np.isin(ref.fate.values.reshape(-1), (0, 6))  # no_orbit, failed: no fate to compare
     differs = got.fate.values.reshape(-1)[keep] != ref.fate.values.reshape(-1)[keep]
     np.testing.assert_array_equal(ds.fate_differs.values[0], differs)
     for q in ("fate_time", "fate_r", "energy_lost"):
         a, b = got[q].values.reshape(-1)[keep], ref[q].values.reshape(-1)[keep]
         want = np.where(differs, np.nan, np.abs(a - b) / np.abs(b))
         np.testing.assert_allclose(ds[f"{q}_error"].values[0], want, rtol=1e-12, equal_nan=True)
+    (tmp_path / "rr.toml").write_text(text)
+    res = here(tmp_path, capsys, "accuracy", "rr.toml", "--rtols", "1e-6", "--no-png")
+    assert res.returncode == 0, res.stderr
+    assert "orbits compared against the dop853 at rtol 1e-13" in res.stdout
+    rows = parse_table(res.stdout)
+    assert list(rows) == [("rk45", 1e-6), ("dop853", 1e-6)]
+    assert int(rows[("rk45", 1e-6)]["differ"]) == int(differs.sum())
+    assert close(float(rows[("rk45", 1e-6)]["fate_time"]), float(np.nanmax(ds.fate_time_error[0])))

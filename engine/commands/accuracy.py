@@ -28,6 +28,14 @@ from . import PROG, Command, InputError, load_plan
 __all__ = ["COMMAND", "diagram", "table"]
 
 DEFAULT_TARGET = 1e-10
+DESCRIPTION = """\
+What accuracy costs on SURVEY.toml, on this machine. Each method that can serve the survey's
+scene (exact, rk45, dop853, symplectic) computes the survey's map on a sample of its grid, each
+integrator at a ladder of tolerances; the table gives the largest relative errors over the
+sample (period, apsidal angle, turning points and energy against the closed form; on a scene
+without one, fates against dop853 at rtol 1e-13) and the time per point and for the whole
+survey. The diagram (--png; matplotlib) draws error against time; the last line names the
+fastest setting whose error meets --target (docs/accuracy.md)."""
 COLUMNS = {  # quantity -> column head
     "period": "period",
     "apsidal_angle": "apsidal",
@@ -55,9 +63,12 @@ def _seconds(s: float) -> str:
 
 def table(ds: xr.Dataset) -> list[str]:
     """The lines of the table: per setting the largest error (and of each quantity) over the
-    sample, the median, failures, steps, time per point and for the whole survey."""
+    sample, the median, (a fate map) the fates that differ from the reference's, failures,
+    steps, time per point and for the whole survey."""
     quantities = [q for q in COLUMNS if f"{q}_error" in ds]
+    fates = "fate_differs" in ds  # a fate map: how many fates differ from the reference's
     head = f"{'method':10s} {'rtol':>7s} {'error':>8s} {'median':>8s} "
+    head += f"{'differ':>6s} " if fates else ""
     head += " ".join(f"{COLUMNS[q]:>9s}" for q in quantities)
     head += f" {'failed':>6s} {'steps':>6s} {'s/point':>8s} {'survey':>9s}"
     lines = [head, "-" * len(head)]
@@ -69,6 +80,8 @@ def table(ds: xr.Dataset) -> list[str]:
         cells = [f"{str(row['method'].values):10s}", rtol,
                  f"{err:8.1e}" if integrates else f"{err:7.0e}*",
                  f"{float(row['median_error']):8.1e}" if integrates else f"{'-':>8s}"]  # fmt: skip
+        if fates:
+            cells.append(f"{int(row['fate_differs'].sum()):6d}")
         for q in quantities:
             e = row[f"{q}_error"].values
             cells.append(f"{np.nanmax(e):9.1e}" if integrates and np.isfinite(e).any() else
@@ -128,7 +141,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--rtols",
         help="comma-separated tolerances of the integrators "
-        f"(default {','.join(f'{r:g}' for r in DEFAULT_RTOLS)})",
+        f"(default {','.join(f'{r:.0e}' for r in DEFAULT_RTOLS)})",
     )
     parser.add_argument(
         "--sample",
@@ -215,7 +228,7 @@ def _accuracy(args: argparse.Namespace, command: str) -> int:
 COMMAND = Command(
     name="accuracy",
     help="what accuracy costs: each method's errors and time on a sample of the survey",
-    description=__doc__.split("\n\n")[1].replace("\n", " "),
+    description=DESCRIPTION,
     add_arguments=add_arguments,
     run=_accuracy,
     epilog=f"example: {PROG} accuracy surveys/gravity_precession.toml --target 1e-10",
