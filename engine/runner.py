@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ._compiling import quiet as quiet_compiles
 from .backends import BackendError, check_address, open_backend
 from .evaluation import evaluate_block
 from .grid import Tiling
@@ -237,7 +238,8 @@ def run_survey(
         # by default, on the cores the writer needs: passive, they sleep (7 % less CPU for a
         # run on 2 cores). Only where the user set nothing and no parallel region ran yet.
         os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-        compiling = getattr(progress, "compiling", contextlib.nullcontext)
+        # without a progress reporter (`run -q`), no compile notice either
+        compiling = getattr(progress, "compiling", quiet_compiles)
         with compiling():  # a first run's compile is announced, not a silent wait
             evaluate_block(run, tuple(slice(0, 1) for _ in run.dims))
         if run.output.precision == "single":  # r_circ, V_min: checked before anything is written
