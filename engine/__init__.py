@@ -2,7 +2,9 @@
 
 Public API: :class:`Scene`, :func:`evaluate` (points), :func:`survey` (4-D grids),
 :func:`simulate` (one trajectory), :func:`radial_energy` and :func:`minimum_energy`;
-launch states :func:`invariants` and :func:`launch_state`; the method registry :data:`METHODS`.
+launch states :func:`invariants` and :func:`launch_state`; the method registry :data:`METHODS`;
+what accuracy costs on a survey, :func:`work_precision`; :func:`set_compile_notices` (whether
+a compile is announced on stderr).
 """
 
 from __future__ import annotations
@@ -11,7 +13,9 @@ from . import (
     _startup,  # noqa: F401  (first: a Ctrl-C while `python -m engine.cli` starts)
     accessor,  # noqa: F401  (registers the ds.cone accessor)
 )
+from ._compiling import set_compile_notices
 from ._version import __version__
+from .accuracy import work_precision
 from .api import evaluate, launch_survey, minimum_energy, radial_energy, survey
 from .fates import Horizon
 from .kernels.fate import FATE_NAMES
@@ -33,6 +37,8 @@ __all__ = [
     "launch_state",
     "Horizon",
     "METHODS",
+    "work_precision",
+    "set_compile_notices",
     "CLASS_NAMES",
     "FATE_NAMES",
     "__version__",

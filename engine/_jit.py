@@ -6,6 +6,8 @@ Environment overrides (read once, at import):
 - ``CONESURVEY_CACHE_DIR``: where the compile cache lives (default: ``$XDG_CACHE_HOME/conesurvey``
   or ``~/.cache/conesurvey``). The package never writes into its own install directory (it is
   read-only in many installs, and files left there outlive ``pip uninstall``).
+- ``CONESURVEY_COMPILE_NOTICES=0``: do not say on stderr that a kernel is compiling
+  (:mod:`engine._compiling`; ``engine.set_compile_notices(False)`` does it in a session).
 - ``CONESURVEY_THREADING_LAYER``: force a numba threading layer (default: ``omp``, then
   ``tbb``, then ``workqueue``, whichever loads first). ``omp`` launches a parallel region in a few
   microseconds; ``workqueue`` aborts when two threads call a parallel kernel at once.
@@ -40,6 +42,8 @@ import numba  # noqa: E402
 import numpy as np  # noqa: E402
 from numba.core import caching, types  # noqa: E402
 from numba.core.dispatcher import Dispatcher  # noqa: E402
+
+from ._compiling import listen  # noqa: E402
 
 CACHE = os.environ.get("CONESURVEY_NO_CACHE", "0") in ("", "0", "false", "False")
 THREADING_LAYER = os.environ.get("CONESURVEY_THREADING_LAYER", "")
@@ -256,6 +260,7 @@ class _EngineCacheLocator(_Locator):
 
 if CACHE and _EngineCacheLocator not in _Impl._locator_classes:
     _Impl._locator_classes.insert(0, _EngineCacheLocator)
+listen(kept=CACHE)  # a compile longer than a second is announced on stderr (engine._compiling)
 
 _COMMON = {"cache": CACHE, "error_model": "numpy", "fastmath": False, "nogil": True}
 

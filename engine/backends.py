@@ -33,6 +33,7 @@ from .errortext import install_hint
 from .evaluation import evaluate_block
 from .grid import Tiling
 from .pipeline import computed_ahead, written_behind
+from .precision import at, stored
 
 if TYPE_CHECKING:
     from .plan import RunPlan
@@ -79,8 +80,9 @@ def compute_block(
                  for n, a in out.items()}  # fmt: skip
         return index, evaluate_block(plan, slices, out=views)
     results = evaluate_block(plan, slices)
+    where = at(tuple(plan.dims), [a[s] for a, s in zip(plan.axes, slices, strict=True)])
     dtypes = plan.variables
-    return index, {n: a.astype(dtypes.get(n, a.dtype), copy=False) for n, a in results.items()}
+    return index, {n: stored(n, a, dtypes.get(n, a.dtype), where=where) for n, a in results.items()}
 
 
 def write_block(

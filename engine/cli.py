@@ -23,6 +23,7 @@ from collections.abc import Sequence
 from ._startup import INTERRUPTED, started
 from ._version import __version__
 from .commands import PROG, Command, InputError, error
+from .commands import accuracy as _accuracy
 from .commands import convert as _convert
 from .commands import info as _info
 from .commands import look as _look
@@ -137,6 +138,7 @@ for _command in (
     _look.PLOT,
     _look.REPORT,
     _convert.COMMAND,
+    _accuracy.COMMAND,
 ):
     register(_command)
 

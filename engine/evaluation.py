@@ -23,6 +23,7 @@ from .kernels.geometry import BOUNDED, OUT_OF_RANGE, ideal_cone
 from .kernels.protocol import NOT_BOUNDED
 from .kernels.workqueue import CHECK_UNIT, checked_queued, orbit_units_queued, work_units
 from .launch import invariants
+from .precision import at, stored
 from .schema import (
     DIMS,
     FATE_KINDS,
@@ -223,8 +224,8 @@ def evaluate_block(
         res = _flat_block(sub, plan)
     if out is None:  # r_circ (fewer dims): family_values
         return {n: col.reshape(shape) for n, col in res.items() if variable_dims(n, dims) == dims}
-    for name in names:  # the cast of a float32 plan, as ndarray.astype casts
-        np.copyto(out[name], res[name].reshape(shape), casting="same_kind")
+    for name in names:  # the cast of a float32 plan: never to a float32 of another meaning
+        stored(name, res[name].reshape(shape), out[name].dtype, out[name], at(dims, sub))
     return out
 
 

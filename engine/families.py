@@ -14,6 +14,7 @@ import numpy as np
 
 from .kernels.batch import minimum_energy_batch
 from .kernels.geometry import ideal_cone
+from .precision import at, stored
 from .scene import Scene
 from .schema import FATE_KINDS, variable_dims
 
@@ -59,7 +60,8 @@ def family_values(
     with _pool_environment():
         well = well_flat(A, H, L, p).reshape(2, a.size, hh.size, lz.size)
     found = {"V_min": well[0], "r_circ": well[1]}
-    return {n: found[n].astype(variables[n]) for n in names}
+    where = at(("alpha", "h", "Lz"), [a, hh, lz])
+    return {n: stored(n, found[n], variables[n], where=where) for n in names}
 
 
 @contextlib.contextmanager

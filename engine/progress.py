@@ -14,6 +14,9 @@ Before the first point, a run compiles its numba kernels (or loads them from the
 time it has taken so far, so that a first run does not look like a hang::
 
     conesurvey: compiling kernels (first run only, cached)  0:12
+
+The notice is the API's own (:mod:`engine._compiling`, which also announces any compile of a
+Python session), written on the reporter's stream.
 """
 
 from __future__ import annotations
@@ -23,33 +26,36 @@ import io
 import os
 import shutil
 import sys
-import threading
 import time
 from collections.abc import Callable, Iterator
 from types import TracebackType
 from typing import TextIO
 
-__all__ = ["Progress", "format_bytes", "format_duration", "format_rate"]
+from ._compiling import (  # the one notice of a compile, the API's and the CLI's
+    COMPILE_DELAY,
+    COMPILE_MESSAGE,
+    LOAD_MESSAGE,
+    Notice,
+    announcing,
+    format_duration,
+    settle,
+)
+
+__all__ = [
+    "COMPILE_DELAY",
+    "COMPILE_MESSAGE",
+    "LOAD_MESSAGE",
+    "Progress",
+    "format_bytes",
+    "format_duration",
+    "format_rate",
+]
 
 #: Seconds between redraws of the terminal bar.
 TTY_INTERVAL = 0.1
 #: Seconds between plain log lines.
 LOG_INTERVAL = 2.0
 BAR_MIN, BAR_MAX = 8, 40
-#: Seconds a compile may take before it is announced (a load from numba's cache takes less).
-COMPILE_DELAY = 1.0
-COMPILE_MESSAGE = "compiling kernels (first run only, cached)"
-LOAD_MESSAGE = "loading the compiled kernels from the cache"
-
-
-def format_duration(seconds: float) -> str:
-    """``h:mm:ss`` or ``m:ss`` for a duration [s]; ``?`` if unknown (NaN, inf, negative)."""
-    if not (seconds >= 0.0 and seconds < float("inf")):
-        return "?"
-    s = int(round(seconds))
-    h, rest = divmod(s, 3600)
-    m, s = divmod(rest, 60)
-    return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
 
 
 def format_bytes(n: float) -> str:
@@ -118,42 +124,14 @@ class Progress:
     def compiling(self, delay: float = COMPILE_DELAY) -> Iterator[None]:
         """Around the kernels' compile: once it has lasted ``delay`` s, say so with the elapsed
         time (on a terminal redrawn every second; in a log one line), and at the end how long it
-        took. Rates and the time left count from the end of the compile."""
-        stop = threading.Event()
-        began = time.monotonic()
-        shown = threading.Event()
-        message = LOAD_MESSAGE if self.kernels_cached else COMPILE_MESSAGE
-
-        def line() -> str:
-            return f"{self.label}: {message}  {format_duration(time.monotonic() - began)}"
-
-        def tick() -> None:
-            wait = delay
-            while not stop.wait(wait):
-                if self.tty:
-                    self.stream.write("\r" + line())
-                elif not shown.is_set():
-                    self.stream.write(line() + "\n")
-                self.stream.flush()
-                shown.set()
-                wait = 1.0
-
-        thread = threading.Thread(target=tick, name="conesurvey-compiling", daemon=True)
-        thread.start()
+        took (the API's notice, :class:`engine._compiling.Notice`, on this reporter's stream).
+        Rates and the time left count from the end of the compile."""
+        notice = Notice(self.stream, label=self.label, tty=self.tty,
+                        cached=self.kernels_cached, delay=delay)  # fmt: skip
         try:
-            yield
+            with announcing(notice):
+                yield
         finally:
-            stop.set()
-            thread.join()
-            if shown.is_set():
-                took = format_duration(time.monotonic() - began)
-                done = (
-                    f"{self.label}: loaded the kernels in {took}"
-                    if self.kernels_cached
-                    else f"{self.label}: compiled kernels in {took} (cached for later runs)"
-                )
-                self.stream.write(("\r" + done.ljust(len(line())) if self.tty else done) + "\n")
-                self.stream.flush()
             self.start = self.clock()
 
     def close(self) -> None:
@@ -220,6 +198,7 @@ class Progress:
         return columns if columns > 0 else shutil.get_terminal_size((80, 24)).columns or 80
 
     def _show(self, now: float) -> None:
+        settle()  # a compile that ended says so before this line
         if self.tty:
             columns = self._columns()
             line = self.bar_line(now, columns)

@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ._compiling import quiet as quiet_compiles
 from .backends import BackendError, check_address, open_backend
 from .evaluation import evaluate_block
 from .grid import Tiling
@@ -49,11 +50,12 @@ from .io.blocks import BlockStore, Scan, check_parts_dir, remove_store
 from .io.codecs import level
 from .io.leftovers import is_debris
 from .io.lock import Locked, LockError, OutputLock, describe_holder
-from .io.manifest import fingerprint, parts_dir, read_manifest
+from .io.manifest import fingerprint, parts_dir, read_manifest, survey_families
 from .io.space import free_bytes
 from .io.summary import Summary
 from .io.zarrstore import RunStore
 from .plan import RunPlan, plan_from_survey
+from .precision import PrecisionError
 from .progress import format_bytes
 from .runstats import AlreadyComplete, RunError, RunFailed, RunStats
 
@@ -131,6 +133,8 @@ def _inspect(
     stored = plan.store.tiling
     if block_points is not None and stored != Tiling.for_grid(run.shape, block_points):
         warn(f"resuming with the unfinished run's block size {math.prod(stored.block):,}")
+    if (expect := getattr(plan.store, "expect", None)) is not None:
+        expect(run)  # what the store must hold besides its blocks (Zarr: its metadata)
     plan.scan = plan.store.scan()
     return plan
 
@@ -138,7 +142,7 @@ def _inspect(
 def _check_space(out: Path, run: RunPlan, tiling: Tiling, pending: list[int]) -> None:
     """RunError unless the blocks still to compute and the output merged beside all of them
     fit on the output's file system."""
-    blocks, merged = run.output.format.run_bytes(run.variables, tiling, pending)
+    blocks, merged = run.output.format.run_bytes(run, tiling, pending, out.parent)
     free = shutil.disk_usage(out.parent).free
     if blocks + merged > free:
         raise RunError(
@@ -212,9 +216,11 @@ def run_survey(
         raise RunError(f"output directory does not exist: {out.parent}")
     if why := fmt.unavailable():
         raise RunError(why)  # an optional dependency: refused before anything is written
-    with _take_lock(out, command):
+    stores: list[Any] = []  # whose held files are let go when the run ends, however
+    with _take_lock(out, command), _ending(stores):
         asked = None if block_points is None else run.output.block_points
         plan = _inspect(out, run, overwrite, asked, warn)
+        stores.append(plan.store)
         tiling = (
             plan.store.tiling
             if plan.store is not None
@@ -232,9 +238,12 @@ def run_survey(
         # by default, on the cores the writer needs: passive, they sleep (7 % less CPU for a
         # run on 2 cores). Only where the user set nothing and no parallel region ran yet.
         os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-        compiling = getattr(progress, "compiling", contextlib.nullcontext)
+        # without a progress reporter (`run -q`), no compile notice either
+        compiling = getattr(progress, "compiling", quiet_compiles)
         with compiling():  # a first run's compile is announced, not a silent wait
             evaluate_block(run, tuple(slice(0, 1) for _ in run.dims))
+        if run.output.precision == "single":  # r_circ, V_min: checked before anything is written
+            survey_families(run)
         t0 = time.perf_counter()
         try:
             backend = open_backend(scheduler, workers)
@@ -242,6 +251,7 @@ def run_survey(
             raise RunFailed(f"{exc}; nothing was written") from None
         try:
             store = _prepare(out, run, plan, tiling, warn)
+            stores.append(store)
             once = dict(fingerprint=plan.fp, command=command, overwrite=overwrite)
             blocks = _compute(store, backend, run, pending, len(done), progress, on_block)
             ended: list[float] = []  # when the last block was stored
@@ -251,6 +261,9 @@ def run_survey(
                 pending=pending, incoming=incoming, warn=warn,
             )  # fmt: skip
             t1 = ended[0] if ended else t0
+        except ValueError as exc:  # from what was written (a damaged store), not the survey's
+            why = f"the run stopped after it began to write ({exc})"
+            raise exc if isinstance(exc, PrecisionError) else RunFailed(why) from None
         finally:
             backend.close()
         try:
@@ -271,6 +284,24 @@ def run_survey(
         blocks_reused=len(done),
         path=out,
     )
+
+
+@contextlib.contextmanager
+def _ending(stores: list[Any]) -> Iterator[None]:
+    """However the run ends, the files the ``stores`` hold are let go (:mod:`engine.io.hold`).
+    A value the survey's precision cannot hold is the survey's refusal: the run's store is
+    removed (the same command would meet it again; another precision resumes nothing)."""
+    try:
+        yield
+    except PrecisionError as exc:
+        if (store := next((s for s in reversed(stores) if s is not None), None)) is None:
+            raise RunError(str(exc)) from None
+        store.remove()
+        raise RunError(f"{exc}; the blocks computed so far were removed") from None
+    finally:
+        for store in stores:
+            if (release := getattr(store, "release", None)) is not None:
+                release()
 
 
 def _prepare(

@@ -14,6 +14,7 @@ import numpy as np
 from .api import run_plan
 from .fates import Horizon
 from .plan import RunPlan, survey_plan
+from .precision import stored
 from .scene import Scene
 from .schema import DIMS, LAUNCH_DIMS, SLIDING_LAUNCH_DIMS
 
@@ -142,5 +143,5 @@ class Survey:
         ds = run_plan(plan, progress)
         for name, dt in plan.variables.items():
             if name in ds and ds[name].dtype != dt:
-                ds[name] = ds[name].astype(dt)
+                ds[name] = ds[name].copy(data=stored(name, ds[name].values, dt))
         return ds

@@ -17,7 +17,8 @@ code. The effects table times the batch users run.
 Each configuration is timed side by side in one process, interleaved, best of ``--repeats`` (one
 thread: CPU time of the calling thread, which runs the kernel; more: wall time).
 
-    python scripts/bench_effects.py [--points 2000] [--repeats 7] [--rtol 1e-10] [--threads 1]
+    .venv/bin/python scripts/bench_effects.py [--points 2000] [--repeats 7] [--rtol 1e-10]
+        [--threads 1]
 """
 
 from __future__ import annotations

@@ -1,9 +1,9 @@
 """Throughput of the exact (closed-form) path against its numpy/scipy peer, side by side in one run.
 
-    python scripts/bench_exact.py                 # 1e6 points, 3 interleaved rounds (~2 minutes)
-    python scripts/bench_exact.py -n 200000 -r 5  # quicker
-    python scripts/bench_exact.py --doc           # also rewrite docs/performance.md's table
-    python scripts/bench_exact.py --threads 1,2,4,8,16  # also a table over thread counts
+    .venv/bin/python scripts/bench_exact.py                 # 1e6 points, 3 rounds (~2 minutes)
+    .venv/bin/python scripts/bench_exact.py -n 200000 -r 5  # quicker
+    .venv/bin/python scripts/bench_exact.py --doc           # also rewrite docs/performance.md
+    .venv/bin/python scripts/bench_exact.py --threads 1,2,4,8,16  # also a table over thread counts
 
 Prints, with the machine load before and after:
 
@@ -43,7 +43,8 @@ Prints, with the machine load before and after:
 
 Per core means CPU time (``time.process_time``, best of the rounds): on a machine shared with
 other jobs a process's wall time includes the time it waits for a core, its CPU time does not.
-Wall times are printed too. scipy is a benchmark extra (``pip install conesurvey[bench]``).
+Wall times are printed too. scipy is a benchmark extra (``.venv/bin/pip install '.[bench]'`` in
+the checkout).
 """
 
 from __future__ import annotations
@@ -251,7 +252,8 @@ def first_call(cache_dir: str | None) -> dict[str, float]:
 def doc_table(n, n_grid, rounds, goals, ceiling, stages, peer_rate, serial, loads) -> str:
     """The exact-path table of docs/performance.md (from this run's numbers)."""
     lines = [
-        f"Exact path (`python scripts/bench_exact.py -n {n}`, {time.strftime('%Y-%m-%d')}, "
+        f"Exact path (`.venv/bin/python scripts/bench_exact.py -n {n}`, "
+        f"{time.strftime('%Y-%m-%d')}, "
         f"{MACHINE}, load average {loads}; per core = CPU time of one thread, best of "
         f"{rounds} interleaved rounds; {n:.0e} random bounded orbits of the issue's task, and "
         f"a {n_grid}-point block of `{SURVEY.name}`; peer: numpy turning points + scipy "
@@ -299,7 +301,7 @@ def scaling(counts: str, a, e, h, lz, grid_path, rounds: int) -> str:
     best = measure(fns, rounds)
     lines = [
         f"{MACHINE}; load average {before} before, {load()} after; wall time, best of {rounds} "
-        f"interleaved rounds (`python scripts/bench_exact.py -n {a.size} --threads "
+        f"interleaved rounds (`.venv/bin/python scripts/bench_exact.py -n {a.size} --threads "
         f"{','.join(map(str, nts))}`); speedup over 1 thread:",
         "",
         "| threads | `evaluate` [s] | speedup | survey block [s] | speedup | control loop |",

@@ -11,7 +11,7 @@ two free cores: below that it measures what the machine's other jobs left). Both
 give the same outputs bit for bit (checked here too). The load average is printed before and
 after, and the serial share of the map through ``engine.evaluate`` (scripts/bench_common.py).
 
-    python scripts/bench_fates.py [--points 400] [--rounds 3] [--min-time 1.0] [--where]
+    .venv/bin/python scripts/bench_fates.py [--points 400] [--rounds 3] [--min-time 1.0] [--where]
 """
 
 from __future__ import annotations

@@ -1,9 +1,9 @@
 """The integrator goals of the performance issue, measured side by side in one run.
 
-    python scripts/bench_integrators.py             # 200 orbits, 3 rounds (~1 min)
-    python scripts/bench_integrators.py --doc       # also rewrite docs/performance.md's table
-    python scripts/bench_integrators.py -n 1000 --rounds 5
-    python scripts/bench_integrators.py --compile   # also: first call, cold and cached
+    .venv/bin/python scripts/bench_integrators.py             # 200 orbits, 3 rounds (~1 min)
+    .venv/bin/python scripts/bench_integrators.py --doc       # also rewrite docs/performance.md
+    .venv/bin/python scripts/bench_integrators.py -n 1000 --rounds 5
+    .venv/bin/python scripts/bench_integrators.py --compile   # also: first call, cold and cached
 
 The task (``integrator_peers.typical_orbits``): 200 typical bounded orbits, half a radial
 period each (r_min to r_max), apsidal angle psi compared with the closed form. Goals:
@@ -424,7 +424,7 @@ def markdown(o, rows, thr, gl, compiled) -> str:
     date = datetime.date.today().isoformat()
     lines = [
         f"Integrators, {n} typical orbits, one-period map (r_min -> r_max, doubled) per orbit "
-        f"(`python scripts/bench_integrators.py`, {date}; {MACHINE}; load average "
+        f"(`.venv/bin/python scripts/bench_integrators.py`, {date}; {MACHINE}; load average "
         f"{thr['load before']} before the threads section, {thr['load after']} after; per core "
         f"= CPU time of one thread, best of 3 interleaved rounds; 2 threads: wall time, best of "
         f"{TWO_THREAD_ROUNDS}):",

@@ -15,7 +15,7 @@ cone with rolling resistance c_rr = 0.02, mu = 0.3 and a rim at 1 m, to their fa
 Timed side by side in one process (interleaved rounds, the best of ``--repeats``), on 1 and 2
 numba threads; the machine load is printed.
 
-    python scripts/bench_slide.py [--points 400] [--repeats 3]
+    .venv/bin/python scripts/bench_slide.py [--points 400] [--repeats 3]
 """
 
 from __future__ import annotations

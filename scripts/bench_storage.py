@@ -1,9 +1,9 @@
 """The write path of a streamed run against its two limits: the compute alone and the disk.
 
-Usage: python scripts/bench_storage.py [SURVEY.toml] [--alpha A] [--dir DIR] [--zarr]
+Usage: .venv/bin/python scripts/bench_storage.py [SURVEY.toml] [--alpha A] [--dir DIR] [--zarr]
                                        [--rounds R] [--workers N [N ...]]
-       python scripts/bench_storage.py --page-cache [--rounds R] [--dir DIR]
-       python scripts/bench_storage.py --tiny   (a 10,240-point survey, seconds)
+       .venv/bin/python scripts/bench_storage.py --page-cache [--rounds R] [--dir DIR]
+       .venv/bin/python scripts/bench_storage.py --tiny   (a 10,240-point survey, seconds)
 
 Default survey: ``surveys/large_1e8.toml``; ``--alpha 0.8`` runs its 10^7-point slice (the
 alpha axis replaced by that one value). In one process, one after the other:

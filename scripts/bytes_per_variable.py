@@ -1,7 +1,7 @@
 """Stored bytes of every variable of a conesurvey output, per point of the survey grid.
 
-Usage: python scripts/bytes_per_variable.py OUT.nc|OUT.zarr
-       python scripts/bytes_per_variable.py --tiny   (runs a 2,560-point survey here first)
+Usage: .venv/bin/python scripts/bytes_per_variable.py OUT.nc|OUT.zarr
+       .venv/bin/python scripts/bytes_per_variable.py --tiny   (a 2,560-point survey run here first)
 
 Prints, for each variable, its dims, its stored (compressed) bytes and those bytes divided by
 the number of points of the survey grid (the product of the axes' sizes), then the whole file

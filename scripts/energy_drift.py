@@ -1,18 +1,19 @@
 """Energy drift over 10^4 radial periods: rk45 and dop853 (drift grows) vs symplectic (bounded).
 
-    python scripts/energy_drift.py --out docs/figures/energy_drift.png
+    .venv/bin/python scripts/energy_drift.py --out docs/figures
 
 One typical bounded orbit (alpha 0.629, reference case P003), rtol 1e-8, sampled every 0.77
-radial periods; |E(t) - E(0)| / |E(0)| against time in radial periods, log-log.
+radial periods; |E(t) - E(0)| / |E(0)| against time in radial periods, log-log, written as
+``energy_drift.png`` into ``--out`` (default: the working directory).
 """
 
 from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 
 import numpy as np
+from figure_cli import TINY_HELP, add_out  # scripts/, the script's folder
 
 import engine
 
@@ -21,12 +22,10 @@ ORBIT = dict(alpha=0.629192668725, energy=3.2037698430241135, h=4.56325009767, L
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--out", default="docs/figures/energy_drift.png", help="PNG to write")
+    add_out(ap)
     ap.add_argument("--periods", type=int, default=10_000, help="radial periods (default 1e4)")
     ap.add_argument("--rtol", type=float, default=1e-8, help="integrator tolerance")
-    ap.add_argument(
-        "--tiny", action="store_true", help="a seconds-long smoke run (tests/test_scripts.py)"
-    )
+    ap.add_argument("--tiny", action="store_true", help=TINY_HELP)
     args = ap.parse_args()
     if args.tiny:
         args.periods = 20
@@ -57,9 +56,10 @@ def main() -> None:
     ax.grid(True, which="major", alpha=0.3)
     ax.legend(fontsize=8, loc="upper left")
     fig.tight_layout()
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(args.out)
-    print(f"wrote {args.out}")
+    args.out.mkdir(parents=True, exist_ok=True)
+    png = args.out / "energy_drift.png"
+    fig.savefig(png)
+    print(f"wrote {png}")
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """Draw the README's figures of "What a map means for each scene" with the ``conesurvey``
 commands themselves.
 
-    python scripts/fate_figures.py --out docs/figures
+    .venv/bin/python scripts/fate_figures.py --out docs/figures
 
 - ``fate_map.png``: what happens to a ball with rolling resistance launched at r0 with speed
   v0 inside a finite cone (``surveys/fate_rolling_resistance.toml``, rk45 fate map);
@@ -17,7 +17,7 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from figure_cli import TINY_HELP, shrunk  # noqa: E402
+from figure_cli import TINY_HELP, add_out, shrunk  # noqa: E402
 from figure_cli import conesurvey as _cli  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "figures")
+    add_out(parser)
     parser.add_argument("--tiny", action="store_true", help=TINY_HELP)
     args = parser.parse_args()
     out = args.out

@@ -1,15 +1,30 @@
 """The figure scripts' one way to run a conesurvey command in this process (a failure stops the
-script naming the command and its exit status)."""
+script naming the command and its exit status), and their one rule for where they write: the
+folder ``--out`` names, by default the working directory (never the checkout's tracked
+figures unless asked: ``--out docs/figures``)."""
 
 from __future__ import annotations
 
+import argparse
 import re
 from pathlib import Path
 
 from engine import cli
 
 #: The help of every script's --tiny flag.
-TINY_HELP = "a seconds-long smoke run (tests/test_scripts.py)"
+TINY_HELP = (
+    "a smoke run (tests/test_scripts.py): seconds once the kernels are compiled; a first run "
+    "compiles them (minutes, announced on stderr)"
+)
+
+
+def add_out(parser: argparse.ArgumentParser) -> None:
+    """The ``--out DIR`` option: where the script writes (default: the working directory)."""
+    parser.add_argument(
+        "--out", type=Path, default=Path.cwd(),
+        help="folder to write into (default: the working directory; docs/figures to update "
+             "the documentation's figures)",
+    )  # fmt: skip
 
 
 def conesurvey(*args: str | Path) -> None:

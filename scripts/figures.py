@@ -1,7 +1,8 @@
-"""Draw the documentation figures (PNG) into ``docs/figures/`` from data computed by the engine.
+"""Draw the documentation figures (PNG) from data computed by the engine, into ``--out`` (default:
+the working directory; ``--out docs/figures`` updates the documentation's).
 
-    python scripts/figures.py --out docs/figures            # all five figures
-    python scripts/figures.py --only potential rosette      # a subset
+    .venv/bin/python scripts/figures.py --out docs/figures            # all five figures
+    .venv/bin/python scripts/figures.py --only potential rosette      # a subset
 
 Figures:
 
@@ -15,9 +16,9 @@ Figures:
 - ``free_fall_orbits.png``: free-fall ellipse-like and hyperbola-like orbits from the closed form
   W = 1/r = (|B|/(2A)) (e cos(Omega (theta - theta0)) - sign(B)).
 
-matplotlib is a benchmark/figure extra (``pip install conesurvey[bench]``), not a runtime
-dependency. Every figure's numbers are cross-checked against ``engine.evaluate`` and the check is
-printed.
+matplotlib is a benchmark/figure extra (``.venv/bin/pip install '.[bench]'`` in the checkout),
+not a runtime dependency. Every figure's numbers are cross-checked against ``engine.evaluate``
+and the check is printed.
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
+from figure_cli import TINY_HELP, add_out  # noqa: E402  (scripts/, the script's folder)
 
 import engine  # noqa: E402
 import engine.accessor  # noqa: E402,F401  (registers ds.cone)
@@ -419,12 +421,10 @@ FIGURES: dict[str, Callable[[Path, int], Path]] = {
 def main(argv: list[str] | None = None) -> int:
     """Command-line entry point: draw the selected figures into ``--out``."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("docs/figures"), help="output folder")
+    add_out(parser)
     parser.add_argument("--dpi", type=int, default=DPI, help="resolution (default %(default)s)")
     parser.add_argument("--only", nargs="+", choices=sorted(FIGURES), help="figures to draw")
-    parser.add_argument(
-        "--tiny", action="store_true", help="a seconds-long smoke run (tests/test_scripts.py)"
-    )
+    parser.add_argument("--tiny", action="store_true", help=TINY_HELP)
     args = parser.parse_args(argv)
     if args.tiny:
         args.dpi = 20

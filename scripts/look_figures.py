@@ -1,6 +1,6 @@
 """Draw the README's "Look at the results" figures with the ``conesurvey`` commands themselves.
 
-    python scripts/look_figures.py --out docs/figures
+    .venv/bin/python scripts/look_figures.py --out docs/figures
 
 - ``plot_precession.png``: ``conesurvey plot`` of the precession rate of
   ``surveys/gravity_precession.toml``, one map per cone angle (``--facet alpha``);
@@ -20,7 +20,7 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from figure_cli import TINY_HELP, shrunk  # noqa: E402
+from figure_cli import TINY_HELP, add_out, shrunk  # noqa: E402
 from figure_cli import conesurvey as _cli  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -34,7 +34,7 @@ FLAGS = (
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "figures")
+    add_out(parser)
     parser.add_argument("--width", type=int, default=1200, help="browser window [px]")
     parser.add_argument("--height", type=int, default=1500, help="screenshot height [px]")
     parser.add_argument("--tiny", action="store_true", help=TINY_HELP)

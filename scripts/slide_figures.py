@@ -4,10 +4,11 @@ radial speed u0 and a slip velocity slip_u at release (backspin a omega0 = slip_
 orbiting at v0, in two panels: coloured by its fate, and by the total time it slid.
 
     conesurvey run surveys/slide_and_roll.toml -o slide.nc
-    python scripts/slide_figures.py --nc slide.nc --out docs/figures
+    .venv/bin/python scripts/slide_figures.py --nc slide.nc --out docs/figures
 
 Without ``--nc`` the survey file is run here (``engine.surveyfile.load_survey(...).run()``,
-the same map). Writes ``slide_and_roll.png``. ``--tiny`` runs the file on a 3 x 3 launch grid.
+the same map). Writes ``slide_and_roll.png`` into ``--out`` (default: the working
+directory). ``--tiny`` runs the file on a 3 x 3 launch grid.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
+from figure_cli import add_out  # noqa: E402  (scripts/, the script's folder)
 from matplotlib.colors import BoundaryNorm, ListedColormap  # noqa: E402
 
 from engine.surveyfile import parse_survey  # noqa: E402
@@ -81,7 +83,7 @@ def draw(ds: xr.Dataset, path: Path) -> dict[str, int]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--nc", type=Path, help="the survey's netCDF (else it is run here)")
-    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "figures")
+    add_out(parser)
     parser.add_argument("--tiny", action="store_true", help="a 3x3 launch grid (tests)")
     args = parser.parse_args()
     t0 = time.perf_counter()

@@ -1,9 +1,13 @@
 """Work-precision study: accuracy against cost of the integrator methods and the closed form.
 
-    python scripts/work_precision.py                 # full study (a few minutes on 2 cores)
-    python scripts/work_precision.py --quick         # reduced sets (< 1 min)
-    python scripts/work_precision.py --out data/work_precision.nc \
-        --png docs/figures/work_precision.png
+    .venv/bin/python scripts/work_precision.py                 # full study (minutes on 2 cores)
+    .venv/bin/python scripts/work_precision.py --quick         # reduced sets (< 1 min)
+    .venv/bin/python scripts/work_precision.py --part peers --out docs/figures
+
+Writes into ``--out`` (default: the working directory): ``work_precision.nc`` and
+``work_precision.png`` (parts 1 and 2), ``work_precision_peers.nc`` and
+``work_precision_peers.png`` (part 3). A first run compiles the kernels of every method
+(minutes on a busy machine; announced on stderr); ``--tiny`` is then a seconds-long smoke run.
 
 Part 1, work-precision. A fixed set of about 50 bounded orbits: typical random orbits under
 gravity and in free fall, plus the hard cases (alpha = 1e-3 and pi/2 - 1e-3, L_z = 1e-7, energy
@@ -33,6 +37,14 @@ bounded when it met an apocentre and came back to a pericentre, and (c) how the 
 period and apsidal angle grow as the energy approaches the boundaries (e -> 1 in free fall,
 energy -> V_min under gravity).
 
+Part 3, the peers (``--part peers``): the same orbits for conesurvey's integrators, scipy's
+``solve_ivp`` (DOP853 and RK45) and heyoka's Taylor integrator (a Python loop over the orbits,
+as a user would call it; ``scripts/integrator_peers.py``, the integrator benchmark's task:
+typical bounded orbits under gravity, r_min to r_max, the apsidal angle against the closed
+form), at a ladder of tolerances: the largest apsidal-angle error against the CPU time per
+orbit (one thread; conesurvey through ``engine.integrated.evaluate_integrated``, the path of
+its maps). heyoka is optional: without it, its line is left out and the script says so.
+
 Writes a netCDF file (dims method, rtol, orbit, threads and the slices' axes; CF-style
 units/long_name; select a method with ``ds.sel({"method": "rk45"})``, since ``sel(method=...)``
 is xarray's inexact-match keyword) and a log-log PNG (apsidal-angle error against time per
@@ -48,6 +60,7 @@ import math
 import os
 import platform
 import sys
+import textwrap
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -56,6 +69,7 @@ import numba
 import numpy as np
 import xarray as xr
 from bench_common import spin
+from figure_cli import TINY_HELP, add_out
 
 import engine
 from engine.evaluation import evaluate_flat
@@ -943,8 +957,6 @@ def report(orbits, rtols, threads, R, tex, orc, subset, B) -> None:
         )
         print(f"  {str(orbits['name'][i]):38s} {cells}")
 
-    import textwrap
-
     print("\nnear the class boundaries. " + textwrap.fill(CLASS_NOTE, 98, subsequent_indent="  "))
     print("fractions of the slice points:")
     print(
@@ -1026,16 +1038,155 @@ def report(orbits, rtols, threads, R, tex, orc, subset, B) -> None:
           "resistance, rim and slip events, trajectories).")  # fmt: skip
 
 
+# ------------------------------------------------------------------------------ part 3: peers
+PEER_TOLS = (1e-4, 1e-6, 1e-8, 1e-10, 1e-12)
+PEER_COLOURS = {"rk45": "tab:blue", "dop853": "tab:orange", "symplectic": "tab:green",
+                "scipy DOP853": "tab:red", "scipy RK45": "tab:purple",
+                "heyoka (Taylor)": "tab:brown"}  # fmt: skip
+
+
+def cpu_per_call(fn: Callable[[], object], repeats: int) -> float:
+    """Smallest process CPU time [s] of ``repeats`` calls of ``fn`` (one thread runs them: the
+    figure compares what one core spends, whatever else the machine runs)."""
+    best = math.inf
+    for _ in range(repeats):
+        t0 = time.process_time()
+        fn()
+        best = min(best, time.process_time() - t0)
+    return best
+
+
+def peers_study(n: int, tols: tuple[float, ...], repeats: int) -> xr.Dataset:
+    """Largest apsidal-angle error and CPU time per orbit of each solver at each tolerance,
+    on ``n`` orbits of the integrator benchmark's task (module docstring, part 3)."""
+    import integrator_peers as peers
+
+    o = peers.typical_orbits(n)
+    y0, scales = peers.start_states(o)
+    scene = engine.Scene(M=peers.M, g=peers.G, k=peers.K)
+    pts = [np.ascontiguousarray(o[k]) for k in ("alpha", "energy", "h", "Lz")]
+
+    def ours(method: str, tol: float) -> Callable[[], np.ndarray]:
+        return lambda: evaluate_integrated(*pts, scene, method, tol)["apsidal_angle"]
+
+    solvers: dict[str, Callable[[float], Callable[[], np.ndarray]]] = {
+        m: (lambda tol, m=m: ours(m, tol)) for m in METHODS
+    }
+    solvers["scipy DOP853"] = lambda tol: peers.scipy_runner(o, y0, tol * scales, "DOP853", tol)
+    solvers["scipy RK45"] = lambda tol: peers.scipy_runner(o, y0, tol * scales, "RK45", tol)
+    version = peers.heyoka_version()
+    if version is None:
+        print("heyoka not installed: its line is left out (pip install '.[bench]')")
+    else:
+        solvers["heyoka (Taylor)"] = lambda tol: peers.heyoka_loop_runner(o, y0, tol)
+    names = list(solvers)
+    err = np.full((len(names), len(tols)), np.nan)
+    cpu = np.full((len(names), len(tols)), np.nan)
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        for i, name in enumerate(names):
+            for j, tol in enumerate(tols):
+                run = solvers[name](tol)
+                psi = np.asarray(run(), float).copy()  # compiles / builds, not timed
+                err[i, j] = float(np.max(peers.rel_err(psi, o["psi"])))
+                cpu[i, j] = cpu_per_call(run, repeats) / n
+    finally:
+        numba.set_num_threads(threads)
+    dims = ("solver", "tol")
+    return xr.Dataset(
+        {
+            "max_error_apsidal_angle": (dims, err, attrs("1", "largest relative error of the "
+                                        "apsidal angle over the orbits, against the closed form")),
+            "cpu_time_per_orbit": (dims, cpu, attrs("s", "process CPU time per orbit, one "
+                                   f"thread, best of {repeats}")),
+        },
+        coords={"solver": ("solver", np.array(names, dtype=object)),
+                "tol": ("tol", np.array(tols), attrs("1", "relative tolerance"))},
+        attrs={
+            "title": "conesurvey's integrators and their peers on the same orbits",
+            "orbits": f"{n} typical bounded orbits of scripts/integrator_peers.py "
+            "(M = 1 kg, g = 9.81 m/s2, k = 0.4), r_min to r_max",
+            "heyoka": version or "not installed",
+            "load_average": ", ".join(f"{x:.2f}" for x in os.getloadavg()),
+        },
+    )  # fmt: skip
+
+
+def plot_peers(ds: xr.Dataset, png: Path) -> None:
+    """Largest apsidal-angle error against CPU time per orbit, one line per solver."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    for name in ds.solver.values:
+        row = ds.sel(solver=name)
+        t, e = row.cpu_time_per_orbit.values, np.maximum(row.max_error_apsidal_angle.values, FLOOR)
+        ok = np.isfinite(e)
+        style = "o-" if name in METHODS else "s--"
+        ax.loglog(t[ok], e[ok], style, color=PEER_COLOURS.get(str(name)), label=str(name))
+        for j in np.flatnonzero(ok)[[0, -1]] if ok.any() else []:
+            ax.annotate(f"{float(ds.tol[j]):.0e}", (t[j], e[j]), fontsize=7,
+                        textcoords="offset points", xytext=(4, 3))  # fmt: skip
+    ax.set_xlabel("CPU time per orbit [s] (one thread)")
+    ax.set_ylabel("largest relative error of the apsidal angle [1]")
+    sub = textwrap.fill(f"{ds.attrs['orbits']}; load average {ds.attrs['load_average']}", 90)
+    ax.set_title(f"{ds.attrs['title']}\n{sub}", fontsize=9)
+    ax.grid(True, which="major", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+
+
+def report_peers(ds: xr.Dataset) -> None:
+    print(f"\n{ds.attrs['title']}: {ds.attrs['orbits']}")
+    print(f"{'solver':18s} {'tol':>7s} {'max psi err':>11s} {'CPU/orbit':>10s}")
+    for name in ds.solver.values:
+        for j, tol in enumerate(ds.tol.values):
+            row = ds.sel(solver=name).isel(tol=j)
+            print(f"{str(name):18s} {tol:7.0e} {float(row.max_error_apsidal_angle):11.1e} "
+                  f"{float(row.cpu_time_per_orbit):10.2e}")  # fmt: skip
+
+
+def write(ds: xr.Dataset, path: Path) -> None:
+    """``ds`` to ``path`` through a temporary file and a rename."""
+    tmp = path.with_name(path.name + ".tmp")
+    ds.to_netcdf(tmp)
+    os.replace(tmp, path)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=ROOT / "data" / "work_precision.nc")
-    parser.add_argument("--png", type=Path, default=ROOT / "docs/figures/work_precision.png")
+    add_out(parser)
     parser.add_argument("--quick", action="store_true", help="reduced sets (< 1 min)")
     parser.add_argument(
-        "--tiny", action="store_true", help="a seconds-long smoke run (tests/test_scripts.py)"
+        "--part",
+        choices=("all", "study", "peers"),
+        default="all",
+        help="parts 1 and 2 (study), part 3 (peers) or all (default)",
     )
+    parser.add_argument("--tiny", action="store_true", help=TINY_HELP)
     args = parser.parse_args(argv)
     args.quick = args.quick or args.tiny
+    args.out.mkdir(parents=True, exist_ok=True)
+    if args.part in ("all", "study"):
+        study(args)
+    if args.part in ("all", "peers"):
+        n, tols = (2, (1e-6,)) if args.tiny else (20, PEER_TOLS) if args.quick else (100, PEER_TOLS)
+        ds = peers_study(n, tols, 1 if args.tiny else 3)
+        nc, png = args.out / "work_precision_peers.nc", args.out / "work_precision_peers.png"
+        write(ds, nc)
+        plot_peers(ds, png)
+        report_peers(ds)
+        print(f"\nwrote {nc} and {png}")
+    return 0
+
+
+def study(args: argparse.Namespace) -> None:
+    """Parts 1 and 2 (module docstring), written to ``--out``."""
     t_start = time.perf_counter()
     meta = machine_info()
     print(f"machine: {meta['machine']}")
@@ -1082,15 +1233,12 @@ def main(argv: list[str] | None = None) -> int:
           f"now {meta['load_average_at_end']}")  # fmt: skip
 
     ds = build_dataset(orbits, rtols, threads, R, exact, tex, orc, B, meta)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = args.out.with_name(args.out.name + ".tmp")
-    ds.to_netcdf(tmp)
-    os.replace(tmp, args.out)
-    plot(ds, args.png)
+    nc, png = args.out / "work_precision.nc", args.out / "work_precision.png"
+    write(ds, nc)
+    plot(ds, png)
     print(meta["control_speedup"])
     report(orbits, rtols, threads, R, tex, orc, subset, B)
-    print(f"\nwrote {args.out} and {args.png}; total {time.perf_counter() - t_start:.0f} s")
-    return 0
+    print(f"\nwrote {nc} and {png}; total {time.perf_counter() - t_start:.0f} s")
 
 
 if __name__ == "__main__":

@@ -10,7 +10,9 @@ MB in a private mount namespace, ``unshare``), during the compute and during the
 from __future__ import annotations
 
 import errno
+import math
 import os
+import re
 import shutil
 import subprocess
 
@@ -179,3 +181,87 @@ def test_a_real_full_disk(work, reference, size, stored):
     assert r["second.rc"].strip() == "0", r["second.err"]
     assert r["second.ls"].split() == ["out.nc"]
     runs.same_content(work / "result.nc", reference)
+
+
+# --- the free-space estimate against a file system just big enough for it --------------------
+
+# 65 x 33 x 33 x 33 launch states in chunks of 9 x 17 x 17 x 17: the chunks at the end of each
+# axis are padded (72 x 34 x 34 x 34 stored, 1.21x the values); every variable is on every axis
+PADDED = """\
+title = "padded edge chunks"
+
+[axes.alpha]
+start = 0.1
+stop = 1.4
+num = 65
+
+[axes.r0]
+start = 0.2
+stop = 2.0
+num = 33
+
+[axes.v0]
+start = -2.0
+stop = 2.0
+num = 33
+
+[axes.w0]
+start = -1.0
+stop = 1.0
+num = 33
+"""
+
+ESTIMATE = """\
+set -u
+mount -t tmpfs -o size=1m tmpfs {mnt} || exit 97
+{run} > {work}/refused.out 2> {work}/refused.err; echo $? > {work}/refused.rc
+ls -A {mnt} > {work}/refused.ls
+umount {mnt}
+"""
+
+JUST_ENOUGH = """\
+set -u
+mount -t tmpfs -o size={size} tmpfs {mnt} || exit 97
+{run} > {work}/run.out 2> {work}/run.err; echo $? > {work}/run.rc
+ls -A {mnt} > {work}/run.ls
+{info} > {work}/info.out 2>&1
+umount {mnt}
+"""
+
+_UNITS = {"B": 1, "kB": 1e3, "MB": 1e6, "GB": 1e9}
+
+
+def _in_tmpfs(script: str, **fields: object) -> None:
+    unshare = ["unshare", "--mount"] if os.geteuid() == 0 else ["unshare", "-r", "--mount"]
+    proc = subprocess.run([*unshare, "sh", "-c", script.format(**fields)], env=runs.env(),
+                          capture_output=True, text=True, timeout=600)  # fmt: skip
+    assert proc.returncode != 97 and proc.returncode == 0, (
+        f"cannot mount a tmpfs in a private mount namespace here: {proc.stderr}"
+    )
+
+
+@pytest.mark.parametrize("fmt", ["nc", "zarr"])
+def test_a_disk_with_room_for_the_estimate_finishes_the_run(tmp_path, fmt):
+    """The run's own estimate (read from its refusal on a 1 MB tmpfs, rounded up to the last
+    digit it prints) is then the size of a tmpfs, plus the page of the lock file the run takes
+    before it checks: the run fits, start to end, without --force. ``--compression none``
+    stores every padded chunk whole (the issue's case: 1.2x the values)."""
+    (tmp_path / "s.toml").write_text(PADDED)
+    mnt = tmp_path / "mnt"
+    mnt.mkdir()
+    run = " ".join(runs.cli("run", str(tmp_path / "s.toml"), "-o", f"{mnt}/out.{fmt}", "-q",
+                            "--compression", "none"))  # fmt: skip
+    _in_tmpfs(ESTIMATE, mnt=mnt, work=tmp_path, run=run)
+    err = (tmp_path / "refused.err").read_text()
+    assert (tmp_path / "refused.rc").read_text().strip() == "2", err
+    assert (tmp_path / "refused.ls").read_text().split() == [], "a refusal writes nothing"
+    number, unit = re.search(r"needs up to ([\d.]+) (\w?B) of disk", err).groups()
+    x = float(number)  # printed to 3 significant digits: up to half the third one more
+    estimate = (x + 0.5 * 10.0 ** (math.floor(math.log10(x)) - 2)) * _UNITS[unit]
+    size = (math.ceil(estimate / 4096) + 1) * 4096  # + the lock file's page
+    info = " ".join(runs.cli("info", f"{mnt}/out.{fmt}", "--verify"))
+    _in_tmpfs(JUST_ENOUGH, size=size, mnt=mnt, work=tmp_path, run=run, info=info)
+    err = (tmp_path / "run.err").read_text()
+    assert (tmp_path / "run.rc").read_text().strip() == "0", err
+    assert (tmp_path / "run.ls").read_text().split() == [f"out.{fmt}"]
+    assert "complete, verified" in (tmp_path / "info.out").read_text()

@@ -1,11 +1,13 @@
 """The package writes nothing into its own directory (issue 11, item 9): numba's compile cache
 goes to the per-user cache directory (engine/_jit.py), so ``pip uninstall`` leaves nothing
-behind that could shadow a later editable install as a namespace package."""
+behind that could shadow a later editable install as a namespace package. The same cold
+process shows that the API announces its compile on stderr (engine/_compiling.py)."""
 
 from __future__ import annotations
 
 import compileall
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -53,6 +55,11 @@ def test_evaluating_writes_only_into_the_user_cache(tmp_path):
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert float(proc.stdout) > 0  # V_min of a spinning sphere under gravity
+    # the API says it is compiling (seconds: the closed form's lanes), once, and how long
+    notice = "conesurvey: compiling kernels (first run only, cached)"
+    assert proc.stderr.count(notice) == 1, proc.stderr
+    assert re.search(r"^conesurvey: compiled kernels in \d+:\d\d \(cached for later runs\)$",
+                     proc.stderr, re.M), proc.stderr  # fmt: skip
     assert _files(pkg) == before
     cached = [p for p in (home / ".cache" / "conesurvey").rglob("*") if p.is_file()]
     assert any(p.suffix == ".nbi" for p in cached) and any(p.suffix == ".nbc" for p in cached)

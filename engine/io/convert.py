@@ -89,7 +89,25 @@ class _Source:
             raise OutputError(f"{path} is not a conesurvey survey (no variable over its axes)")
         first = grids[0]
         self.dims = tuple(first.dimensions)
+        if problem := self._problem(dict(zip(self.dims, first.shape, strict=True))):
+            self.close()
+            raise OutputError(f"{path} is damaged: {problem}")
         self.tiling = self._tiling(tuple(first.shape), first.chunking())
+
+    def _problem(self, sizes: dict[str, int]) -> str | None:
+        """What makes the result's variables inconsistent with its grid of ``sizes`` (None if
+        nothing): an axis missing or of another length, a variable on other dims."""
+        for d in self.dims:
+            axis = self.ds.variables.get(d)
+            if axis is None:
+                return f"its axis {d} is missing"
+            if tuple(axis.dimensions) != (d,) or tuple(axis.shape) != (sizes[d],):
+                return f"its axis {d} does not match the grid ({sizes[d]} values)"
+        for name, var in self.ds.variables.items():
+            dims, shape = tuple(var.dimensions), tuple(var.shape)
+            if not set(dims) <= set(self.dims) or shape != tuple(sizes[d] for d in dims):
+                return f"variable {name} is not on the grid's axes ({', '.join(dims)})"
+        return None
 
     def _tiling(self, shape: tuple[int, ...], chunking: Any) -> Tiling:
         chunk = tuple(chunking) if isinstance(chunking, list | tuple) else shape

@@ -24,7 +24,8 @@ A row (:class:`OutputFormat`) is the whole contract of a format:
   reads;
 - ``write_copy(src, out, attrs, hasher, recorded, overwrite)``: a converted copy
   (:mod:`engine.io.convert`), ``write_survey(ds, path, plan, ...)``: an in-memory Dataset;
-- ``run_bytes(names, tiling, pending)``: (blocks, output) bytes a run still needs;
+- ``run_bytes(plan, tiling, pending, directory)``: (blocks, output) bytes a run still needs
+  in ``directory``, from the layout it stores (:mod:`engine.io.space`);
   ``output_bytes(names, shape)``: an upper bound of a result's size;
 - ``compressions`` (the first is the default), ``directory`` (the output is a directory),
   ``unavailable()`` (why it cannot be written here: "" if it can).
@@ -36,7 +37,6 @@ format"; ``tests/io/test_format_recipe.py`` applies the recipe).
 from __future__ import annotations
 
 import importlib
-import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -46,12 +46,17 @@ from typing import Any
 import netCDF4
 
 from . import zarr as zarr_io
-from .blocks import BlockStore, block_file_bytes
+from .blocks import BlockStore
 from .chunkfile import block_codec
 from .codecs import COMPRESSIONS, DEFAULT_COMPRESSION, level
 from .manifest import Manifest
-from .space import output_bytes
-from .zarrlayout import ZarrView
+from .space import (
+    allocation_unit,
+    block_files_bytes,
+    netcdf_bytes,
+    output_bytes,
+    store_bytes,
+)
 from .zarrstore import RunStore
 
 __all__ = ["FORMATS", "OutputFormat", "format_for", "formats_text", "register", "unregister"]
@@ -61,16 +66,10 @@ def _nothing_missing() -> str:
     return ""
 
 
-def _block_run_bytes(names: dict, tiling: Any, pending: list[int]) -> tuple[int, int]:
+def _block_run_bytes(plan: Any, tiling: Any, pending: list[int], directory: Path):
     """Block files for every pending block, and the output merged beside all of them."""
-    blocks = sum(block_file_bytes(names, tiling.points(i), _chunks(tiling, i)) for i in pending)
-    return blocks, output_bytes(names, tiling.shape)
-
-
-def _chunks(tiling: Any, index: int) -> int:
-    """Storage chunks of a variable in block ``index``."""
-    slab = tiling.slices(index)
-    return math.prod(-(-(s.stop - s.start) // c) for s, c in zip(slab, tiling.chunk, strict=True))
+    unit = allocation_unit(directory)
+    return block_files_bytes(plan, tiling, pending, unit), netcdf_bytes(plan, tiling, unit)
 
 
 def _create_blocks(root: Path, plan: Any, tiling: Any, complevel: int, warn: Callable):
@@ -146,9 +145,9 @@ def _zarr_commit(store: RunStore, plan: Any, out: Path, *, incoming: Any, **opti
     return zarr_io.merge(store, plan, out, **keep, complevel=complevel)
 
 
-def _zarr_run_bytes(names: dict, tiling: Any, pending: list[int]) -> tuple[int, int]:
+def _zarr_run_bytes(plan: Any, tiling: Any, pending: list[int], directory: Path):
     """No block files: the chunks are written into the store, which becomes the output."""
-    return zarr_io.output_bytes(names, (sum(map(tiling.points, pending)),)), 0
+    return store_bytes(plan, tiling, pending, allocation_unit(directory)), 0
 
 
 NETCDF = OutputFormat(
@@ -182,7 +181,7 @@ ZARR = OutputFormat(
     run_bytes=_zarr_run_bytes,
     output_bytes=_lazy(".zarr", "output_bytes"),
     open_result=_lazy(".results", "open_zarr"),
-    open_view=ZarrView,
+    open_view=_lazy(".zarr", "open_view"),
     write_copy=_lazy(".convert", "to_zarr"),
     write_survey=_lazy(".zarr", "write_survey"),
 )

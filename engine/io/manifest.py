@@ -133,6 +133,15 @@ def _tiling(doc: dict[str, Any]) -> Tiling:
     return Tiling(shape, chunk, block)
 
 
+def _zarr(doc: Any) -> tuple[int, str]:
+    """A Zarr store's (compression level, chunk key separator) from the manifest."""
+    level = doc.get("complevel") if isinstance(doc, dict) else None
+    sep = doc.get("separator") if isinstance(doc, dict) else None
+    if level not in (0, 1) or isinstance(level, bool) or sep not in (".", "/"):
+        raise ValueError(f"zarr must say a complevel 0 or 1 and a separator . or /, got {doc!r}")
+    return level, sep
+
+
 @dataclass(frozen=True)
 class Manifest:
     """What a block store holds: the survey's fingerprint, the engine that wrote it, the tiling,
@@ -146,6 +155,9 @@ class Manifest:
     #: How the block files hold a block: compressed chunks by this codec
     #: (:mod:`engine.io.chunkfile`), or None: ``.npz`` files of the values.
     codec: ChunkCodec | None = None
+    #: A Zarr run's store: its compression level (0 or 1) and chunk key separator, what its
+    #: metadata is made again from on resume (None: a netCDF run, or a store made before).
+    zarr: tuple[int, str] | None = None
 
     @classmethod
     def new(cls, plan: RunPlan, tiling: Tiling, codec: ChunkCodec | None = None) -> Manifest:
@@ -167,6 +179,8 @@ class Manifest:
         }
         if self.codec is not None:  # absent: .npz blocks (the manifests of before)
             doc["blocks"] = self.codec.to_doc()
+        if self.zarr is not None:
+            doc["zarr"] = {"complevel": self.zarr[0], "separator": self.zarr[1]}
         doc["check"] = _self_check(doc)
         return doc
 
@@ -191,7 +205,8 @@ class Manifest:
             if name not in RESULTS or dtype != np.dtype(RESULTS[name].dtype).name:
                 raise ValueError(f"variable {name!r} of dtype {dtype!r} is not a result variable")
         codec = ChunkCodec.from_doc(doc["blocks"]) if "blocks" in doc else None
-        return cls(fp, engine, _tiling(doc), tuple(variables.items()), text, codec)
+        zarr = _zarr(doc["zarr"]) if "zarr" in doc else None
+        return cls(fp, engine, _tiling(doc), tuple(variables.items()), text, codec, zarr)
 
     def mismatch(self, plan: RunPlan) -> str | None:
         """Why this store cannot hold ``survey``'s results (None if it can)."""

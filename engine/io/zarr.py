@@ -18,6 +18,7 @@ the content checksum, then zarr's consolidated metadata, fsynced) and renamed in
 from __future__ import annotations
 
 import functools
+import math
 import os
 import shutil
 from collections.abc import Callable, Mapping
@@ -27,26 +28,23 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..grid import Tiling
-from ..schema import FINGERPRINT_ATTR, axis_attrs, grid_dims, variable_attrs, variable_dims
+from ..schema import FINGERPRINT_ATTR, grid_dims
 from . import OutputError
 from .atomic import exists_error, fsync_dir, not_regular, refuse_special
 from .blocks import check_parts_dir, survey_dims
 from .cf import cf_attrs
 from .contents import BLOCK_SCHEME, CHECKSUM_ATTR, CHECKSUM_BLOCK_ATTR, ContentHasher, verify_file
+from .hold import HeldFiles
 from .manifest import Manifest, parts_dir, survey_families
 from .netcdf_info import class_counts, fate_counts
 from .space import output_bytes
 from .summary import Summary
+from .zarrchunks import chunk_keys
 from .zarrcommit import check_tree, commit_store, metadata_problem
-from .zarrlayout import (
-    UNFINISHED_ATTR,
-    ChunkWriter,
-    ZarrView,
-    make_store,
-    read_meta,
-    zarr_module,
-)
+from .zarrlayout import UNFINISHED_ATTR, ChunkWriter, ZarrView, read_meta, zarr_module
+from .zarrskeleton import META, layout, make_store, skeleton
 from .zarrstore import RunStore, parts_state
+from .zarrverify import check_held, check_store, hold_file
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -58,6 +56,7 @@ __all__ = [
     "ZarrView",
     "create",
     "merge",
+    "open_view",
     "output_bytes",
     "put_in_place",
     "read_fingerprint",
@@ -82,34 +81,17 @@ def unavailable() -> str:
 # --- making a store -----------------------------------------------------------------------------
 
 
-def _layout(
-    plan: RunPlan, names: Mapping[str, np.dtype], families: Mapping[str, np.ndarray]
-) -> dict[str, Any]:
-    """The arguments of :func:`make_store` for ``plan``: its axes, the variables its blocks
-    hold (``names``) and the ones on fewer dims (``families``, their values)."""
-    kind = plan.map_kind
-    axes = {
-        d: (np.asarray(plan.axis(d), np.float64), axis_attrs(d, plan.energy_relative))
-        for d in plan.dims
-    }
-    variables = {n: (np.dtype(dt), variable_attrs(n, kind)) for n, dt in names.items()}
-    fixed = {n: (v, variable_dims(n, plan.dims), variable_attrs(n, kind), None)
-             for n, v in families.items()}  # fmt: skip
-    return {"axes": axes, "variables": variables, "families": fixed}
-
-
 def create(
     root: Path, plan: RunPlan, tiling: Tiling, complevel: int, warn: Callable[[str], None]
 ) -> RunStore:
     """The directory of a new run of ``survey`` into a Zarr store (:mod:`engine.io.zarrstore`)."""
     manifest = Manifest.new(plan, tiling)
-    make = functools.partial(
-        make_store,
-        **_layout(plan, manifest.names, survey_families(plan)),
-        tiling=tiling,
-        complevel=complevel,
-    )
-    return RunStore.create(root, manifest, make, complevel, warn)
+    lay = layout(plan, manifest.names, survey_families(plan))
+
+    def files(run_id: str, level: int, separator: str) -> dict[str, bytes]:
+        return skeleton(run_id, **lay, tiling=tiling, complevel=level, separator=separator)
+
+    return RunStore.create(root, manifest, files, complevel, warn)
 
 
 # --- committing a store -------------------------------------------------------------------------
@@ -175,8 +157,8 @@ def merge(
     overwrite: bool = False,
     complevel: int = 1,
 ) -> Summary:
-    """Commit the run's store and rename it to ``out``: every block journaled with chunk files
-    of the recorded size (no value is read: the workers wrote them), the content checksum
+    """Commit the run's store and rename it to ``out``: every file of the store what the run
+    wrote (:func:`engine.io.zarrverify.check_store`; no value is decoded), the content checksum
     (scheme ``sha256-blocks-v1``) combined from the receipts, the statistics gathered from
     them. FileExistsError if ``out`` exists and not ``overwrite``; OutputError if a block is
     missing or changed; OSError if the disk fails. ``complevel`` was fixed when the store was
@@ -199,8 +181,14 @@ def merge(
             hasher.add_digest(name, bytes.fromhex(receipt["values"][name]))
         summary.add(_receipt_block(receipt))
     attrs = _provenance_attrs(plan, command, fingerprint, tiling.block)
-    commit_store(store.store, attrs, hasher, record=(store.root, store.run_id))
-    put_in_place(store.store, out, overwrite=overwrite, aside=store.root / "replaced.zarr")
+    try:
+        _, root = commit_store(store.store, attrs, hasher, store.files or {},
+                               record=(store.root, store.run_id))  # fmt: skip
+        hold_file(store.held, store.store, META, root)
+        store.check_held()  # the last look: a writer from here on waits until the rename
+        put_in_place(store.store, out, overwrite=overwrite, aside=store.root / "replaced.zarr")
+    finally:
+        store.release()
     return summary
 
 
@@ -229,8 +217,8 @@ def write_survey(
         command=command, scene=plan.scene,
     )  # fmt: skip
     attrs[CHECKSUM_BLOCK_ATTR] = list(tiling.block)
-    layout = _layout(plan, names, families)
-    write_store(path, layout, tiling, blocks, attrs, overwrite=overwrite)
+    lay = layout(plan, names, families)
+    write_store(path, lay, tiling, blocks, attrs, overwrite=overwrite)
     return path
 
 
@@ -255,29 +243,66 @@ def write_store(
     left. Returns the checksum."""
     tmp = out.with_name(f"{out.name}.{os.urandom(6).hex()}.tmp")
     run_id = os.urandom(16).hex()
+    variables = layout["variables"]
+    arrays = tuple((n, dt.str) for n, (dt, _) in variables.items())
+    count = len(arrays) * math.prod(-(-n // c) for n, c in zip(tiling.shape, tiling.chunk,
+                                                              strict=True))  # fmt: skip
+    held = HeldFiles(count + 64)  # as a run's: held from the write (or check) to the rename
+    receipts: dict[int, dict] = {}
     try:
-        make_store(tmp, run_id, **layout, tiling=tiling, complevel=complevel)
-        variables = layout["variables"]
-        arrays = tuple((n, dt.str) for n, (dt, _) in variables.items())
-        writer = ChunkWriter(str(tmp), run_id, tiling.shape, tiling.chunk, arrays, complevel)
+        files = skeleton(run_id, **layout, tiling=tiling, complevel=complevel)
+        make_store(tmp, files)
+        writer = ChunkWriter(str(tmp), run_id, tiling.shape, tiling.chunk, arrays, complevel,
+                             held=held)  # fmt: skip
         own = ContentHasher(tiling.block, BLOCK_SCHEME)
         for d, (values, _) in layout["axes"].items():
             own.add(d, values)
         for name, (values, *_) in layout.get("families", {}).items():
             own.add(name, values)
         for i, block in blocks:
-            receipt = writer.write(i, tiling.slices(i), block)
+            receipts[i] = receipt = writer.write(i, tiling.slices(i), block)
             for name in variables:
                 own.add_digest(name, bytes.fromhex(receipt["values"][name]))
         if before_commit is not None:
             before_commit()
-        result = commit_store(tmp, attrs, hasher or own)
+        limit = (
+            max(np.dtype(dt).itemsize for dt, _ in variables.values()) * math.prod(tiling.chunk)
+            + 1024
+        )
+        keys = functools.partial(_block_keys, tiling, writer)
+        check_store(tmp, files, held, keys, receipts, limit)
+        result, root = commit_store(tmp, attrs, hasher or own, files)
+        hold_file(held, tmp, META, root)
+        check_held(held, tmp)
         aside = out.with_name(f"{out.name}.{os.urandom(6).hex()}.tmp")
         put_in_place(tmp, out, overwrite=overwrite, aside=aside)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+    finally:
+        held.release()
     return result
+
+
+def _block_keys(tiling: Tiling, writer: ChunkWriter, index: int) -> list[str]:
+    slab = tiling.slices(index)
+    return [
+        k for n, _ in writer.arrays for k in chunk_keys(n, slab, tiling.chunk, writer.separator)
+    ]
+
+
+def open_view(path: Path) -> ZarrView:
+    """A finished store read through the netCDF4 interface (``convert``): OutputError for one
+    holding a link, a FIFO or a device, an oversized chunk, or arrays that differ from its
+    consolidated metadata (damaged: ``info --verify`` says so too)."""
+    path = Path(path)
+    check_tree(path)
+    attrs = read_meta(path / META).get("attributes")
+    if isinstance(attrs, dict) and UNFINISHED_ATTR in attrs:
+        raise OutputError(f"{path} is an unfinished run's store; finish the run first")
+    if problem := metadata_problem(path):
+        raise OutputError(f"{path} is damaged: {problem}")
+    return ZarrView(path)
 
 
 def read_fingerprint(path: Path) -> str | None:

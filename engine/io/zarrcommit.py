@@ -8,8 +8,9 @@ A store is committed in three steps, each atomic (README, "Guarantees"; docs/gua
    which makes the store an unfinished run again, then verifies the blocks and commits anew;
 2. the root's ``zarr.json`` is replaced, through a temporary file and a rename, by the final
    one: the provenance attributes with the content checksum, and the consolidated metadata
-   (each array's ``zarr.json`` as it is on disk, so that a reader with or without
-   consolidated metadata sees the same arrays);
+   (each array's ``zarr.json`` as the plan makes it, :mod:`engine.io.zarrskeleton`, which the
+   store was checked to hold byte for byte, so that a reader with or without consolidated
+   metadata sees the same arrays);
 3. the store is renamed to its output name (:func:`engine.io.zarr.put_in_place`); the run's
    directory, record included, is removed after.
 
@@ -43,6 +44,7 @@ __all__ = [
     "check_tree",
     "commit_store",
     "consolidated",
+    "consolidated_from",
     "metadata_problem",
     "read_record",
     "undo",
@@ -183,33 +185,39 @@ def undo(root: Path, store: Path) -> None:
     fsync_dir(root)
 
 
+def consolidated_from(files: Mapping[str, bytes]) -> dict[str, Any]:
+    """The consolidated metadata of a store's skeleton ``files`` (key -> bytes,
+    :mod:`engine.io.zarrskeleton`; zarr-python's inline form): each array's ``zarr.json``."""
+    names = sorted(k.split("/")[0] for k in files if k.count("/") == 1 and k.endswith("/" + META))
+    metadata = {name: json.loads(files[f"{name}/{META}"]) for name in names}
+    return {"kind": "inline", "must_understand": False, "metadata": metadata}
+
+
 def commit_store(
     path: Path,
     attrs: Mapping[str, Any],
     hasher: ContentHasher,
+    files: Mapping[str, bytes],
     *,
     record: tuple[Path, str] | None = None,
-) -> str:
-    """The final commit of the store ``path`` (steps 1 and 2 above): debris of dead writers
-    removed, the root's attributes replaced by ``attrs`` plus the content checksum
-    (``hasher``, whose values were all added), the consolidated metadata, all durable.
-    ``record``: (the run's directory, the run's id) where a commit record is kept. Returns the
-    checksum."""
-    check_tree(path)
-    for dirpath, _, filenames in os.walk(path):
-        for name in filenames:
-            if name.startswith(".") and name.endswith(".tmp"):
-                os.unlink(Path(dirpath) / name)
+) -> tuple[str, bytes]:
+    """The final commit of the store ``path`` (steps 1 and 2 above), whose files were checked
+    against its skeleton ``files`` (:func:`engine.io.zarrverify.check_store`, which also
+    removed the debris of dead writers and refused anything else): the root's attributes
+    replaced by ``attrs`` plus the content checksum (``hasher``, whose values were all added;
+    the arrays' headers from ``files``, not from the disk), the consolidated metadata (from
+    ``files``), all durable. ``record``: (the run's directory, the run's id) where a commit
+    record is kept. Returns the checksum and the root's new bytes."""
     final = {k: json_attr(v) for k, v in attrs.items() if k != CHECKSUM_ATTR}
-    final[CHECKSUM_ATTR] = hasher.finish(ZarrView(path, final))
+    final[CHECKSUM_ATTR] = hasher.finish(ZarrView(path, final, files=files))
     root = {
         "attributes": final,
         "zarr_format": 3,
-        "consolidated_metadata": consolidated(path),
+        "consolidated_metadata": consolidated_from(files),
         "node_type": "group",
     }
     data = json.dumps(root, indent=2).encode()
     if record is not None:
         write_record(record[0], record[1], path)
     write_atomic(path / META, lambda f: f.write(data))
-    return final[CHECKSUM_ATTR]
+    return final[CHECKSUM_ATTR], data

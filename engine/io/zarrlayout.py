@@ -1,7 +1,8 @@
 """What a conesurvey Zarr store looks like, and the writer of its chunks.
 
-- the metadata (:func:`make_store`): a Zarr v3 root group, the axes and the variables on fewer
-  dims (their values), the data variables with the netCDF file's storage chunks,
+- the metadata (made by :func:`engine.io.zarrskeleton.make_store`): a Zarr v3 root group, the
+  axes and the variables on fewer dims (their values), the data variables with the netCDF
+  file's storage chunks,
   ``dimension_names``, CF attributes from :mod:`engine.schema` (``_FillValue`` NaN on floats
   as xarray encodes it in Zarr v3; none on integers and axes), Blosc
   (:data:`engine.io.zarrchunks.BLOSC`), chunk keys ``name/c.i.j.k.l`` (one directory per
@@ -32,26 +33,25 @@ from typing import Any
 import numpy as np
 
 from ..errortext import install_hint
-from ..grid import Tiling, storage_chunks
 from . import OutputError
-from .atomic import NEW_FILE, O_CLOEXEC, O_NOFOLLOW, fsync_dir, fsync_path, read_regular
+from .atomic import NEW_FILE, O_CLOEXEC, O_NOFOLLOW, O_NONBLOCK, read_regular
 from .cf import typed_flags
 from .contents import block_digest
+from .hold import BUSY, HELD, HeldFiles
 from .pagecache import drop_cached
 from .summary import Summary
-from .zarrchunks import SEPARATOR, chunk_key_encoding, codecs, encode, fill_value
+from .zarrchunks import SEPARATOR, encode
 
 __all__ = [
     "RUN_ATTR",
     "STORE",
-    "Stamp",
     "UNFINISHED_ATTR",
     "ChunkWriter",
     "ZarrView",
     "fill_attr",
     "json_attr",
-    "make_store",
-    "stamp",
+    "READ_ONLY",
+    "read_all",
     "read_meta",
     "zarr_module",
 ]
@@ -95,13 +95,13 @@ class ChunkWriter:
     arrays: tuple[tuple[str, str], ...]
     complevel: int
     separator: str = SEPARATOR  # of the chunk keys: the store's own (its arrays' metadata)
-    #: Where the writer of the run's own process puts each block's file stamps (block ->
-    #: key -> :data:`Stamp`), its files then leaving the cache; None in a writer that
-    #: travelled to another process (its files are hashed again at the commit).
-    stamps: dict[int, dict[str, Stamp]] | None = field(default=None, compare=False)
+    #: The files the run's own process holds (:mod:`engine.io.hold`): each chunk file is read
+    #: back once written and held until the commit, its pages then leaving the cache; None in
+    #: a writer that travelled to another process (its files are hashed again at the commit).
+    held: HeldFiles | None = field(default=None, compare=False)
 
     def __reduce__(self) -> tuple:
-        """Pickled without ``stamps``: a dask worker's writes are checked by their hashes."""
+        """Pickled without ``held``: a dask worker's writes are checked by their hashes."""
         fields = (self.root, self.run_id, self.shape, self.chunk, self.arrays, self.complevel)
         return (ChunkWriter, (*fields, self.separator))
 
@@ -119,13 +119,10 @@ class ChunkWriter:
         )
         files = self.encode(slab, clean)
         fd = self._open_store()
-        own = None if self.stamps is None else {}
         try:
-            entries = _put_files(fd, files, own)
+            entries = _put_files(fd, files, self.held)
         finally:
             os.close(fd)
-        if own is not None:
-            self.stamps[index] = own  # type: ignore[index]
         stats = Summary()
         stats.add(clean)
         return {
@@ -179,16 +176,15 @@ def _open_dirs(root_fd: int, parts: list[str], cache: dict[str, int]) -> int:
 
 
 def _put_files(
-    root_fd: int, files: dict[str, bytes], stamps: dict[str, Stamp] | None = None
+    root_fd: int, files: dict[str, bytes], held: HeldFiles | None = None
 ) -> list[tuple[str, int, str]]:
     """Write every file atomically (temporary name, fsync, rename), then fsync the directories
     that changed; returns (key, size, SHA-256) of each. Each file is created, written, fsynced
     and hashed on one of :data:`IO_THREADS` threads (making an inode can take ~1 ms: ext4
     without a journal passes over the inodes deleted in the last minutes; one after another
     the files took most of the writer's time, docs/output.md "Zarr stores"), then the files
-    are renamed in order: none before its fsync. With ``stamps``, each file's :func:`stamp`
-    once it is in place goes there, and its pages leave the cache (the commit checks it by
-    its stamp, not by reading it again)."""
+    are renamed in order: none before its fsync. With ``held``, each file is held
+    (:func:`_hold_written`) before it is renamed, and its pages leave the cache."""
     cache: dict[str, int] = {}
     items = sorted(files.items())
     pending: list[tuple[int, str, str]] = []  # (directory fd, temporary name, name) to rename
@@ -198,34 +194,30 @@ def _put_files(
             dfd = _open_dirs(root_fd, dirs, cache)
             pending.append((dfd, f".{leaf}.{secrets.token_hex(6)}.tmp", leaf))
 
-        opened: dict[str, int] = {}  # key -> descriptor kept open until its stamp
-
         def put(job: tuple[tuple[int, str, str], tuple[str, bytes]]) -> tuple[str, int, str]:
             (dfd, tmp, _), (key, data) = job
             fd = os.open(tmp, NEW_FILE, 0o666, dir_fd=dfd)
+            ro = None
             try:
                 view = memoryview(data)
                 while view:
                     view = view[os.write(fd, view) :]
                 os.fsync(fd)
-                if stamps is not None:
-                    drop_cached(fd)
-                    opened[key] = fd
+                if held is not None:  # read-only, of this very file; the writable one closed
+                    ro = os.open(tmp, READ_ONLY, dir_fd=dfd)
+                    if _inode(ro) != _inode(fd):
+                        os.close(ro)
+                        raise OutputError(f"{key}: its temporary file was replaced while written")
             finally:
-                if key not in opened:
-                    os.close(fd)
+                os.close(fd)
+            if ro is not None:
+                _hold_written(held, key, ro, data)  # type: ignore[arg-type]
             return key, len(data), hashlib.sha256(data).hexdigest()
 
-        try:
-            entries = _on_threads(put, list(zip(pending, items, strict=True)))
-            for (dfd, tmp, leaf), (key, _) in zip(list(pending), items, strict=True):
-                os.rename(tmp, leaf, src_dir_fd=dfd, dst_dir_fd=dfd)
-                pending.pop(0)
-                if stamps is not None:  # after the rename, which changes the change time
-                    stamps[key] = stamp(os.fstat(opened[key]))
-        finally:
-            for fd in opened.values():
-                os.close(fd)
+        entries = _on_threads(put, list(zip(pending, items, strict=True)))
+        for dfd, tmp, leaf in list(pending):
+            os.rename(tmp, leaf, src_dir_fd=dfd, dst_dir_fd=dfd)
+            pending.pop(0)
         _on_threads(os.fsync, [root_fd, *cache.values()])
     finally:
         for dfd, tmp, _ in pending:  # not renamed: an error on the way (or never made)
@@ -236,15 +228,54 @@ def _put_files(
     return entries
 
 
-#: What identifies a file's contents without reading them: device, inode, size, modification
-#: and change times [ns]. Every write changes the change time, which no unprivileged process
-#: can set back (Linux >= 6.13 gives a write right after a look a later one, not the same tick).
-Stamp = tuple[int, int, int, int, int]
+#: How a store's file is opened to be read or held: never through a link, never blocking.
+READ_ONLY = os.O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC
 
 
-def stamp(st: os.stat_result) -> Stamp:
-    """The :data:`Stamp` of a file's ``stat``."""
-    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
+def _inode(fd: int) -> tuple[int, int]:
+    st = os.fstat(fd)
+    return st.st_dev, st.st_ino
+
+
+def read_all(fd: int, limit: int) -> bytes:
+    """Up to ``limit`` bytes of the open file ``fd`` from its start (the descriptor's own
+    offset is neither used nor moved)."""
+    parts, offset = [], 0
+    while offset < limit:
+        got = os.pread(fd, min(limit - offset, 1 << 26), offset)
+        if not got:
+            break
+        parts.append(got)
+        offset += len(got)
+    return b"".join(parts)
+
+
+def _hold_written(held: HeldFiles, key: str, fd: int, data: bytes) -> None:
+    """Hold the chunk file ``key`` just written with ``data`` (``fd``: read-only, of it): its
+    lease taken, then its bytes read back (from the cache: they were just written) and
+    compared with ``data``, then its pages given back. OutputError if another process has it
+    open for writing, or changed it between the write and the lease. Where it is not held (a
+    file system without leases, no descriptor left) it is closed: the commit hashes it."""
+    got = held.hold(key, fd)
+    try:
+        if got == BUSY:
+            raise OutputError(
+                f"{key}: another process has the chunk file open for writing while the run "
+                "writes it (a writable mapping counts)"
+            )
+        if got == HELD and read_all(fd, len(data) + 1) != data:
+            raise OutputError(
+                f"{key}: the chunk file changed while it was written (another process wrote it)"
+            )
+        drop_cached(fd)
+    except BaseException:
+        if got == HELD:
+            held.drop(key)
+        else:
+            os.close(fd)
+        raise
+    if got != HELD:
+        os.close(fd)
 
 
 #: Threads that fsync a block's chunk files and hash its variables (work that releases the
@@ -291,54 +322,6 @@ def _decoded(attrs: Mapping[str, Any], dtype: np.dtype) -> dict[str, Any]:
     return out
 
 
-def make_store(
-    path: Path,
-    run_id: str,
-    *,
-    axes: Mapping[str, tuple[np.ndarray, dict[str, Any]]],
-    variables: Mapping[str, tuple[np.dtype, dict[str, Any]]],
-    tiling: Tiling,
-    complevel: int,
-    families: Mapping[str, tuple[np.ndarray, tuple[str, ...], dict[str, Any], Any]] = {},
-) -> None:
-    """Create the store ``path`` (a new directory): the root group marked unfinished with the
-    run's id, the axes with their values, the data variables (no chunk yet), ``families`` (on
-    fewer dims: name -> (values, dims, attributes, chunks or None), written whole)."""
-    zarr = zarr_module()
-    os.mkdir(path)
-    store = zarr.storage.LocalStore(path)
-    attrs = {UNFINISHED_ATTR: UNFINISHED_TEXT, RUN_ATTR: run_id}
-    zarr.create_group(store, zarr_format=3, attributes=attrs)
-    dims = tuple(axes)
-    for d, (values, a) in axes.items():
-        arr = zarr.create_array(
-            store, name=d, shape=values.shape, chunks=values.shape, dtype=np.float64,
-            fill_value=np.nan, compressors=None, dimension_names=(d,),
-            attributes={k: json_attr(v) for k, v in a.items()},
-        )  # fmt: skip
-        arr[:] = values
-    specs = [(n, dt, a, tiling.shape, tiling.chunk, dims, None) for n, (dt, a) in variables.items()]
-    specs += [(n, v.dtype, a, v.shape, c or storage_chunks(v.shape), d, v)
-              for n, (v, d, a, c) in families.items()]  # fmt: skip
-    for name, dt, a, shape, chunks, vdims, values in specs:
-        dt = np.dtype(dt)
-        attrs = {k: json_attr(v) for k, v in typed_flags(a, dt).items() if k != "_FillValue"}
-        if dt.kind == "f":
-            attrs["_FillValue"] = fill_attr(dt)
-        arr = zarr.create_array(
-            store, name=name, shape=shape, chunks=tuple(chunks), dtype=dt,
-            fill_value=fill_value(dt), compressors=codecs(complevel), dimension_names=vdims,
-            attributes=attrs, config={"write_empty_chunks": True},
-            chunk_key_encoding=chunk_key_encoding(SEPARATOR),
-        )  # fmt: skip
-        if values is not None:
-            arr[...] = values
-    for dirpath, _, filenames in os.walk(path):
-        for name in filenames:
-            fsync_path(Path(dirpath) / name)
-        fsync_dir(Path(dirpath))
-
-
 class _Attrs:
     """The attributes of a store or array, as netCDF4 gives them."""
 
@@ -375,11 +358,25 @@ class _Var(_Attrs):
 class ZarrView(_Attrs):
     """A Zarr store seen through the netCDF4 calls :mod:`engine.io.contents` makes (the
     content checksum is computed and verified the same way in both formats). ``attrs``
-    replaces the root's attributes (the ones a commit is about to write)."""
+    replaces the root's attributes (the ones a commit is about to write); ``files``, a
+    store's skeleton (key -> bytes, :mod:`engine.io.zarrskeleton`), replaces its metadata on
+    disk (the arrays' values cannot be read then)."""
 
-    def __init__(self, path: Path, attrs: Mapping[str, Any] | None = None) -> None:
+    def __init__(
+        self,
+        path: Path,
+        attrs: Mapping[str, Any] | None = None,
+        files: Mapping[str, bytes] | None = None,
+    ) -> None:
         zarr = zarr_module()
-        store = zarr.storage.LocalStore(path, read_only=True)
+        if files is None:
+            store = zarr.storage.LocalStore(path, read_only=True)
+        else:
+            from zarr.core.buffer import default_buffer_prototype
+
+            buffer = default_buffer_prototype().buffer
+            found = {k: buffer.from_bytes(v) for k, v in files.items()}
+            store = zarr.storage.MemoryStore(found, read_only=True)
         group = zarr.open_group(store, mode="r", zarr_format=3)
         self._attrs = dict(group.attrs) if attrs is None else dict(attrs)
         self.variables = {name: _Var(arr) for name, arr in group.arrays()}

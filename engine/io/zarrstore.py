@@ -25,35 +25,39 @@ midway is computed again and its chunks replaced.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import hashlib
 import json
 import math
 import os
 import secrets
-import stat
 from collections.abc import Callable, Iterator
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..grid import Tiling
 from . import OutputError
+from . import zarrverify as verify
 from .atomic import (
     NEW_FILE,
     O_CLOEXEC,
     O_NOFOLLOW,
-    O_NONBLOCK,
     fsync_dir,
 )
 from .blocks import Scan, make_parts_dir, remove_store
+from .hold import BUSY, HeldFiles
 from .journal import JOURNAL, journal_lines
-from .manifest import Manifest, read_manifest, write_manifest
+from .manifest import Manifest, read_manifest, survey_families, write_manifest
 from .zarrchunks import SEPARATOR, chunk_keys
 from .zarrcommit import read_record, undo
-from .zarrlayout import RUN_ATTR, STORE, ChunkWriter, Stamp, files_digest, read_meta, stamp
+from .zarrlayout import STORE, ChunkWriter, read_meta
+from .zarrskeleton import layout, make_store, repair, skeleton
+
+if TYPE_CHECKING:
+    from ..plan import RunPlan
 
 __all__ = ["JOURNAL", "RunStore", "parts_state", "read_journal"]
 
@@ -142,9 +146,17 @@ class RunStore:
     warn: Callable[[str], None] = field(default=lambda msg: None)
     journal: dict[int, dict] = field(default_factory=dict)
     separator: str = SEPARATOR  # of the chunk keys (a store made before 2026-11-27: "/")
-    #: The stamps of the chunk files this process wrote or verified, by block (the commit
-    #: checks those blocks by their stamps instead of reading them again).
-    stamps: dict[int, dict[str, Stamp]] = field(default_factory=dict)
+    #: The skeleton files the store must hold (:mod:`engine.io.zarrskeleton`): known once the
+    #: store is made, or once a resume is given its plan (:meth:`expect`).
+    files: dict[str, bytes] | None = None
+    #: The files this process holds until the commit (:mod:`engine.io.hold`): the chunk files
+    #: it wrote or verified, then the skeleton.
+    held: HeldFiles = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        chunks = math.prod(-(-n // c) for n, c in zip(self.tiling.shape, self.tiling.chunk,
+                                                       strict=True))  # fmt: skip
+        self.held = HeldFiles(chunks * len(self.names) + 64)
 
     @property
     def store(self) -> Path:
@@ -161,7 +173,7 @@ class RunStore:
             arrays,
             self.complevel,
             self.separator,
-            self.stamps,
+            self.held,
         )
 
     @classmethod
@@ -169,18 +181,20 @@ class RunStore:
         cls,
         root: Path,
         manifest: Manifest,
-        make_store: Callable[[Path, str], None],
+        files: Callable[[str, int, str], dict[str, bytes]],
         complevel: int,
         warn: Callable[[str], None] = lambda msg: None,
     ) -> RunStore:
-        """A new run: the directory (mode 0700; FileExistsError if it exists), the store made by
-        ``make_store(path, run_id)``, then the manifest (a store without one is debris) and an
-        empty journal. Removed again if any of that fails."""
+        """A new run: the directory (mode 0700; FileExistsError if it exists), the store made
+        from its skeleton ``files(run_id, complevel, separator)``, then the manifest (a store
+        without one is debris) and an empty journal. Removed again if any of that fails."""
         make_parts_dir(root)
         run_id = secrets.token_hex(16)
+        level = int(complevel != 0)
         try:
-            make_store(root / STORE, run_id)
-            write_manifest(root, manifest)
+            skeleton = files(run_id, level, SEPARATOR)
+            make_store(root / STORE, skeleton)
+            write_manifest(root, dataclasses.replace(manifest, zarr=(level, SEPARATOR)))
             os.close(os.open(root / JOURNAL, NEW_FILE, 0o600))
             fsync_dir(root)
             fsync_dir(root.parent)
@@ -189,40 +203,30 @@ class RunStore:
                 remove_store(root)
             raise
         m = manifest
-        return cls(root, m.tiling, m.names, run_id, complevel, warn, separator=SEPARATOR)
+        return cls(root, m.tiling, m.names, run_id, level, warn, separator=SEPARATOR,
+                   files=skeleton)  # fmt: skip
 
     @classmethod
     def open(cls, root: Path, warn: Callable[[str], None] = lambda msg: None) -> RunStore:
-        """The existing run ``root``: manifest, journal, the store's run id and compression."""
+        """The existing run ``root``: manifest, journal, the store's compression and chunk key
+        separator (the manifest's; of a store made before it said them, its arrays'). Its
+        metadata is not trusted: a resume writes it again from the plan (:meth:`expect`)."""
         m = read_manifest(root)
         store = root / STORE
         if os.path.islink(store) or not os.path.isdir(store):
             raise OutputError(f"{store} is not a directory (a symbolic link is not followed)")
-        meta = read_meta(store / "zarr.json")
-        run_id = meta.get("attributes", {}).get(RUN_ATTR)
-        record = read_record(root)  # a commit that did not finish: undone by discard()
-        if not isinstance(run_id, str) and record is not None:
-            run_id = record["run_id"]
-        if not isinstance(run_id, str):
-            raise OutputError(f"{store} is not the store of an unfinished run")
-        for name in os.listdir(store):  # every array's metadata, never through a link
-            if name != "zarr.json":
-                read_meta(store / name / "zarr.json")
-        metas = {name: read_meta(store / name / "zarr.json") for name in m.names}
-        first = metas[next(iter(m.names))]
-        level = 0 if len(first.get("codecs", [])) < 2 else 1
-        separators = {name: _separator(meta) for name, meta in metas.items()}
-        if None in separators.values():
-            name = next(n for n, sep in separators.items() if sep is None)
-            raise OutputError(f"{store}: the chunk key encoding of {name} is not conesurvey's")
-        if len(set(separators.values())) > 1:  # one separator per run: keys() assumes it
-            raise OutputError(
-                f"{store}: its arrays do not share one chunk key separator "
-                f"({', '.join(f'{n} {s!r}' for n, s in separators.items())})"
-            )
-        separator = separators[next(iter(m.names))]
+        read_record(root)  # a commit that did not finish (undone by discard()): readable
+        level, separator = m.zarr if m.zarr is not None else _inferred(store, m)
         journal = read_journal(root, list(m.names), m.tiling.nblocks)
+        run_id = secrets.token_hex(16)  # the store's own is replaced when it is resumed
         return cls(root, m.tiling, m.names, run_id, level, warn, journal, separator=separator)
+
+    def expect(self, plan: RunPlan) -> None:
+        """Know what the store must hold: the skeleton of ``plan`` (whose survey the manifest
+        matches), with this run's id; :meth:`discard` makes the store hold it."""
+        lay = layout(plan, self.names, survey_families(plan))
+        self.files = skeleton(self.run_id, **lay, tiling=self.tiling, complevel=self.complevel,
+                              separator=self.separator)  # fmt: skip
 
     def path(self, index: int) -> Path:
         """Where block ``index`` is written (for messages)."""
@@ -251,81 +255,66 @@ class RunStore:
         itemsize = max(np.dtype(dt).itemsize for dt in self.names.values())
         return itemsize * math.prod(self.tiling.chunk) + 1024
 
-    def _digest(self, index: int, stamps: dict[str, Stamp] | None = None) -> tuple[int, str] | None:
-        """(bytes, files digest) of block ``index``'s chunk files as they are now, None if one is
-        missing, not a regular file or too large; with ``stamps``, each file's stamp (taken
-        before it is read: a change while it is read shows) goes there."""
-        entries = []
-        for key in self.keys(index):
-            try:  # never through a link, never blocking on a FIFO
-                fd = os.open(self.store / key, os.O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC)
-            except OSError:
-                return None
-            with os.fdopen(fd, "rb") as f:
-                st = os.fstat(fd)
-                if not stat.S_ISREG(st.st_mode) or st.st_size > self.receipt_limit:
-                    return None
-                data = f.read()
-            if stamps is not None:
-                stamps[key] = stamp(st)
-            entries.append((key, len(data), hashlib.sha256(data).hexdigest()))
-        return sum(n for _, n, _ in entries), files_digest(entries)
-
-    def _unchanged(self, index: int) -> bool:
-        """Whether every chunk file of block ``index`` still has the stamp it had when this
-        process wrote or verified it (False where it has none)."""
-        stamps = self.stamps.get(index)
-        if stamps is None or set(stamps) != set(self.keys(index)):
-            return False
-        try:
-            return all(
-                stamp(os.stat(self.store / key, follow_symlinks=False)) == s
-                for key, s in stamps.items()
-            )
-        except OSError:
-            return False
+    def digest(self, index: int, hold: bool = False) -> tuple[int, str] | str | None:
+        """(bytes, files digest) of block ``index``'s chunk files as they are now; None if one
+        is missing, not a regular file or too large. With ``hold``, each is held
+        (:mod:`engine.io.hold`) before it is read, and let go again unless its block matches
+        its journal line; BUSY if another process has one open for writing."""
+        return verify.block_digest(self.store, self.keys(index), self.held, self.receipt_limit,
+                                   hold)  # fmt: skip
 
     def scan(self) -> Scan:
-        """Hash the chunk files of every journaled block against its receipt (changes
-        nothing); blocks not journaled are simply written again."""
+        """Hash the chunk files of every journaled block against its receipt, holding those of
+        the blocks that match (changes nothing); blocks not journaled are simply written
+        again."""
         found = Scan()
         for index, receipt in sorted(self.journal.items()):
-            stamps: dict[str, Stamp] = {}
-            got = self._digest(index, stamps)
+            got = self.digest(index, hold=True)
             if got == (receipt["bytes"], receipt["files"]):
                 found.good.add(index)
-                self.stamps[index] = stamps
-            else:
-                why = "missing" if got is None else "its checksum does not match the journal"
-                found.bad[f"block {index}"] = f"chunk files {why}"
+                continue
+            for key in self.keys(index):
+                self.held.drop(key)
+            why = {None: "missing", BUSY: "open for writing by another process"}.get(
+                got,
+                "its checksum does not match the journal",  # type: ignore[arg-type]
+            )
+            found.bad[f"block {index}"] = f"chunk files {why}"
         return found
 
     def discard(self, found: Scan) -> None:
-        """Undo a commit that did not finish (:mod:`engine.io.zarrcommit`); report the bad
-        blocks (their chunks are replaced when they are computed again)."""
+        """Undo a commit that did not finish (:mod:`engine.io.zarrcommit`); make the store hold
+        its skeleton again, with this run's id (:func:`engine.io.zarrskeleton.repair`); report
+        the bad blocks (their chunks are replaced when they are computed again)."""
         undo(self.root, self.store)
+        if self.files is None:
+            raise OutputError(f"{self.store}: resumed without its plan (RunStore.expect)")
+        chunks = (k for i in range(self.tiling.nblocks) for k in self.keys(i))
+        repair(self.store, self.files, chunks, self.warn)
         for name, why in found.bad.items():
             self.warn(f"{name} of {self.store} is corrupt ({why}); recomputing")
 
     def check_files(self) -> None:
         """OutputError unless every block is journaled and its chunk files are what its
-        receipt says, just before the commit: a chunk changed since the resume scan or since
-        it was written is caught. The files this process wrote or verified are checked by
-        their stamps (a write changes a file's change time); the others, and any whose stamp
-        changed, are read and hashed again."""
+        receipt says, the skeleton is what the run wrote and nothing else is in the store,
+        just before the commit (:func:`engine.io.zarrverify.check_store`): every file is then
+        held, or was hashed here."""
         missing = [i for i in range(self.tiling.nblocks) if i not in self.journal]
         if missing:
             raise OutputError(f"block {missing[0]} is not recorded in the journal")
-        todo = [i for i in range(self.tiling.nblocks) if not self._unchanged(i)]
-        with ThreadPoolExecutor(os.cpu_count() or 1) as pool:  # hashing releases the GIL
-            got = dict(zip(todo, pool.map(self._digest, todo), strict=True))
-        for index, digest in got.items():
-            receipt = self.journal[index]
-            if digest != (receipt["bytes"], receipt["files"]):
-                raise OutputError(
-                    f"the chunk files of block {index} changed since they were written; "
-                    "it will be computed again"
-                )
+        if self.files is None:
+            raise OutputError(f"{self.store}: its skeleton is not known (RunStore.expect)")
+        verify.check_store(self.store, self.files, self.held, self.keys, self.journal,
+                           self.receipt_limit)  # fmt: skip
+
+    def check_held(self) -> None:
+        """OutputError unless every held file is still held, unbroken, under its name (the
+        last check before the store is renamed into place)."""
+        verify.check_held(self.held, self.store)
+
+    def release(self) -> None:
+        """Let go of every held file (once the store is in place, or the run ends)."""
+        self.held.release()
 
     def temporaries(self) -> Iterator[Path]:
         """Temporary files left in the store by writers that died midway."""
@@ -337,7 +326,26 @@ class RunStore:
     def remove(self) -> list[str]:
         """Delete the run's directory: the manifest first (what is left is debris); returns
         the names of a user's files left in it."""
+        self.release()
         return remove_store(self.root)
+
+
+def _inferred(store: Path, m: Manifest) -> tuple[int, str]:
+    """The compression level and chunk key separator of a store whose manifest does not say
+    them (made before it did): from its arrays' metadata."""
+    metas = {name: read_meta(store / name / "zarr.json") for name in m.names}
+    first = metas[next(iter(m.names))]
+    level = 0 if len(first.get("codecs", [])) < 2 else 1
+    separators = {name: _separator(meta) for name, meta in metas.items()}
+    if None in separators.values():
+        name = next(n for n, sep in separators.items() if sep is None)
+        raise OutputError(f"{store}: the chunk key encoding of {name} is not conesurvey's")
+    if len(set(separators.values())) > 1:  # one separator per run: keys() assumes it
+        raise OutputError(
+            f"{store}: its arrays do not share one chunk key separator "
+            f"({', '.join(f'{n} {s!r}' for n, s in separators.items())})"
+        )
+    return level, separators[next(iter(m.names))]
 
 
 def _separator(meta: dict) -> str | None:
@@ -352,9 +360,11 @@ def _separator(meta: dict) -> str | None:
 
 
 def parts_state(root: Path) -> dict[str, Any]:
-    """What an unfinished Zarr run says (``read_info``): OutputError if it cannot be read.
-    Blocks are counted from the journal, not verified."""
+    """What an unfinished Zarr run says (``read_info``): OutputError if it cannot be read, or
+    cannot be resumed (what :meth:`RunStore.open` refuses: the rerun's refusal). Blocks are
+    counted from the journal, not verified."""
     m = read_manifest(root)
+    RunStore.open(root)  # what the rerun opens; its metadata it makes whole again
     journal = read_journal(root, list(m.names), m.tiling.nblocks)
     return {
         "complete": False,

@@ -83,3 +83,81 @@ def test_a_zarr_store_holds_the_same_float32_values(files, tmp_path):
         assert ds["period"].dtype == np.float32
         for name in ("period", "r_min", "orbit_class"):
             assert ds[name].values.tobytes() == single[name].tobytes(), name
+
+
+# --- values float32 cannot hold ----------------------------------------------------------------
+
+F32 = np.finfo(np.float32)
+
+
+def _extreme(energies: str, lz: str) -> str:
+    return f"""title = "extreme"
+precision = "single"
+[axes.alpha]
+values = [0.7]
+[axes.energy]
+values = [{energies}]
+[axes.h]
+values = [0.0, 1.0]
+[axes.Lz]
+values = [{lz}]
+"""
+
+
+def _lost(values: np.ndarray) -> np.ndarray:
+    """Where float32 cannot hold a float64 value as what it is: finite beyond its largest, or
+    non-zero below its smallest normal magnitude (an independent statement of the rule)."""
+    a = np.abs(values[np.isfinite(values)])
+    return a[(a > F32.max) | ((a > 0) & (a < F32.tiny))]
+
+
+EXTREMES = {
+    # a bounded orbit with r_max 1.9e39: float32 would store +inf, an escape's marker
+    "r_max beyond float32": ("1.0, 2.0, 1e40", "0.25, 0.5", "r_max"),
+    # r_min 1.3e-45: float32 keeps one significant bit of it (and 0 below 7e-46)
+    "r_min below float32": ("1.0, 1e30", "1e-30, 0.5", "r_min"),
+    # r_circ 8.6e39, on (alpha, h, Lz): refused before any block is computed
+    "r_circ beyond float32": ("5.0, 1e3", "0.5, 1e60", "r_circ"),
+}
+
+
+@pytest.mark.parametrize("fmt", ["nc", "zarr"])
+@pytest.mark.parametrize("case", list(EXTREMES), ids=list(EXTREMES))
+def test_a_value_float32_cannot_hold_is_refused_and_nothing_is_left(tmp_path, capsys, fmt, case):
+    """The double run of the same survey has the value (found here with numpy, not the rule
+    under test); the single run refuses, exit 2, one line naming the variable, the value, the
+    point, float32's range and the way out; nothing is left behind."""
+    energies, lz, name = EXTREMES[case]
+    text = _extreme(energies, lz)
+    double = parse_survey(text.replace('precision = "single"\n', "")).run()
+    assert _lost(double[name].values).size, "the case must hold a value float32 cannot"
+    (tmp_path / "s.toml").write_text(text)
+    out = tmp_path / f"out.{fmt}"
+    status = cli.main(["run", str(tmp_path / "s.toml"), "-o", str(out), "-q", "--block-points",
+                       "4"])  # fmt: skip
+    err = capsys.readouterr().err
+    assert status == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert f"cannot store {name} = " in err and "float32 holds magnitudes from 1.18e-38 to " in err
+    assert "alpha = 0.7" in err and 'precision = "double"' in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+
+
+def test_the_in_memory_survey_refuses_it_too():
+    with pytest.raises(ValueError, match=r'cannot store r_max = 1\.86589e\+39.*"double"'):
+        parse_survey(_extreme("1.0, 1e40", "0.5")).run()
+
+
+def test_values_float32_holds_are_stored_as_before(tmp_path):
+    """Right at float32's edges (a largest r_max and a smallest r_min it holds), the single
+    run stores the double run's values rounded once, and every bounded orbit's r_max is
+    finite (no stored marker of an escape)."""
+    text = _extreme("1.0, 1e37", "1e-15, 0.5")
+    double = parse_survey(text.replace('precision = "single"\n', "")).run()
+    assert not any(_lost(double[n].values).size for n in ("r_min", "r_max", "period", "r_circ"))
+    run_survey(parse_survey(text), tmp_path / "x.nc")
+    single, _ = _read(tmp_path / "x.nc")
+    for name in ("r_min", "r_max", "period", "r_circ"):
+        want = double[name].values.astype(np.float32)
+        assert np.array_equal(single[name], want, equal_nan=True), name
+    bounded = single["orbit_class"] == 1
+    assert bounded.any() and np.isfinite(single["r_max"][bounded]).all()

@@ -202,7 +202,7 @@ def test_a_run_begun_with_nested_chunk_keys_resumes_in_them(work, reference, cap
     layout before one directory per variable) and was stopped after 3 blocks resumes in that
     layout: the blocks it computes go beside the stored ones, and the store equals the
     uninterrupted one."""
-    from engine.io import zarrlayout, zarrstore
+    from engine.io import zarrstore
 
     stored = {"n": 0}
 
@@ -212,7 +212,6 @@ def test_a_run_begun_with_nested_chunk_keys_resumes_in_them(work, reference, cap
             raise KeyboardInterrupt  # stands for a kill after 3 stored blocks
 
     with monkeypatch.context() as old, pytest.raises(KeyboardInterrupt):
-        old.setattr(zarrlayout, "SEPARATOR", "/")
         old.setattr(zarrstore, "SEPARATOR", "/")
         run_survey(parse_survey(SURVEY), work / "out.zarr", block_points=int(BLOCK), on_block=stop)
     parts = work / "out.zarr.parts" / "store.zarr"  # the code of today resumes it
@@ -240,42 +239,62 @@ def test_another_survey_is_refused_and_nothing_changes(after_kill, capsys):
     assert after == before
 
 
-def test_a_store_with_a_foreign_chunk_key_encoding_is_not_resumed(after_kill, capsys):
-    """An unfinished store whose arrays name a chunk key encoding conesurvey does not write
-    ("v2") is refused, saying so, and nothing changes; --overwrite starts again."""
-    work = after_kill
-    for meta in (work / "out.zarr.parts" / "store.zarr").glob("*/zarr.json"):
+def _foreign_keys(store: Path) -> None:
+    """Every array's chunk key encoding edited: "v2", and period's separator "/"."""
+    for meta in store.glob("*/zarr.json"):
         doc = json.loads(meta.read_text())
-        if "chunk_key_encoding" in doc:
+        if meta.parent.name == "period":
+            doc["chunk_key_encoding"]["configuration"]["separator"] = "/"
+        elif "chunk_key_encoding" in doc:
             doc["chunk_key_encoding"] = {"name": "v2", "configuration": {"separator": "."}}
-            meta.write_text(json.dumps(doc))
-    before = {p: p.read_bytes() for p in (work / "out.zarr.parts").rglob("*") if p.is_file()}
+        meta.write_text(json.dumps(doc))
+
+
+def test_edited_chunk_key_encodings_are_written_again(after_kill, reference, capsys):
+    """The manifest records the store's compression and chunk key separator, so the arrays'
+    metadata is not trusted: a resume writes it again from the plan (naming each file) and the
+    store equals the uninterrupted one."""
+    work = after_kill
+    _foreign_keys(work / "out.zarr.parts" / "store.zarr")
     status, _, err = cli(capsys, *ARGS)
-    assert status == 2 and "chunk key encoding of" in err and "is not conesurvey's" in err, err
-    after = {p: p.read_bytes() for p in (work / "out.zarr.parts").rglob("*") if p.is_file()}
-    assert after == before
+    assert status == 0, err
+    assert "period/zarr.json of" in err and "written again" in err, err
+    assert_same_dataset(reference / "ref.nc", work / "out.zarr")
+    status, out, _ = cli(capsys, "info", "out.zarr", "--verify")
+    assert status == 0 and "complete, verified" in out
+
+
+@pytest.mark.parametrize(
+    ("edit", "said"),
+    [("foreign", "chunk key encoding of"), ("mixed", "do not share one chunk key separator")],
+)
+def test_a_store_made_before_its_manifest_said_its_layout_is_read_from_its_arrays(
+    after_kill, capsys, edit, said
+):
+    """A store whose manifest does not say its layout (made before it did) takes it from its
+    arrays' metadata: a chunk key encoding conesurvey does not write, or arrays that disagree on
+    the separator, is refused, saying so, and nothing changes; --overwrite starts again."""
+    import dataclasses
+
+    from engine.io.manifest import read_manifest, write_manifest
+
+    work = after_kill
+    parts = work / "out.zarr.parts"
+    write_manifest(parts, dataclasses.replace(read_manifest(parts), zarr=None))
+    store = parts / "store.zarr"
+    if edit == "foreign":
+        _foreign_keys(store)
+    else:
+        meta = store / "period" / "zarr.json"
+        doc = json.loads(meta.read_text())
+        doc["chunk_key_encoding"]["configuration"]["separator"] = "/"
+        meta.write_text(json.dumps(doc))
+    before = {p: p.read_bytes() for p in parts.rglob("*") if p.is_file()}
+    status, _, err = cli(capsys, *ARGS)
+    assert status == 2 and said in err, err
+    assert {p: p.read_bytes() for p in parts.rglob("*") if p.is_file()} == before
     status, _, err = cli(capsys, *ARGS, "--overwrite")
     assert status == 0, err
-
-
-def test_a_store_whose_arrays_disagree_on_the_chunk_key_separator_is_not_resumed(
-    after_kill, capsys
-):
-    """One data variable of an unfinished store edited to nested keys ("/") while the others
-    keep "." is refused (a resume would write and look for that variable's chunks where they
-    are not), saying which arrays disagree, and nothing changes."""
-    work = after_kill
-    meta = work / "out.zarr.parts" / "store.zarr" / "period" / "zarr.json"
-    doc = json.loads(meta.read_text())
-    assert doc["chunk_key_encoding"]["configuration"]["separator"] == "."
-    doc["chunk_key_encoding"]["configuration"]["separator"] = "/"
-    meta.write_text(json.dumps(doc))
-    before = {p: p.read_bytes() for p in (work / "out.zarr.parts").rglob("*") if p.is_file()}
-    status, _, err = cli(capsys, *ARGS)
-    assert status == 2 and "do not share one chunk key separator" in err, err
-    assert "period '/'" in err and "r_min '.'" in err, err
-    after = {p: p.read_bytes() for p in (work / "out.zarr.parts").rglob("*") if p.is_file()}
-    assert after == before
 
 
 def test_an_existing_store_is_kept_without_overwrite(work, reference, capsys):

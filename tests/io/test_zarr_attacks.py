@@ -217,14 +217,26 @@ def test_verify_covers_every_arrays_own_metadata(work, capsys, reference, edit):
 # --- 3. a chunk of a verified block changed while the rerun computes -------------------------
 
 
+def _saved_over(chunk: Path) -> None:
+    """``chunk`` replaced as an editor saves: a new file, last byte changed, renamed over it
+    (the run holds the old one: engine/io/hold.py)."""
+    data = bytearray(chunk.read_bytes())
+    data[-1] ^= 0xFF
+    new = chunk.with_name(chunk.name + ".new")
+    new.write_bytes(bytes(data))
+    os.replace(new, chunk)
+
+
 def test_a_verified_chunk_changed_during_the_rerun_is_caught(work, capsys, reference, partial):
     shutil.copytree(partial, work / "out.zarr.parts")
     chunk = next((work / "out.zarr.parts/store.zarr/period").glob("c.*"))
 
+    done = []
+
     def flip(i: int) -> None:  # after the resume scan, while the missing blocks are computed
-        data = bytearray(chunk.read_bytes())
-        data[-1] ^= 0xFF
-        chunk.write_bytes(bytes(data))
+        if not done:
+            _saved_over(chunk)
+            done.append(i)
 
     with pytest.raises(RunFailed, match="changed since they were written"):
         run_survey(parse_survey(SURVEY), work / "out.zarr", block_points=BLOCK, on_block=flip)
@@ -233,17 +245,15 @@ def test_a_verified_chunk_changed_during_the_rerun_is_caught(work, capsys, refer
 
 
 def test_a_chunk_this_run_wrote_and_then_changed_is_caught(work, capsys, reference):
-    """A chunk of block 0, written by this very run, changed (same size) while its last block
-    is computed: the commit, which checks the files this run wrote by their stamps instead of
-    reading them, sees the change and refuses; the next run recomputes the block."""
+    """A chunk of block 0, written by this very run, replaced (same size) while its last block
+    is computed: the commit sees that its name no longer leads to the file it holds, hashes
+    the new one and refuses; the next run recomputes the block."""
     flipped = []
 
     def flip(i: int) -> None:  # block 7's chunks are written: block 0's long before
         if i == 7:
             chunk = next((work / "out.zarr.parts/store.zarr/period").glob("c.*"))
-            data = bytearray(chunk.read_bytes())
-            data[-1] ^= 0xFF
-            chunk.write_bytes(bytes(data))
+            _saved_over(chunk)
             flipped.append(chunk)
 
     with pytest.raises(RunFailed, match="changed since they were written"):
@@ -252,33 +262,57 @@ def test_a_chunk_this_run_wrote_and_then_changed_is_caught(work, capsys, referen
     resumed(work, capsys, reference)
 
 
+def test_a_held_chunk_cannot_be_opened_for_writing_during_the_run(work, capsys, reference):
+    """While the run holds a chunk file, opening it for writing without waiting is refused
+    (EWOULDBLOCK) and the file is unchanged; the commit then checks that file again (its lease
+    broke) and the store verifies."""
+    import errno
+
+    tried = []
+
+    def poke(i: int) -> None:
+        if i == 7:
+            chunk = next((work / "out.zarr.parts/store.zarr/period").glob("c.*"))
+            with pytest.raises(OSError) as exc:
+                os.open(chunk, os.O_WRONLY | os.O_NONBLOCK)
+            tried.append(exc.value.errno)
+
+    run_survey(parse_survey(SURVEY), work / "out.zarr", block_points=BLOCK, on_block=poke)
+    assert tried == [errno.EWOULDBLOCK]
+    assert checksum(work / "out.zarr") == checksum(reference)
+    status, out, _ = cli(capsys, "info", "out.zarr", "--verify")
+    assert status == 0 and "complete, verified" in out, out
+
+
 def test_the_commit_reads_no_chunk_this_process_wrote_or_verified(work, partial, monkeypatch):
     """Resumed from 3 stored blocks: the scan reads those 3 once, the 5 blocks computed here
-    are checked at the commit by their stamps; no chunk file is read a second time."""
-    from engine.io import zarrstore
+    were read back once written and are held; the commit reads no chunk file again."""
+    from engine.io import zarrverify
 
     shutil.copytree(partial, work / "out.zarr.parts")
-    real, read = zarrstore.RunStore._digest, []
+    real, read = zarrverify.block_digest, []
 
-    def counted(self, index, stamps=None):
-        read.append(index)
-        return real(self, index, stamps)
+    def counted(store, keys, *args):
+        read.append(keys[0])
+        return real(store, keys, *args)
 
-    monkeypatch.setattr(zarrstore.RunStore, "_digest", counted)
+    monkeypatch.setattr(zarrverify, "block_digest", counted)
     run_survey(parse_survey(SURVEY), work / "out.zarr", block_points=BLOCK)
-    assert sorted(read) == [0, 1, 2], read
+    assert len(read) == 3, read
 
 
-def test_a_writer_sent_to_another_process_keeps_no_stamps():
-    """A dask worker's writer (pickled) records no stamps and leaves its files in the cache:
-    the commit hashes those blocks again (a worker's files are not this process's)."""
+def test_a_writer_sent_to_another_process_holds_nothing():
+    """A dask worker's writer (pickled) holds no file and leaves its files in the cache: the
+    commit hashes those blocks again (a worker's files are not this process's)."""
     import pickle
 
+    from engine.io.hold import HeldFiles
     from engine.io.zarrlayout import ChunkWriter
 
-    writer = ChunkWriter("/s.zarr", "run", (2, 2), (1, 2), (("r_min", "<f8"),), 1, ".", {})
+    held = HeldFiles(4)
+    writer = ChunkWriter("/s.zarr", "run", (2, 2), (1, 2), (("r_min", "<f8"),), 1, ".", held)
     sent = pickle.loads(pickle.dumps(writer))
-    assert writer.stamps == {} and sent.stamps is None
+    assert writer.held is held and sent.held is None
     assert (sent.root, sent.run_id, sent.shape, sent.chunk, sent.arrays, sent.complevel) == (
         "/s.zarr", "run", (2, 2), (1, 2), (("r_min", "<f8"),), 1,
     )  # fmt: skip
@@ -300,15 +334,18 @@ def test_a_symlinked_unfinished_store_is_never_followed(work, capsys, partial, t
     assert sorted(str(p) for p in elsewhere.rglob("*")) == before
 
 
-def test_a_symlinked_array_metadata_is_refused(work, capsys, partial):
+def test_a_symlinked_array_metadata_is_replaced_never_followed(work, capsys, partial, reference):
+    """The link is removed (not followed: the file it names is left as it was) and the array's
+    metadata written again from the plan; the store equals the uninterrupted one."""
     shutil.copytree(partial, work / "out.zarr.parts")
     meta = work / "out.zarr.parts/store.zarr/r_min/zarr.json"
-    (work / "planted.json").write_bytes(meta.read_bytes())
+    (work / "planted.json").write_bytes(b'{"planted": true}')
     meta.unlink()
     meta.symlink_to(work / "planted.json")
     status, _, err = cli(capsys, *ARGS)
-    assert status == 2 and "symbolic link" in err, err
-    assert not os.path.lexists(work / "out.zarr")
+    assert status == 0 and "removed r_min/zarr.json" in err, err
+    assert (work / "planted.json").read_bytes() == b'{"planted": true}'
+    assert checksum(work / "out.zarr") == checksum(reference)
 
 
 def _limited() -> None:
