@@ -234,12 +234,10 @@ def run_survey(
         # written: the engine may still refuse the survey. This also warms the cache before
         # dask workers start (concurrent first compiles race, numba#4807).
         tc = time.perf_counter()
-        # OpenMP's threads (numba's threading layer here) spin at the end of a parallel region
-        # by default, on the cores the writer needs: passive, they sleep (7 % less CPU for a
-        # run on 2 cores). Only where the user set nothing and no parallel region ran yet.
+        # OpenMP's threads spin at the end of a parallel region by default, on the cores the
+        # writer needs: passive, they sleep (7 % less CPU on 2 cores). Unless the user set it.
         os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-        # without a progress reporter (`run -q`), no compile notice either
-        compiling = getattr(progress, "compiling", quiet_compiles)
+        compiling = getattr(progress, "compiling", quiet_compiles)  # `run -q`: no notice
         with compiling():  # a first run's compile is announced, not a silent wait
             evaluate_block(run, tuple(slice(0, 1) for _ in run.dims))
         if run.output.precision == "single":  # r_circ, V_min: checked before anything is written
