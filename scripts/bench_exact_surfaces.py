@@ -1,9 +1,9 @@
 """Exact orbit maps on surfaces of revolution (Routh's reduction, ``engine.routh``) against the
 engine's own dop853 one-period map on the same orbits, side by side in one run.
 
-    python scripts/bench_exact_surfaces.py              # 2000 orbits per surface, 3 rounds
-    python scripts/bench_exact_surfaces.py -n 500 -r 5
-    python scripts/bench_exact_surfaces.py --tiny       # seconds on a warm compile cache
+    .venv/bin/python scripts/bench_exact_surfaces.py          # 2000 orbits per surface, 3 rounds
+    .venv/bin/python scripts/bench_exact_surfaces.py -n 500 -r 5
+    .venv/bin/python scripts/bench_exact_surfaces.py --tiny   # seconds on a warm compile cache
 
 For a spherical bowl (R = 1 m, a = 2 cm) and a funnel (z = -1/rho, hole 5 cm, a = 1 cm), each
 on random bounded launches at a turning point (rho0, v0 within a factor of the circular speed,

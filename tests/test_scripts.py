@@ -29,6 +29,7 @@ import readme_block  # noqa: E402
 TINY = {
     "bench_effects.py": ([], "generic scalar run kernel / hand-written DP5", ()),
     "bench_exact.py": ([], "load average", ()),
+    "bench_exact_surfaces.py": ([], "dop853 (lanes) / exact", ()),
     "bench_fates.py": ([], "2-thread speedup of the fate map", ()),
     "bench_integrators.py": ([], "heyoka", ()),
     "bench_slide.py": ([], "2-thread speedup", ()),
