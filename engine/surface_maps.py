@@ -67,16 +67,23 @@ def surface_points(
 
 
 def surface_period(
-    X: np.ndarray, params: np.ndarray, scene: Scene, method: Method, rtol: float, max_steps: int
+    X: np.ndarray,
+    params: np.ndarray,
+    scene: Scene,
+    method: Method,
+    rtol: float,
+    max_steps: int,
+    model: int = SURFACE,
 ) -> dict[str, np.ndarray]:
     """One radial period of each launch of the points array X (a turning point), by the
     integrator ``method`` (checked already): the rows of ``engine.kernels.orbit.PERIOD_ROWS``,
-    ``n_steps`` and ``status``."""
+    ``n_steps`` and ``status``. ``model``: the model's id (``engine.kernels.model.MODELS``;
+    any model whose points are launches)."""
     n = X.shape[1]
     out_f = np.empty((len(PERIOD_ROWS), n))
     out_n = np.empty(n, np.int64)
     out_status = np.empty(n, np.int8)
-    key = scene_key(SURFACE, scene.effects_mask)
+    key = scene_key(model, scene.effects_mask)
     if method.family != "runge-kutta":
         out_f[:] = math.nan
         out_n[:] = 0
@@ -119,6 +126,7 @@ def surface_fates(
     max_steps: int = 1_000_000,
     *,
     lanes: bool = True,
+    model: int = SURFACE,
 ) -> dict[str, np.ndarray]:
     """Each launch of the points array X followed to its fate by the integrator ``method``
     (checked already): ``fate``, the rows of ``engine.kernels.fate.FATE_ROWS`` and
@@ -126,7 +134,7 @@ def surface_fates(
     n = X.shape[1]
     p = params.copy()
     p[P_THETA_MAX] = theta_max
-    key = scene_key(SURFACE, scene.effects_mask | (REVOLUTIONS if math.isfinite(theta_max) else 0))
+    key = scene_key(model, scene.effects_mask | (REVOLUTIONS if math.isfinite(theta_max) else 0))
     out_fate = np.zeros(n, np.int8)
     out_f = np.empty((len(FATE_ROWS), n))
     out_n = np.zeros(n, np.int64)

@@ -145,11 +145,129 @@ COMMAND_EDITS = [
     ("cli.py", "    _convert.COMMAND,\n", "    _convert.COMMAND,\n    _hello.COMMAND,\n"),
 ]
 
+#: The recipe "a new model": a toy paraboloid, its centre on z = rho^2 / (2 R) (rolling only),
+#: one module of the model interface's kernels and one row of the model registry.
+TOY_MODEL = """\"\"\"A toy model: a rolling centre on the paraboloid z = rho^2 / (2 R).\"\"\"
+
+import math
+
+import numpy as np
+
+from .._jit import kernel
+from .fate_codes import NO_ORBIT, REST_SPEED, RUNS
+from .layouts import ATTITUDE, P_G, P_K, P_KK, P_M, P_MU, P_R_VERTEX, P_V_REST, model_slots
+from .layouts import state_size
+
+SLOTS = ("R",)
+P_R = model_slots(SLOTS)["R"]
+DOMAIN_FLOOR_SLOT = None
+
+
+@kernel
+def _geometry(q, p):
+    t = q / p[P_R]  # tan b; q is the centre's distance from the axis
+    cb = 1.0 / math.sqrt(1.0 + t * t)
+    return cb, t * cb, cb * cb * cb / p[P_R], 1.0 / cb  # cos b, sin b, kappa, ds/dq
+
+
+@kernel
+def motion_rates(q, u, v, w, p, effects):
+    cb, sb, kappa, sigma = _geometry(q, p)
+    udot = v * v * cb / q + p[P_KK] * sb / q * v * w - p[P_G] * sb / (1.0 + p[P_K])
+    vdot = -u * v * cb / q - p[P_KK] * kappa * u * w
+    return u / sigma, v / q, udot, vdot, -u * v * (sb / q - kappa)
+
+
+@kernel
+def dissipated_power(q, u, v, w, p, effects):
+    return 0.0
+
+
+@kernel
+def omega_fixed(q, theta, u, v, w, p):
+    return 0.0, 0.0, w
+
+
+@kernel
+def invariants(y, p):
+    M, k, q = p[P_M], p[P_K], y[0]
+    kinetic = 0.5 * (1.0 + k) * M * (y[2] ** 2 + y[3] ** 2) + 0.5 * k * M * y[4] ** 2
+    return kinetic + M * p[P_G] * q * q / (2.0 * p[P_R]), M * q * y[3], y[4]
+
+
+@kernel
+def slip_margin(y, p, effects):
+    cb, sb, kappa, sigma = _geometry(y[0], p)
+    N = p[P_M] * (p[P_G] * cb + sb / y[0] * y[3] ** 2 + kappa * y[2] ** 2)
+    return p[P_KK] * p[P_M] * (p[P_G] * sb + sb / y[0] * y[3] * y[4]) - p[P_MU] * N
+
+
+@kernel
+def domain_floor(p):
+    return 0.0
+
+
+@kernel
+def set_point(p, X, i):
+    p[P_R_VERTEX] = 1e-3 * p[P_R]
+
+
+@kernel
+def _start(effects, p, X, i, rtol):
+    y = np.zeros(state_size(effects))
+    y[0], y[3], y[4] = X[0, i], X[1, i], X[2, i]
+    if effects & ATTITUDE:
+        y[5] = 1.0
+    speed = max(abs(y[3]), abs(y[4]), math.sqrt(p[P_G] * y[0] * y[0] / p[P_R]))
+    sc = np.full(y.shape[0], speed)
+    sc[0] = y[0]
+    sc[1] = 1.0
+    return y, sc * rtol, speed
+
+
+@kernel
+def period_start(effects, p, X, i, rtol):
+    y, atol, speed = _start(effects, p, X, i, rtol)
+    return y[0] > 0.0, y, atol, (math.nan, math.nan, math.nan)
+
+
+@kernel
+def fate_start(effects, p, X, i, rtol):
+    y, atol, speed = _start(effects, p, X, i, rtol)
+    nan = (math.nan, math.nan, math.nan)
+    if not y[0] > 0.0:
+        return NO_ORBIT, math.nan, np.empty(0), 0.0, 0.0, np.empty(0), nan
+    p[P_V_REST] = REST_SPEED * speed * rtol
+    return RUNS, math.nan, y, 0.0, 0.0, atol, nan
+
+
+@kernel
+def holds_at_rest(p, y):
+    return False
+
+
+@kernel
+def starts_inner(effects, p, y0):
+    return motion_rates(y0[0], 0.0, y0[3], y0[4], p, effects)[2] > 0.0
+"""
+_LAST_MODEL = "\n)\n#: Model id -> row"
+TOY_ROW = """
+    Model("toy_paraboloid", 2, toy_paraboloid, toy_paraboloid, (), tuple(
+        (c, "a toy: it only rolls, and has no exact map") for c in MODEL_CAPABILITIES)),"""
+_MODEL_IMPORT = "from . import cone, cone_starts, surface, surface_starts"
+MODEL_EDITS = [
+    ("kernels/toy_paraboloid.py", None, TOY_MODEL),
+    ("kernels/model.py", _MODEL_IMPORT, _MODEL_IMPORT + ", toy_paraboloid"),
+    ("kernels/model.py", _LAST_MODEL, TOY_ROW + _LAST_MODEL),
+]
+
+
 #: The recipes, by their title in docs/architecture.md.
 RECIPES = {
     "A new effect": EFFECT_EDITS,
     "A new output variable": VARIABLE_EDITS,
     "A new command": COMMAND_EDITS,
+    "A new model": MODEL_EDITS,
 }
 
 
@@ -314,6 +432,47 @@ values = [0.0]
         drift = ds.invariant_drift.values.ravel()
         assert np.all(drift < 1e-6), drift
 
+with section("model"):
+    from engine.kernels.model import MODELS
+    from engine.methods import METHODS, check_model
+    from engine.surface_maps import surface_fates, surface_period
+
+    toy = MODELS[2]
+    assert toy.name == "toy_paraboloid", toy
+    for name, why in (("exact", "exact maps"), ("symplectic", "separable split")):
+        try:
+            check_model(METHODS[name], toy)
+            raise AssertionError(f"{name} took the toy model")
+        except ValueError as exc:
+            assert why in str(exc) and "a toy" in str(exc), exc
+    scene = engine.Scene(M=1.0, g=9.81, k=0.4)
+    R = 0.5
+
+    def toy_params(sc):
+        named = sc.effect_slots()
+        slots = np.array([engine.kernels.layouts.SLOTS[n] for n in named], np.int64)
+        p = engine.kernels.model.make_params(sc.M, sc.g, sc.k, sc.a, slots,
+                                             np.array(list(named.values())))
+        p[engine.kernels.layouts.MODEL_BASE] = R
+        return p
+
+    p = toy_params(scene)
+    rho0 = np.array([0.1, 0.2, 0.3])
+    v_circ = np.sqrt(9.81 * rho0**2 / (R * 1.4))  # du/dt = 0 at u = 0, w = 0
+    for method in ("rk45", "dop853"):
+        X = np.ascontiguousarray(np.stack([rho0, 1.3 * v_circ, np.zeros(3)]))
+        res = surface_period(X, p, scene, METHODS[method], 1e-10, 100_000, model=2)
+        assert np.all(res["status"] == 0), res["status"]
+        assert np.all(res["energy_drift"] < 1e-8), res["energy_drift"]
+        assert np.all(res["period"] > 0), res["period"]
+        # a circular launch stays circular: after 5 s its q is still rho0
+        X = np.ascontiguousarray(np.stack([rho0, v_circ, np.zeros(3)]))
+        held = engine.Scene(mu=10.0)
+        fates = surface_fates(X, toy_params(held), held, METHODS[method], 1e-10, 5.0, model=2)
+        assert np.all(fates["fate"] == 1), fates["fate"]
+        np.testing.assert_allclose(fates["fate_r"], rho0, rtol=1e-7)
+    print("model toy_paraboloid: rk45 and dop853 ran", flush=True)
+
 sys.exit(1 if failed else 0)
 """
 
@@ -367,3 +526,12 @@ def test_recipe_new_command(applied):
     stats, res = applied
     _touched_as_documented(stats, "A new command")
     _ran(res, "command")
+
+
+def test_recipe_new_model(applied):
+    """One module and one registry row: rk45 and dop853 run one-period and fate maps on it
+    (energy conserved, a circular launch stays circular), the closed form and the symplectic
+    method refuse it with its reason."""
+    stats, res = applied
+    _touched_as_documented(stats, "A new model")
+    _ran(res, "model")
