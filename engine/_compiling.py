@@ -202,8 +202,12 @@ class _Compiles(event.Listener):
         notice.stop(until=self._ended or None)
 
     def flush(self) -> None:
-        """At exit: say how long the last compile took, without waiting for the grace."""
-        self._close(None)
+        """At exit: say how long the last compile took, without waiting for the grace (unless
+        the stream is closed by then, as a test runner's captured stream is)."""
+        try:
+            self._close(None)
+        except (ValueError, OSError):  # "I/O operation on closed file"
+            pass
 
     def settle(self) -> None:
         """If no compile is running, end the notice now (not after the grace)."""

@@ -8,7 +8,6 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from ._jit import call_specialized
 from ._version import __version__
 from .kernels.cone import (
     coefficients,
@@ -22,7 +21,6 @@ from .kernels.fate import REST_SPEED
 from .kernels.geometry import BOUNDED, CIRCULAR, CIRCULAR_TOL, CLASS_NAMES, HYPERBOLIC, ideal_orbit
 from .kernels.layouts import ATTITUDE, P_V_REST
 from .kernels.protocol import (
-    BUFFER_FULL,
     FAILURE,
     HORIZON,
     NORMAL_ENDS,
@@ -32,11 +30,13 @@ from .kernels.protocol import (
     STATUS_MESSAGES,
 )
 from .kernels.roots import free_fall_r_min
-from .kernels.trajectory import solve_restarting
-from .methods import DEFAULT_RTOL, check_method, check_rtol
+from .methods import DEFAULT_RTOL, MODEL_BY_NAME, check_method, check_model, check_rtol
 from .scene import Scene
 from .schema import TRAJECTORY, effect_variables
 from .simulate_hybrid import hybrid_trajectory
+from .simulate_surface import simulate_surface
+from .surfaces import Surface
+from .trajectory_run import TrajectoryRun
 
 __all__ = ["simulate", "DEFAULT_MAX_STEPS"]
 
@@ -99,10 +99,10 @@ def _start_radius(alpha, energy, h, Lz, scene, p, periods):
 
 
 def simulate(
-    alpha: float,
-    energy: float,
-    h: float,
-    Lz: float,
+    alpha: float | None = None,
+    energy: float | None = None,
+    h: float | None = None,
+    Lz: float | None = None,
     scene: Scene | None = None,
     t_end: float | None = None,
     periods: int | None = None,
@@ -114,6 +114,11 @@ def simulate(
     u0: float = 0.0,
     slip_u: float = 0.0,
     slip_v: float = 0.0,
+    surface: Surface | None = None,
+    rho0: float | None = None,
+    z0: float | None = None,
+    v0: float | None = None,
+    w0: float | None = None,
 ) -> xr.Dataset:
     """Integrate one trajectory from the inner turning point r_min (u = 0, theta = 0, t = 0).
 
@@ -158,6 +163,12 @@ def simulate(
     can hold it on the slope and friction can too (else it slips there), and otherwise starts
     again from rest (docs/physics.md "Effects beyond the ideal cone").
 
+    On a ``surface`` of revolution (``engine.surfaces``) the trajectory starts at a launch
+    instead: the centre at ``rho0`` [m] from the axis (the cylinder: height ``z0``), with
+    ``v0`` along the parallel, spin ``w0`` and ``u0`` along the meridian [m/s] (alpha, energy,
+    h and Lz not given); its variables are the meridian parameter ``q``, ``rho``, theta, u, v,
+    w, x, y, z and ``E_drift``, its events carry ``event_rho``; rk45 and dop853 only.
+
     Raises
     ------
     ValueError for invalid arguments or an orbit that cannot start at r_min.
@@ -165,6 +176,16 @@ def simulate(
     scene = Scene() if scene is None else scene
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be an engine.Scene; got {scene!r}")
+    if surface is not None or rho0 is not None or z0 is not None:
+        return _on_surface(surface, dict(alpha=alpha, energy=energy, h=h, Lz=Lz),
+                           dict(rho0=rho0, z0=z0, v0=v0, w0=w0, u0=u0), scene, method, rtol,
+                           t_end, periods, dt_out, max_steps)  # fmt: skip
+    for name, value in (("v0", v0), ("w0", w0)):
+        if value is not None:
+            raise ValueError(f"{name}={value!r} is a launch on a surface: give surface= and rho0=")
+    if alpha is None or energy is None or h is None or Lz is None:
+        raise ValueError("give the orbit (alpha, energy, h, Lz), or a launch on a surface "
+                         "(surface=, rho0=, v0=, w0=)")  # fmt: skip
     alpha = _real("alpha", alpha)
     if not 0.0 < alpha < math.pi / 2:
         raise ValueError(f"alpha must lie in the open interval (0, pi/2); got {alpha!r}")
@@ -214,7 +235,7 @@ def simulate(
     y0[2] = 0.0  # r0 is a turning point
     sc = tolerance_scales(p, effects, y0, energy, h, Lz, r1, r2, rc)
     p[P_V_REST] = REST_SPEED * rtol * max(sc[2], abs(y0[3]))
-    run = _Run(m.kernel_id, effects, p, (energy, h, Lz), rtol, rtol * sc, int(max_steps))
+    run = TrajectoryRun(m.kernel_id, effects, p, (energy, h, Lz), rtol, rtol * sc, int(max_steps))
     run.capacities(*_capacities(alpha, energy, h, Lz, scene, t_end, periods, dt_out))
     t_stop = math.inf if t_end is None else t_end
     record = RECORD_STEPS if dt_out is None else RECORD_EVERY_DT
@@ -223,48 +244,41 @@ def simulate(
                     run, periods is None)  # fmt: skip
 
 
-class _Run:
-    """One trajectory: a sphere that rolling resistance stops and that cannot stay at rest
-    starts again from rest, with time running on (the fate maps' own loop,
-    :func:`.kernels.fate.run_restarting`)."""
-
-    def __init__(self, kernel_id, effects, p, orbit, rtol, atol, max_steps):
-        self.args = (kernel_id, effects, None, p, orbit, rtol, atol)
-        self.max_steps = max_steps
-        self.n_acc = self.n_rej = 0
-        self.t_final = 0.0
-        self.y_final = np.empty(0)
-
-    def capacities(self, cap_ev: int, cap_tr: int) -> None:
-        self.cap_ev, self.cap_tr = cap_ev, cap_tr
-
-    def follow(self, y0, t_stop, n_apsides, record, dt_out) -> int:
-        """Integrate to the end; returns the final status."""
-        kid, effects, _, p, orbit, rtol, atol = self.args
-        n = y0.shape[0]
-        while True:  # integration is deterministic: a run that ran out of room is redone larger
-            ev = (np.empty(self.cap_ev), np.empty(self.cap_ev, np.int8),
-                  np.empty((self.cap_ev, n)))  # fmt: skip
-            tr = (np.empty(self.cap_tr), np.empty((self.cap_tr, n)),
-                  np.empty((self.cap_tr if effects & ATTITUDE else 0, n)))  # fmt: skip
-            args = (kid, effects, y0, p, orbit, rtol, atol, t_stop, n_apsides, self.max_steps,
-                    record, dt_out, *ev, *tr)  # fmt: skip
-            res = call_specialized(solve_restarting, args, (0, 1))
-            if int(res[0]) != BUFFER_FULL:
-                break
-            full_ev, full_tr = int(res[5]) >= self.cap_ev - 1, int(res[6]) >= self.cap_tr - 1
-            self.cap_ev *= 4 if full_ev or not full_tr else 1
-            self.cap_tr *= 4 if full_tr or not full_ev else 1
-        status, n_ev, n_tr = int(res[0]), int(res[5]), int(res[6])
-        self.n_acc, self.n_rej = int(res[1]), int(res[2])
-        self.t_final = float(res[3])
-        self.y_final = np.array(res[4], copy=True)
-        self.tr = (tr[0][:n_tr], tr[1][:n_tr], tr[2][:n_tr])
-        self.ev = (ev[0][:n_ev], ev[1][:n_ev], ev[2][:n_ev])
-        return status
-
-    def arrays(self) -> tuple[np.ndarray, ...]:
-        return (*self.tr, *self.ev)
+def _on_surface(surface, orbit, launch, scene, method, rtol, t_end, periods, dt_out,
+                max_steps) -> xr.Dataset:  # fmt: skip
+    """:func:`simulate` on a surface: its inputs checked, then :func:`simulate_surface`."""
+    if not isinstance(surface, Surface):
+        raise ValueError(f"surface must be a surface of engine.surfaces; got {surface!r}")
+    given = [f"{n}={v!r}" for n, v in orbit.items() if v is not None]
+    if given:
+        raise ValueError(f"{', '.join(given)}: on a surface the start is a launch "
+                         f"({surface.position}, v0, w0, u0)")  # fmt: skip
+    other = "z0" if surface.position == "rho0" else "rho0"
+    if launch[other] is not None:
+        raise ValueError(f"{other}={launch[other]!r}: the {surface.kind}'s launch position is "
+                         f"{surface.position}")  # fmt: skip
+    values = {"position": launch[surface.position], "v0": launch["v0"], "w0": launch["w0"],
+              "u0": launch["u0"]}  # fmt: skip
+    for name, value in values.items():
+        if value is None:
+            raise ValueError(f"{surface.position if name == 'position' else name} is needed")
+        values[name] = _real(surface.position if name == "position" else name, value)
+    m = check_method(method, scene, integrator=True)
+    check_model(m, MODEL_BY_NAME["surface"], scene)
+    rtol = check_rtol(rtol)
+    if (t_end is None) == (periods is None):
+        raise ValueError(f"give exactly one of t_end and periods; got t_end={t_end!r}, "
+                         f"periods={periods!r}")  # fmt: skip
+    if t_end is not None and not _real("t_end", t_end) > 0.0:
+        raise ValueError(f"t_end must be > 0; got {t_end!r}")
+    if periods is not None and (isinstance(periods, bool) or not float(periods).is_integer()
+                                or periods < 1):  # fmt: skip
+        raise ValueError(f"periods must be a positive integer; got {periods!r}")
+    if dt_out is not None and not _real("dt_out", dt_out) > 0.0:
+        raise ValueError(f"dt_out must be > 0; got {dt_out!r}")
+    n_apsides = 0 if periods is None else 2 * int(periods)
+    return simulate_surface(surface, values, scene, m, rtol, t_end, n_apsides, dt_out,
+                            int(max_steps))  # fmt: skip
 
 
 def _dataset(scene, effects, p, method, rtol, alpha, energy, h, Lz, cls_name, y0, status,

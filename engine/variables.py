@@ -214,6 +214,8 @@ FATE_COMMENTS = {
 TRAJECTORY: dict[str, Variable] = {
     "time": _f("s", "time since the start at r_min"),
     "r": _f("m", "distance of the centre from the vertex of its cone"),
+    "q": _f("1", "the surface's meridian parameter of the contact (engine.kernels.meridian)"),
+    "rho": _f("m", "distance of the centre from the axis"),
     "theta": _f("radian", "azimuth of the centre (unwrapped)"),
     "u": _f("m s-1", "radial velocity dr/dt along the generatrix"),
     "v": _f("m s-1", "azimuthal velocity r sin(alpha) dtheta/dt"),
@@ -238,5 +240,6 @@ TRAJECTORY: dict[str, Variable] = {
     "event_time": _f("s", "time of the event"),
     "event_kind": Variable("int8", None, "event kind", EVENT_NAMES),
     "event_r": _f("m", "r at the event"),
+    "event_rho": _f("m", "the centre's distance from the axis at the event"),
     "event_theta": _f("radian", "theta at the event"),
 }
