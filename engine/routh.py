@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+import numba
 import numpy as np
 
 from .kernels import routh as K
@@ -205,7 +206,11 @@ def exact_map(params: np.ndarray, X: np.ndarray) -> dict[str, np.ndarray]:
     per surface."""
     X = np.ascontiguousarray(X, np.float64)
     n = X.shape[1]
-    shapes, sid = np.unique(X[:2].T, axis=0, return_inverse=True)
+    if n and (X[0] == X[0, 0]).all() and (X[1] == X[1, 0]).all():  # one surface (most maps)
+        shapes, sid = X[:2, :1].T, np.zeros(n, np.int64)
+    else:  # a survey sweeping a parameter: one table per (shape1, shape2)
+        keys, sid = np.unique(X[0] + 1j * X[1], return_inverse=True)
+        shapes = np.stack([keys.real, keys.imag], axis=1)
     sid = np.ascontiguousarray(sid.reshape(-1), np.int64)
     surf, reach = [], []
     for s in range(shapes.shape[0]):
@@ -223,7 +228,8 @@ def exact_map(params: np.ndarray, X: np.ndarray) -> dict[str, np.ndarray]:
         P, edges, coef, meta = stack_tables(tables)
         c = np.zeros(todo.shape[0], np.int8)
         out = np.empty((len(K.ROWS), todo.shape[0]))
-        orbit_points(np.ascontiguousarray(X[:, todo]), P, sid[todo], edges, coef, meta, c, out)
+        orbit_points(np.ascontiguousarray(X[:, todo]), P, sid[todo], edges, coef, meta, c, out,
+                     numba.get_num_threads())  # fmt: skip
         cls[todo] = c
         f[:, todo] = out
         again = c == K.EXTEND

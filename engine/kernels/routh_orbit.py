@@ -29,6 +29,7 @@ import numpy as np
 from numba import prange
 
 from .._jit import kernel, parallel_kernel
+from .lanes_step import piece_starts, take_point
 from .meridian import centre
 from .routh import (
     BOUNDED,
@@ -270,25 +271,36 @@ def orbit(p, edges, coef, meta, q0, u0, v0, w0):
 
 
 @parallel_kernel
-def orbit_points(X, P, sid, edges, coef, meta, out_cls, out_f):
+def orbit_points(X, P, sid, edges, coef, meta, out_cls, out_f, n_workers):
     """:func:`orbit` of every point (the columns of the points array X, rows
     :mod:`.surface_starts`'s: shape1, shape2, rho0 (the cylinder: z0), v0, w0[, u0]); point i
     lies on surface ``sid[i]``: its parameter array ``P[s]`` (after ``set_point``) and table
     ``edges[s]``, ``coef[s]``, ``meta[s]``. Writes ``out_cls`` int8[n] and ``out_f``
-    float64[7, n] (rows :data:`.routh.ROWS`), in parallel."""
+    float64[7, n] (rows :data:`.routh.ROWS`), in parallel: ``n_workers`` threads take guided
+    pieces of the points from one queue (:func:`.lanes_step.piece_starts`), so orbits of
+    unequal cost (a root search, a quadrature doubled to convergence) keep every thread busy
+    to the end, as a static split of the points did not."""
     n = X.shape[1]
     has_u = X.shape[0] > X_U
-    for i in prange(n):
-        s = sid[i]
-        p = P[s]
-        q0 = launch_q(p, X[X_POS, i])
-        u0 = X[X_U, i] if has_u else 0.0
-        res = orbit(p, edges[s], coef[s], meta[s], q0, u0, X[X_V, i], X[X_W, i])
-        out_cls[i] = res[0]
-        out_f[0, i] = res[1]
-        out_f[1, i] = res[2]
-        out_f[2, i] = res[3]
-        out_f[3, i] = res[4]
-        out_f[4, i] = res[5]
-        out_f[5, i] = res[6]
-        out_f[6, i] = res[7]
+    workers = max(1, min(n_workers, n))
+    queue = np.zeros(1, np.int64)
+    starts = piece_starts(n, workers)
+    for _ in prange(workers):
+        nxt, end = 0, 0
+        while True:
+            i, nxt, end = take_point(queue, starts, nxt, end)
+            if i < 0:
+                break
+            s = sid[i]
+            p = P[s]
+            q0 = launch_q(p, X[X_POS, i])
+            u0 = X[X_U, i] if has_u else 0.0
+            res = orbit(p, edges[s], coef[s], meta[s], q0, u0, X[X_V, i], X[X_W, i])
+            out_cls[i] = res[0]
+            out_f[0, i] = res[1]
+            out_f[1, i] = res[2]
+            out_f[2, i] = res[3]
+            out_f[3, i] = res[4]
+            out_f[4, i] = res[5]
+            out_f[5, i] = res[6]
+            out_f[6, i] = res[7]
