@@ -15,7 +15,7 @@ from .api import run_plan
 from .fates import Horizon
 from .plan import RunPlan, survey_plan
 from .scene import Scene
-from .schema import DIMS, LAUNCH_DIMS, SLIDING_LAUNCH_DIMS
+from .schema import DIMS, LAUNCH_DIMS, RELEASE
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -91,11 +91,11 @@ class Survey:
     @property
     def dims(self) -> tuple[str, ...]:
         """The survey's axes: (alpha, energy, h, Lz), or (alpha, r0, v0, w0) over launch
-        states, with (u0, slip_u, slip_v) on a scene with kinetic friction (the release's
-        radial speed and slip velocity)."""
+        states, then those of (u0, slip_u, slip_v) it has (a scene with kinetic friction: the
+        release's radial speed and slip velocity; one without an axis is 0)."""
         if not self.launch:
             return DIMS
-        return SLIDING_LAUNCH_DIMS if self.u0 is not None else LAUNCH_DIMS
+        return (*LAUNCH_DIMS, *(n for n in RELEASE if getattr(self, n) is not None))
 
     @property
     def shape(self) -> tuple[int, ...]:
