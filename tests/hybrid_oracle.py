@@ -421,10 +421,13 @@ class Oracle:
 
     def _tangential_at_zero(self, y, start_dir):
         """The tangential spin's state at a sliding start or stop with Omega_t = 0: "stuck" if
-        rolling resistance holds it there, else the way its couple acts as it leaves."""
+        rolling resistance holds it there, else the way its couple acts as it leaves. A state
+        whose Omega_t is only rounding (a Cartesian start at rest) is put exactly at zero."""
         X, V, W = y[0:3], y[3:6], y[6:9]
-        if self.c_rr == 0.0 or np.linalg.norm(self.tangential_spin(X, W)) > 0.0:
+        wt = self.tangential_spin(X, W)
+        if self.c_rr == 0.0 or self.a * np.linalg.norm(wt) > 1e-13 * self.scale:
             return None
+        y[6:9] = W - wt
         hold = self.tangential_hold(X, V, W, self.sliding_force(X, V, W, start_dir))
         if np.linalg.norm(hold) <= self.c_rr * self.a * self.normal_force(X, V):
             return "stuck"
