@@ -226,10 +226,11 @@ def launch_survey(
     roll: ``u0`` is its radial speed [m/s] (outward > 0) and ``slip_u``, ``slip_v`` the slip
     velocity of the contact point [m/s] along the generatrix and the parallel (0, 0: rolling;
     thrown outward without spin: slip_u = u0; backspin makes slip_u larger). Each is a number
-    or a 1-D axis; the dims are then (alpha, r0, v0, w0, u0, slip_u, slip_v), a number a
-    length-1 axis, and the invariants are those of the rolling orbit through the launch point
-    with its radial speed. Without ``mu_k`` they must be 0 (a ValueError names the one that is
-    not).
+    or a 1-D axis: an axis is a dim after (alpha, r0, v0, w0), in the order u0, slip_u,
+    slip_v; a number is no axis (the same for every launch: a scalar coordinate of the map
+    where it is not 0), and the invariants are those of the rolling orbit through the launch
+    point with its radial speed. Without ``mu_k`` they must be 0 (a ValueError names the one
+    that is not).
 
     On a ``surface`` of revolution (:mod:`engine.surfaces`: ``Bowl(0.5)``, ``Funnel(0.1,
     0.02)``, ...) a launch is the centre at distance ``rho0`` [m] from the axis (the cylinder:
@@ -246,10 +247,11 @@ def launch_survey(
             horizon_time=horizon_time, horizon_revolutions=horizon_revolutions,
             progress=progress, block_points=block_points,
         )  # fmt: skip
-    dims = launch_dims(scene)
-    values = dict(alpha=alpha, r0=r0, v0=v0, w0=w0)
     release = {"u0": u0, "slip_u": slip_u, "slip_v": slip_v}
-    if len(dims) == 4:  # a scene on which every launch rolls (no mu_k)
+    dims = launch_dims(scene, [n for n, v in release.items() if np.ndim(v) > 0])
+    values = dict(alpha=alpha, r0=r0, v0=v0, w0=w0)
+    fixed: dict[str, Any] = {}
+    if "sliding" not in scene.effects:  # a scene on which every launch rolls (no mu_k)
         for name, value in release.items():
             arr = np.atleast_1d(check_numbers(name, value)).astype(np.float64)
             if np.any(arr != 0.0):
@@ -259,11 +261,12 @@ def launch_survey(
                     "rolls from rest radially"
                 )
     else:
-        values.update(release)
+        values.update({n: release[n] for n in dims[4:]})
+        fixed = {n: v for n, v in release.items() if n not in dims}
     plan = survey_plan(
         dims, values, scene, method,
         circular_tol=circular_tol, rtol=rtol, horizon_time=horizon_time,
-        horizon_revolutions=horizon_revolutions, block_points=block_points,
+        horizon_revolutions=horizon_revolutions, block_points=block_points, release=fixed,
     )  # fmt: skip
     return run_plan(plan, progress)
 
@@ -325,4 +328,7 @@ def run_plan(plan: RunPlan, progress: Callable[[int, int], None] | None = None) 
         name: (name, np.array(arr), axis_attrs(name, plan.energy_relative))
         for name, arr in zip(dims, plan.axes, strict=True)
     }
+    for name, value in plan.release:  # a release value given as a number: no axis
+        if value != 0.0:
+            coords[name] = ((), value, axis_attrs(name, plan.energy_relative))
     return xr.Dataset(data_vars, coords=coords, attrs=plan.attrs())

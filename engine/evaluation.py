@@ -281,11 +281,14 @@ def _flat_block(sub: list[np.ndarray], plan: RunPlan):
     e_abs = None
     r_start = None
     release = None
-    if dims != DIMS:  # launch states (with the release's u0, slip_u, slip_v on a sliding scene)
-        u0 = rel[0] if rel else 0.0
-        inv = invariants(A, X1, u0, X2, X3, scene)
+    if dims != DIMS:  # launch states (with the release's u0, slip_u, slip_v on a sliding scene:
+        # its axes, or numbers, 0 where not given)
+        given = dict(zip(dims[4:], rel, strict=True))
+        fixed = dict(plan.release)
+        cols = [given[n] if n in given else np.full(A.shape, fixed.get(n, 0.0)) for n in RELEASE]
+        inv = invariants(A, X1, cols[0], X2, X3, scene)
         E, H, L, r_start = inv["energy"], inv["h"], inv["Lz"], X1
-        release = tuple(rel) if tuple(dims[4:]) == RELEASE else None
+        release = tuple(cols) if "sliding" in scene.effects else None
     else:
         E, H, L = X1, X2, X3
         if plan.energy_relative:

@@ -29,6 +29,7 @@ from .checks import (
     check_energy_relative,
     check_horizon,
     check_method,
+    check_numbers,
     check_output,
     check_precision,
     check_rtol,
@@ -36,6 +37,7 @@ from .checks import (
     check_surface,
     check_surface_fits,
     check_surface_method,
+    check_values,
 )
 from .fates import Horizon
 from .grid import BLOCK_POINTS
@@ -121,6 +123,9 @@ class RunPlan(MapPlan):
 
     dims: tuple[str, ...] = DIMS
     axes: tuple[np.ndarray, ...] = ()
+    #: (name, value) of each release value (:data:`engine.schema.RELEASE`) given as a number,
+    #: not an axis, on a launch grid of a scene with kinetic friction (absent: 0).
+    release: tuple[tuple[str, float], ...] = ()
     energy_relative: bool = False
     output: OutputPlan = field(default_factory=OutputPlan)
     title: str = DEFAULT_TITLE
@@ -163,9 +168,9 @@ class RunPlan(MapPlan):
         same_axes = len(self.axes) == len(other.axes) and all(
             np.array_equal(a, b) for a, b in zip(self.axes, other.axes, strict=True)
         )
-        rest = ("dims", "scene", "method", "map_kind", "rtol", "circular_tol", "horizon",
-                "energy_relative", "variables", "output", "title", "source_text",
-                "surface")  # fmt: skip
+        rest = ("dims", "release", "scene", "method", "map_kind", "rtol", "circular_tol",
+                "horizon", "energy_relative", "variables", "output", "title",
+                "source_text", "surface")  # fmt: skip
         return same_axes and all(getattr(self, n) == getattr(other, n) for n in rest)
 
     __hash__ = None  # type: ignore[assignment]
@@ -220,12 +225,15 @@ def survey_plan(
     output_format: Any = None,
     title: str = DEFAULT_TITLE,
     source_text: str = "",
+    release: dict[str, Any] | None = None,
     surface: Any = None,
 ) -> RunPlan:
     """The plan of a survey over the axes ``dims`` (one of
     :data:`engine.schema.GRID_DIMS`; on a ``surface``, :func:`engine.schema.surface_dims`)
     holding ``values``: the map's inputs (:func:`map_plan`), then every other input checked by
-    its one function, in this order (the first problem is raised, a :class:`PlanError`)."""
+    its one function, in this order (the first problem is raised, a :class:`PlanError`).
+    ``release``: the release values given as numbers, not axes (a launch grid of a scene with
+    kinetic friction), each checked as an axis value."""
     mp = map_plan(scene, method, circular_tol=circular_tol, rtol=rtol, horizon_time=horizon_time,
                   horizon_revolutions=horizon_revolutions, surface=surface)  # fmt: skip
     energy_relative = check_energy_relative(energy_relative)
@@ -235,10 +243,18 @@ def survey_plan(
     path, fmt, compression, complevel = check_output(out, compression, complevel, output_format)
     check_block_points(block_points)
     axes = check_axes(tuple(dims), values)
+    fixed = tuple((name, _number(name, value)) for name, value in (release or {}).items())
     block_points = check_block_points(block_points, tuple(a.size for a in axes))
     output = OutputPlan(path, fmt, compression, complevel, precision, block_points)
     return grid_plan(mp, tuple(dims), axes, energy_relative=energy_relative, output=output,
-                     title=title, source_text=source_text)  # fmt: skip
+                     title=title, source_text=source_text, release=fixed)  # fmt: skip
+
+
+def _number(name: str, value: Any) -> float:
+    """``value`` of the axis ``name`` given as one number, checked as an axis value is."""
+    x = np.asarray(check_numbers(name, value), np.float64)
+    check_values(name, x)
+    return float(x)
 
 
 def grid_plan(
@@ -250,17 +266,19 @@ def grid_plan(
     output: OutputPlan | None = None,
     title: str = DEFAULT_TITLE,
     source_text: str = "",
+    release: tuple[tuple[str, float], ...] = (),
 ) -> RunPlan:
     """The plan of the map ``mp`` over the axes ``dims`` holding ``axes`` (read-only float64
-    arrays), written as ``output`` (None: in memory, float64). It checks nothing: every input
-    was checked where it was read (:func:`survey_plan` for the API; a survey file's parser,
+    arrays), written as ``output`` (None: in memory, float64), with the release values
+    ``release`` that are numbers, not axes. It checks nothing: every input was checked where
+    it was read (:func:`survey_plan` for the API; a survey file's parser,
     :mod:`engine.surveyfile`, with its key paths), each by its one function."""
     output = OutputPlan() if output is None else output
     names = result_variables(mp.method.name, mp.scene, energy_relative, dims != DIMS, mp.surface)
     if output.precision == "single":
         names = {n: np.dtype(np.float32) if dt.kind == "f" else dt for n, dt in names.items()}
     fields = {f.name: getattr(mp, f.name) for f in dataclasses.fields(MapPlan)}
-    return RunPlan(**{**fields, "variables": names}, dims=dims, axes=axes,
+    return RunPlan(**{**fields, "variables": names}, dims=dims, axes=axes, release=release,
                    energy_relative=energy_relative, output=output, title=title,
                    source_text=source_text)  # fmt: skip
 

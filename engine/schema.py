@@ -88,10 +88,12 @@ LAUNCH_DIMS = ("alpha", "r0", "v0", "w0")
 #: How a launch on a scene with kinetic friction (``Scene.mu_k``) may differ from rolling: the
 #: radial speed and the contact point's slip velocity at release (axes of its launch grid).
 RELEASE = ("u0", "slip_u", "slip_v")
-#: The axes of a survey over launch states on a scene with kinetic friction.
+#: The axes of a survey over launch states on a scene with kinetic friction, each release
+#: value an axis (one not given as an axis is none: a grid has any of them, in this order).
 SLIDING_LAUNCH_DIMS = (*LAUNCH_DIMS, *RELEASE)
 #: Every kind of survey grid, by its dims: the one place that lists them.
-GRID_DIMS = (DIMS, LAUNCH_DIMS, SLIDING_LAUNCH_DIMS)
+GRID_DIMS = (DIMS, LAUNCH_DIMS, *((*LAUNCH_DIMS, *(n for i, n in enumerate(RELEASE) if b >> i & 1))
+                                  for b in range(1, 8)))  # fmt: skip
 #: Global attribute of a finished survey file holding the survey's fingerprint.
 FINGERPRINT_ATTR = "survey_fingerprint"
 
@@ -150,13 +152,12 @@ def flag_count(name: str) -> int:
 
 
 def grid_dims(names: Any) -> tuple[str, ...]:
-    """The dims of the survey grid whose axes include ``names`` (a Dataset's dims, a survey
-    file's axes): the longest of :data:`GRID_DIMS` all of whose launch axes are named."""
+    """The dims of :data:`GRID_DIMS` whose axes are in ``names`` (a Dataset's, a file's)."""
     present = set(names)
     if present & {"rho0", "z0"}:
         return tuple(d for d in SURFACE_AXES if d in present)
     if present & set(RELEASE):
-        return SLIDING_LAUNCH_DIMS
+        return (*LAUNCH_DIMS, *(n for n in RELEASE if n in present))
     return LAUNCH_DIMS if "r0" in present else DIMS
 
 
@@ -178,10 +179,10 @@ def is_surface_grid(dims: tuple[str, ...]) -> bool:
     )
 
 
-def launch_dims(scene: Scene) -> tuple[str, ...]:
-    """The dims of a survey over launch states of ``scene``: the release's radial speed and
-    slip velocity are axes too where it has kinetic friction (the sliding model)."""
-    return SLIDING_LAUNCH_DIMS if "sliding" in scene.effects else LAUNCH_DIMS
+def launch_dims(scene: Scene, release: Any = ()) -> tuple[str, ...]:
+    """The dims of a survey over launch states of ``scene`` with the release values named in
+    ``release`` as axes (in the order of :data:`RELEASE`; only with kinetic friction)."""
+    return (*LAUNCH_DIMS, *(n for n in RELEASE if n in release and "sliding" in scene.effects))
 
 
 def effect_variables(scene: Scene, output: str) -> tuple[str, ...]:

@@ -19,7 +19,7 @@ from ._version import __version__
 from .hybrid import HYBRID_STATE, hybrid_setup
 from .kernels.cone import set_alpha
 from .kernels.hybrid import HYBRID_FATE_NAMES, hybrid_story
-from .kernels.hybrid_step import ARMED_KEPT, HYBRID_EVENT_NAMES
+from .kernels.hybrid_step import ARMED_KEPT, EV_NO_HOLD, EV_ROT_STOP, HYBRID_EVENT_NAMES
 from .kernels.layouts import P_K, P_M
 from .kernels.model import N_PARAMS
 from .kernels.protocol import (
@@ -53,6 +53,11 @@ MODE_NAMES = ("rolling", "sliding")
 HYBRID_EVENT_KINDS = (*HYBRID_EVENT_NAMES, "failed")
 _FAILED = len(HYBRID_EVENT_NAMES)
 _EV = {name: i for i, name in enumerate(HYBRID_EVENT_NAMES)}
+#: Every kind the story's kernel records: its events, then its own marks, which split the
+#: stretches (:data:`engine.kernels.hybrid_step.EV_ROT_STOP`, ``EV_NO_HOLD``) but are not
+#: events of the trajectory.
+_KIND_NAMES = (*HYBRID_EVENT_NAMES, "rot_stop", "no_hold")
+assert (_KIND_NAMES.index("rot_stop"), _KIND_NAMES.index("no_hold")) == (EV_ROT_STOP, EV_NO_HOLD)
 _WORK = {
     "W_rolling_resistance": "work done against rolling resistance since the start",
     "W_sliding_friction": "work done against sliding friction since the start (sticking "
@@ -116,15 +121,18 @@ def _stretches(y, mode, stuck, spin, hp, fate, ev_t, ev_kind, ev_y, t_last):
     for i in range(len(ev_t)):
         t0s.append(t), t1s.append(ev_t[i]), ys.append(y), modes.append(mode)
         stucks.append(stuck), keeps.append(keep)
-        kind = HYBRID_EVENT_NAMES[ev_kind[i]]
+        kind = _KIND_NAMES[ev_kind[i]]
         keep = ARMED_KEPT[ev_kind[i]]
         t = ev_t[i]
         y = ev_y[i].copy()
         if kind == "slip":
             mode = MODE_SLIDING
-        elif kind == "roll":  # the story applied the sticking impulse if friction holds it
-            if y[4] == -y[3] and y[5] == y[2]:
-                mode = MODE_ROLLING
+        elif kind == "roll":  # the story applied the sticking impulse (friction holds it)
+            mode = MODE_ROLLING
+        elif kind in ("rot_stop", "no_hold"):  # the state after it, sliding on
+            pass
+        elif kind == "spin_stop" and i == len(ev_t) - 1 and fate == "rest":
+            return t0s, t1s, ys, modes, stucks, keeps  # the spin stopped in place, at rest
         elif kind == "spin_stop":  # the rest of the spin goes to spin friction
             y[9] += 0.5 * hp[P_K] * hp[P_M] * y[6] * y[6]
             y[6] = 0.0
@@ -132,8 +140,8 @@ def _stretches(y, mode, stuck, spin, hp, fate, ev_t, ev_kind, ev_y, t_last):
         elif kind == "spin_go":
             y[6] = 0.0
             stuck = False
-        elif kind == "rest" and not (i == len(ev_t) - 1 and fate == "rest"):
-            y[2:6] = 0.0  # it starts again from rest
+        elif kind == "rest" and not (i == len(ev_t) - 1 and fate in ("rest", "spinning")):
+            y[2:6] = 0.0  # it starts again from rest (or stays, its spin stopping in place)
         else:  # spill, vertex, horizon, a final rest: the end
             return t0s, t1s, ys, modes, stucks, keeps
     t0s.append(t), t1s.append(max(t, t_last)), ys.append(y), modes.append(mode)
@@ -186,6 +194,8 @@ def hybrid_trajectory(
     t_last = float(f[0]) if math.isfinite(f[0]) else 0.0
     t0, t1, ys, modes, stucks, keeps = _stretches(y0, mode, stuck, spin, hp, fate, ev_t, ev_kind,
                                            ev_y, t_last)  # fmt: skip
+    told = ev_kind < len(HYBRID_EVENT_NAMES)  # the story's events, without the kernel's marks
+    ev_t, ev_kind, ev_y, n_ev = ev_t[told], ev_kind[told], ev_y[told], int(told.sum())
     states = np.vstack([y0[None], ev_y])
     atol = rtol * np.maximum(np.abs(states).max(axis=0), 1e-300)
     vel = float(np.abs(states[:, 2:7]).max())
@@ -206,7 +216,9 @@ def hybrid_trajectory(
             break
         n_cap *= 4
     t, Y, modes_t = tr[0][:n_tr], tr[1][:n_tr], tr[2][:n_tr]
-    status = {"spilled": SPILLED, "vertex": AT_VERTEX, "rest": RESTED}.get(fate, OK)
+    status = {"spilled": SPILLED, "vertex": AT_VERTEX, "rest": RESTED, "spinning": RESTED}.get(
+        fate, OK
+    )
     if fate == "failed" or st != OK:
         status = st if st != OK else MAX_STEPS
         ev_t = np.append(ev_t, t[-1])

@@ -104,6 +104,8 @@ def story(
     out["n_steps"] = int(steps)
     events = []
     for i in range(min(n_ev, max_events)):
+        if ev_kind[i] >= len(HYBRID_EVENT_NAMES):  # the kernel's own marks (the sampled
+            continue  # trajectory's): not events of the story
         state = {name: float(ev_y[i, j]) for j, name in enumerate(HYBRID_STATE)}
         events.append({"kind": HYBRID_EVENT_NAMES[ev_kind[i]], "t": float(ev_t[i]),
                        "state": state})  # fmt: skip

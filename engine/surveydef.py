@@ -16,7 +16,7 @@ from .fates import Horizon
 from .plan import RunPlan, survey_plan
 from .precision import stored
 from .scene import Scene
-from .schema import DIMS, LAUNCH_DIMS, SLIDING_LAUNCH_DIMS
+from .schema import DIMS, LAUNCH_DIMS, RELEASE
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -102,13 +102,14 @@ class Survey:
     @property
     def dims(self) -> tuple[str, ...]:
         """The survey's axes: (alpha, energy, h, Lz), or (alpha, r0, v0, w0) over launch
-        states, with (u0, slip_u, slip_v) on a scene with kinetic friction (the release's
-        radial speed and slip velocity); on a surface, its launch axes."""
+        states, then those of (u0, slip_u, slip_v) it has (a scene with kinetic friction: the
+        release's radial speed and slip velocity; one without an axis is 0); on a surface, its
+        launch axes."""
         if self.surface_axes is not None:
             return tuple(self.surface_axes)
         if not self.launch:
             return DIMS
-        return SLIDING_LAUNCH_DIMS if self.u0 is not None else LAUNCH_DIMS
+        return (*LAUNCH_DIMS, *(n for n in RELEASE if getattr(self, n) is not None))
 
     @property
     def shape(self) -> tuple[int, ...]:

@@ -209,7 +209,7 @@ class _Reader(AxisReader):
         mp = self.map(doc, scene)
         axes = self.table(doc, "axes", "", required=True)
         launch = any(n in axes for n in (*LAUNCH_DIMS[1:], *RELEASE))
-        dims = launch_dims(mp.scene) if launch else AXES
+        dims = launch_dims(mp.scene, axes) if launch else AXES
         other = AXES if launch else (*LAUNCH_DIMS, *RELEASE)
         for name in axes:
             if name in other and name not in dims:

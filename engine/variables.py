@@ -124,6 +124,7 @@ RESULTS: dict[str, Variable] = {
     "slide_time": _f("s", "total time spent sliding from the start to the fate"),
     "slip_episodes": Variable("int32", "1", "times it started sliding (-1: no orbit)"),
     "fate_speed": _f("m s-1", "speed of the centre at the fate (or the horizon)"),
+    "fate_spin": _f("m s-1", "spin a omega_nu about the normal at the fate (or the horizon)"),
     "final_energy": _f("J", "radial energy calE of the last rolling orbit (NaN: none)"),
     "final_h": _f("m s-1", "spin invariant h of the last rolling orbit (NaN: none)"),
     "final_Lz": _f("kg m2 s-1", "L_z of the last rolling orbit (NaN: none)"),

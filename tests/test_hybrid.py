@@ -204,3 +204,53 @@ def test_the_stalled_slip_returns_to_rolling_when_the_rigid_body_model_does():
     assert res["final_energy"][0] == pytest.approx(calE, abs=1e-8 * (0.5 * speed**2 + sc.g * r))
     assert res["final_h"][0] == pytest.approx(h, abs=1e-8 * speed)
     assert res["final_Lz"][0] == pytest.approx(Lz, abs=1e-8 * speed * r)
+
+
+@pytest.mark.parametrize("case", ["spin stops at rest", "slides without turning"])
+def test_trajectory_at_rest_and_sliding_without_turning(case):
+    """engine.simulate on the story's new ends: on the flat a rolling ball that rolling
+    resistance stops (rest) while its spin goes on until spin friction stops it in place
+    (spin_stop, the fate rest); a topspin throw with c_rr > mu_k whose tangential spin stops
+    while it slides (a mark of the kernel's, not an event) and which slides to rest. The
+    events are the story's, the samples after the centre's stop are at rest with the spin
+    falling at c_spin g sin(alpha)/k, and the energy balance holds."""
+    from engine.simulate import simulate
+    from engine.simulate_hybrid import HYBRID_EVENT_KINDS
+
+    if case == "spin stops at rest":
+        sc = Scene(k=0.4, M=1.0, mu=0.3, mu_k=0.2, c_spin=0.02, c_rr=0.1, rim=5000.0)
+        v0, w0, u0, su, kinds, fate = 0.3, 2.0, 0.0, 0.0, ["rest", "spin_stop"], "rest"
+    else:  # backspin: (p1, p2) = (-v0, u0 - slip_u) stops and stays 0 before the slip does;
+        # no spin friction, so the fate is `spinning` if the orbit left any spin, else `rest`
+        sc = Scene(k=0.4, M=1.0, mu=0.3, mu_k=0.2, c_rr=0.25, rim=5000.0)
+        v0, w0, u0, su, kinds, fate = 0.3, 0.0, 1.0, 3.0, ["roll", "rest"], None
+    inv = launch.invariants(FLAT, 1000.0, 0.0, v0, w0, sc)
+    ds = simulate(FLAT, float(inv["energy"]), float(inv["h"]), float(inv["Lz"]), sc, t_end=8.0,
+                  method="dop853", rtol=1e-10, u0=u0, slip_u=su)  # fmt: skip
+    assert [HYBRID_EVENT_KINDS[k] for k in ds.event_kind.values] == kinds
+    out = story(FLAT, float(ds.r[0]), float(ds.v[0]), float(ds.w[0]), u0=u0, slip_u=su,
+                scene=sc, rtol=1e-10, horizon_time=8.0)  # fmt: skip
+    assert [e["kind"] for e in out["events"]] == kinds and ds.attrs["fate"] == out["fate"]
+    assert (
+        out["fate"] == fate
+        or fate is None
+        and out["fate"] == ("spinning" if out["fate_spin"] != 0.0 else "rest")
+    )
+    np.testing.assert_allclose(ds.event_time.values, [e["t"] for e in out["events"]], rtol=1e-12)
+    assert float(ds.time[-1]) == out["fate_time"]
+    E0 = ds.attrs["E0"]
+    assert float(np.abs(ds.balance_drift).max()) <= 1e-9 * E0
+    if case == "spin stops at rest":
+        t_rest, t_stop = ds.event_time.values
+        rate = 0.02 * G * math.sin(FLAT) / 0.4  # at rest N = M g sin(alpha)
+        w_rest = float(ds.event_w[0])
+        assert t_stop == pytest.approx(t_rest + abs(w_rest) / rate, rel=1e-12)
+        at_rest = ds.time.values > t_rest
+        assert at_rest.sum() >= 2 and (ds.u.values[at_rest] == 0.0).all()
+        np.testing.assert_allclose(ds.w.values[at_rest],
+                                   w_rest - rate * (ds.time.values[at_rest] - t_rest),
+                                   atol=1e-9)  # fmt: skip
+    else:  # the tangential spin stopped while it slid: p1 = p2 = 0 from there to the roll
+        sliding = ds.mode.values == 1
+        assert ds.p2.values[0] == -2.0 and (ds.p2.values[sliding][-3:] == 0.0).all()
+        assert (ds.p1.values[sliding][-3:] == 0.0).all() and float(ds.w[-1]) == out["fate_spin"]

@@ -44,13 +44,9 @@ def test_a_scene_that_never_slips_maps_as_today_bit_for_bit():
     launches = ([0.5, 1.2], [0.1, 0.4], [0.3, 1.2], [-1.0, 0.5])
     today = engine.launch_survey(*launches, scene=ROLLING, **kw)
     mine = engine.launch_survey(*launches, scene=NEVER_SLIPS, **kw)
-    assert mine["fate"].dims == ("alpha", "r0", "v0", "w0", "u0", "slip_u", "slip_v")
-    assert mine.sizes["u0"] == mine.sizes["slip_u"] == mine.sizes["slip_v"] == 1
-    assert mine["u0"].attrs["units"] == "m s-1" and "slip" in mine["slip_u"].attrs["long_name"]
+    assert mine["fate"].dims == today["fate"].dims == ("alpha", "r0", "v0", "w0")
     for name in (*SHARED, "energy", "h", "Lz"):
-        np.testing.assert_array_equal(
-            mine[name].values[..., 0, 0, 0], today[name].values, err_msg=name
-        )
+        np.testing.assert_array_equal(mine[name].values, today[name].values, err_msg=name)
     # rolling from the launch and never slipping: the last rolling orbit is the launch's own
     for name, inv in (("final_energy", "energy"), ("final_h", "h"), ("final_Lz", "Lz")):
         np.testing.assert_array_equal(mine[name].values, mine[inv].values, err_msg=name)
@@ -94,15 +90,16 @@ def test_flat_limit_slide_time_over_a_speed_and_backspin_grid():
     u0, slip = np.array([1.0, 2.0]), np.array([2.0, 3.0, 6.0])
     ds = engine.launch_survey(FLAT, 1000.0, 0.0, 0.0, scene=sc, method="dop853",
                               horizon_time=2.0, u0=u0, slip_u=slip)  # fmt: skip
-    t = ds["slide_time"].values[0, 0, 0, 0, :, :, 0]
+    assert ds["slide_time"].dims == ("alpha", "r0", "v0", "w0", "u0", "slip_u")
+    t = ds["slide_time"].values[0, 0, 0, 0, :, :]
     expected = 0.4 * slip / (1.4 * 0.25 * G)
     np.testing.assert_allclose(t, np.broadcast_to(expected, t.shape), rtol=1e-3)
     assert (ds["slip_episodes"].values == 1).all()
     # rolling speed after the slide: (u0 - k a omega0)/(1+k), a omega0 = slip_u - u0 (backspin),
     # changed by the slope's pull g cot(alpha) over the 2 s to the horizon
     speed = np.abs(u0[:, None] - 0.4 * (slip[None, :] - u0[:, None])) / 1.4
-    rolling = ds["fate"].values[0, 0, 0, 0, :, :, 0] == engine.FATE_NAMES.index("rolling")
-    np.testing.assert_allclose(ds["fate_speed"].values[0, 0, 0, 0, :, :, 0][rolling],
+    rolling = ds["fate"].values[0, 0, 0, 0, :, :] == engine.FATE_NAMES.index("rolling")
+    np.testing.assert_allclose(ds["fate_speed"].values[0, 0, 0, 0, :, :][rolling],
                                speed[rolling], atol=G * 2.0 / math.tan(FLAT))  # fmt: skip
 
 
@@ -116,7 +113,7 @@ def test_sliding_launch_map_invariants_and_wiring():
                 slip_u=[0.0, 1.5], slip_v=[0.3])  # fmt: skip
     ds = engine.launch_survey(axes["alpha"], axes["r0"], axes["v0"], axes["w0"], scene=sc,
                               method="dop853", rtol=1e-11, horizon_time=2.0, u0=axes["u0"],
-                              slip_u=axes["slip_u"], slip_v=0.3)  # fmt: skip
+                              slip_u=axes["slip_u"], slip_v=[0.3])  # fmt: skip
     grids = np.meshgrid(*axes.values(), indexing="ij")
     ref = launch_fates(*grids[:4], u0=grids[4], slip_u=grids[5], slip_v=grids[6], scene=sc,
                        rtol=1e-11, horizon_time=2.0)  # fmt: skip
@@ -181,10 +178,10 @@ def test_survey_file_round_trip_validate_run_and_open(tmp_path, monkeypatch, cap
     assert "sliding fate" in out and "slide_time" in out
     assert cli.main(["run", "slide.toml", "-o", "slide.nc", "-q"]) == 0
     with xr.open_dataset("slide.nc") as ds:
-        assert ds["fate"].dims == ("alpha", "r0", "v0", "w0", "u0", "slip_u", "slip_v")
+        assert ds["fate"].dims == ("alpha", "r0", "v0", "w0", "u0")  # the file's axes
         assert ds.attrs["map_kind"] == "sliding fate"
         api = engine.launch_survey([0.5, 1.2], [0.1, 0.4], [0.3, 1.2], [-1.0], scene=NEVER_SLIPS,
-                                   method="dop853", horizon_time=1.5)  # fmt: skip
+                                   method="dop853", horizon_time=1.5, u0=[0.0])  # fmt: skip
         for name in api.data_vars:
             np.testing.assert_array_equal(ds[name].values, api[name].values, err_msg=name)
         assert ds["slip_episodes"].dtype == np.int32
@@ -215,3 +212,36 @@ def test_bad_sliding_survey_files_exit_2_naming_key_and_value(tmp_path, monkeypa
         err = capsys.readouterr().err
         assert key in err and value in err, err
     assert sorted(os.listdir()) == ["bad.toml"]
+
+
+def test_launch_maps_keep_the_dims_the_user_asked_for():
+    """A release value (u0, slip_u, slip_v) is an axis only where it was given as one: none
+    given, the map is (alpha, r0, v0, w0) as on a rolling scene (it was 7-D, three length-1
+    axes); a number is no axis but the same for every launch (a scalar coordinate where it
+    is not 0), wired as the launch's own story says (engine.story.launch_fates)."""
+    kw = dict(scene=NEVER_SLIPS, method="dop853", horizon_time=1.5)
+    axes = ([0.5, 1.2], [0.1, 0.4], [0.3], [-1.0, 0.5])
+    plain = engine.launch_survey(*axes, **kw)
+    assert plain["fate"].dims == ("alpha", "r0", "v0", "w0")
+    assert not {"u0", "slip_u", "slip_v"} & set(plain.coords)
+    ds = engine.launch_survey(*axes, u0=0.5, slip_u=[0.0, 1.0], **kw)
+    assert ds["fate"].dims == ("alpha", "r0", "v0", "w0", "slip_u")
+    assert ds["u0"].dims == () and float(ds["u0"]) == 0.5 and ds["u0"].attrs["units"] == "m s-1"
+    assert "slip_v" not in ds.coords
+    grids = np.meshgrid(*axes, [0.0, 1.0], indexing="ij")
+    ref = launch_fates(*grids[:4], u0=0.5, slip_u=grids[4], scene=NEVER_SLIPS, rtol=1e-10,
+                       horizon_time=1.5)  # fmt: skip
+    for name in ("fate", "fate_time", "slide_time", "energy_lost"):
+        np.testing.assert_array_equal(ds[name].values, ref[name], err_msg=name)
+    assert (ds["slip_episodes"].values[..., 1] == 1).all()  # thrown: each slides
+
+
+def test_a_survey_file_has_the_release_axes_it_names(tmp_path):
+    """A survey file naming only [axes.slip_u] has that one release axis (the others are 0)."""
+    from engine.surveyfile import load_survey
+
+    text = SURVEY.replace("[axes.u0]", "[axes.slip_u]")
+    (tmp_path / "s.toml").write_text(text)
+    s = load_survey(tmp_path / "s.toml")
+    assert s.dims == ("alpha", "r0", "v0", "w0", "slip_u") and s.u0 is None
+    assert s.plan.dims == s.dims

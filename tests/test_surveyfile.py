@@ -383,6 +383,6 @@ values = [0.0, 1.5]
         parse_survey(text)
     assert info.value.key == "axes.slip_u"
     sliding = parse_survey(text.replace("mu = 0.4", "mu = 0.4\nmu_k = 0.3"))
-    assert sliding.dims == ("alpha", "r0", "v0", "w0", "u0", "slip_u", "slip_v")
-    assert sliding.shape == (1, 1, 1, 1, 1, 2, 1)
-    assert sliding.u0.tolist() == [0.0] and sliding.slip_u.tolist() == [0.0, 1.5]
+    assert sliding.dims == ("alpha", "r0", "v0", "w0", "slip_u")  # the release axes it names
+    assert sliding.shape == (1, 1, 1, 1, 2)
+    assert sliding.u0 is None and sliding.slip_u.tolist() == [0.0, 1.5]

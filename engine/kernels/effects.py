@@ -153,6 +153,7 @@ EFFECTS: tuple[Effect, ...] = (
                     "lost_rolling_resistance",
                     "lost_sliding_friction",
                     "lost_spin_friction",
+                    "fate_spin",
                 ),
             ),
         ),  # fmt: skip

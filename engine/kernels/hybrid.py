@@ -43,6 +43,7 @@ from .story_parts import (
     story_result,
     story_runs_out,
 )
+from .story_switches import stretch_start
 
 __all__ = ["HYBRID_FATE_NAMES", "HYBRID_ROWS", "SLIDING", "hybrid_fate_of", "hybrid_fate_points",
            "hybrid_story"]  # fmt: skip
@@ -58,9 +59,9 @@ def hybrid_fate_of(method, effects, spin, p, mu_k, c_spin, energy, h, Lz, r_star
     Returns (fate, floats (the rows :data:`HYBRID_ROWS`), steps, events recorded); the events
     (kind of :data:`.hybrid_step.HYBRID_EVENT_NAMES`, time, hybrid state) go to the buffers.
     The story is a loop of :func:`rolling_stretch` + :func:`.fate.fate_run` + :func:`rolled`
-    (rolling without spin friction) and :func:`hybrid_stretch` (the rest), from
-    :func:`story_begin` to :func:`story_result`: the same pieces the lanes run
-    (:mod:`.lanes_hybrid`).
+    (rolling without spin friction) and :func:`hybrid_stretch` (the rest), each stretch after
+    what its start decides (:func:`.story_switches.stretch_start`), from :func:`story_begin`
+    to :func:`story_result`: the same pieces the lanes run (:mod:`.lanes_hybrid`).
     """
     out = np.full(len(HYBRID_ROWS), math.nan)
     nr = state_size(effects)
@@ -84,6 +85,9 @@ def hybrid_fate_of(method, effects, spin, p, mu_k, c_spin, energy, h, Lz, r_star
     ra = np.empty(nr)
     while hi[HI_FATE] < 0:
         if story_runs_out(max_steps, hi):
+            break
+        stretch_start(p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y)  # decided at its start
+        if hi[HI_FATE] >= 0:
             break
         if hi[HI_MODE] == MODE_ROLLING and spin == 0:
             orb = rolling_stretch(effects, p, y, y0, atol, rtol, hs, hi, yr, ra)

@@ -13,16 +13,19 @@ from __future__ import annotations
 import math
 
 from .._jit import kernel
-from .layouts import P_V_REST
+from .layouts import P_CRR, P_V_REST
 from .protocol import EPS
 from .rk import step_decide, step_error
 from .rk_codegen import controller, tableau
-from .sliding import H_C_SPIN, MODE_SLIDING, hybrid_rhs, slip_speed
+from .sliding import H_C_SPIN, H_MU_K, MODE_SLIDING, hybrid_rhs, slip_speed
 
 #: Bits of ``armed``: the return to rolling (the slip speed has exceeded twice the threshold
-#: since the last switch) and the spin's stop (|w| has, since the last stop or release).
+#: since the last switch), the spin's stop (|w| has, since the last stop or release) and the
+#: tangential spin's stop while sliding (|(p1, p2)| has, where rolling resistance can hold it
+#: at zero: c_rr > mu_k; docs/physics.md "Rolling resistance while sliding").
 ARMED_ROLL = 1
 ARMED_SPIN = 2
+ARMED_ROT = 4
 #: The slip within this many stop thresholds may be declared stopped when a step cannot make it
 #: smaller (:func:`stalled`).
 STALL_BAND = 1000.0
@@ -112,10 +115,20 @@ def kink_step(method, y, h, hp, mode, stuck, armed, K):
     slip_on = mode == MODE_SLIDING and armed & ARMED_ROLL and sl > v_rest
     w0 = y[6]
     spin_on = not stuck and hp[H_C_SPIN] > 0.0 and armed & ARMED_SPIN and abs(w0) > v_rest
-    if not slip_on and not spin_on:
+    q1 = y[4]
+    q2 = y[5]
+    ql = math.sqrt(q1 * q1 + q2 * q2)
+    rot_on = mode == MODE_SLIDING and armed & ARMED_ROT and ql > v_rest
+    u0 = y[2]
+    v0 = y[3]
+    speed = math.sqrt(u0 * u0 + v0 * v0)
+    rest_on = mode != MODE_SLIDING and hp[P_CRR] > 0.0 and speed > v_rest
+    if not slip_on and not spin_on and not rot_on and not rest_on:
         return h
     slip_x = False
     spin_x = False
+    rot_x = False
+    rest_x = False
     for i in range(1, ns + 1):
         a2 = 0.0
         a3 = 0.0
@@ -132,7 +145,11 @@ def kink_step(method, y, h, hp, mode, stuck, armed, K):
             slip_x = True
         if spin_on and (w0 + h * a6) * w0 <= 0.0:
             spin_x = True
-    if not slip_x and not spin_x:
+        if rot_on and (q1 + h * a4) * q1 + (q2 + h * a5) * q2 <= 0.0:
+            rot_x = True
+        if rest_on and (u0 + h * a2) * u0 + (v0 + h * a3) * v0 <= 0.0:
+            rest_x = True
+    if not slip_x and not spin_x and not rot_x and not rest_x:
         return h
     h_new = 0.5 * h
     if slip_x:
@@ -143,6 +160,14 @@ def kink_step(method, y, h, hp, mode, stuck, armed, K):
         rate = -math.copysign(1.0, w0) * K[0, 6]
         if rate > 0.0:
             h_new = min(h_new, (abs(w0) - 0.5 * v_rest) / rate)
+    if rot_x:
+        rate = -(K[0, 4] * q1 + K[0, 5] * q2) / ql
+        if rate > 0.0:
+            h_new = min(h_new, (ql - 0.5 * v_rest) / rate)
+    if rest_x:
+        rate = -(K[0, 2] * u0 + K[0, 3] * v0) / speed
+        if rate > 0.0:
+            h_new = min(h_new, (speed - 0.5 * v_rest) / rate)
     return h_new
 
 
@@ -181,12 +206,26 @@ def advance(method, y, t, t_end, h, hp, mode, stuck, armed, K, ytmp, ynew, rtol,
 @kernel
 def arm(y, hp, mode, stuck, armed):
     """``armed`` after an accepted step to y: the return to rolling once the slip speed exceeds
-    twice the stop threshold while sliding, the spin's stop once |w| does (not stuck)."""
+    twice the stop threshold while sliding, the spin's stop once |w| does (not stuck), the
+    tangential spin's stop once |(p1, p2)| does while sliding (where it can stop:
+    :func:`rot_stops`)."""
     if mode == MODE_SLIDING and slip_speed(y) > 2.0 * hp[P_V_REST]:
         armed |= ARMED_ROLL
     if not stuck and abs(y[6]) > 2.0 * hp[P_V_REST]:
         armed |= ARMED_SPIN
+    if mode == MODE_SLIDING and rot_stops(hp):
+        if math.sqrt(y[4] * y[4] + y[5] * y[5]) > 2.0 * hp[P_V_REST]:
+            armed |= ARMED_ROT
     return armed
+
+
+@kernel
+def rot_stops(hp):
+    """Whether rolling resistance can stop and hold the tangential spin (p1, p2) while sliding:
+    its couple c_rr N a exceeds the most kinetic friction's couple can be, mu_k N a (then the
+    spin stops in finite time and stays at zero; otherwise it passes through zero at once:
+    docs/physics.md "Rolling resistance while sliding")."""
+    return hp[P_CRR] > hp[H_MU_K]
 
 
 @kernel
@@ -195,11 +234,22 @@ def stalled(y, ynew, K, hp):
     its direction at y although friction is slowing it there (its rate along that direction is
     < 0), with the slip within :data:`STALL_BAND` times the stop threshold: the slip is then
     as near zero as the integration resolves it (docs/physics.md "Reaching the switch")."""
-    s1 = y[2] - y[5]
-    s2 = y[3] + y[4]
+    return _stalled_pair(y[2] - y[5], y[3] + y[4], ynew[2] - ynew[5], ynew[3] + ynew[4],
+                         K[0, 2] - K[0, 5], K[0, 3] + K[0, 4], hp)  # fmt: skip
+
+
+@kernel
+def stalled_rot(y, ynew, K, hp):
+    """:func:`stalled` for the tangential spin (p1, p2) while sliding, on its way to zero (its
+    direction turns ever faster as it shrinks, as the slip's does)."""
+    return _stalled_pair(y[4], y[5], ynew[4], ynew[5], K[0, 4], K[0, 5], hp)
+
+
+@kernel
+def _stalled_pair(s1, s2, n1, n2, r1, r2, hp):
+    """Whether the pair (s1, s2) (rate (r1, r2)) within :data:`STALL_BAND` stop thresholds of
+    zero, slowing along its direction, came out of a step as (n1, n2) no smaller along it."""
     sl = math.sqrt(s1 * s1 + s2 * s2)
     if not 0.0 < sl <= STALL_BAND * hp[P_V_REST]:
         return False
-    rate = (K[0, 2] - K[0, 5]) * s1 + (K[0, 3] + K[0, 4]) * s2
-    along = (ynew[2] - ynew[5]) * s1 + (ynew[3] + ynew[4]) * s2
-    return rate < 0.0 and along >= sl * sl
+    return r1 * s1 + r2 * s2 < 0.0 and n1 * s1 + n2 * s2 >= sl * sl

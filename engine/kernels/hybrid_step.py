@@ -23,6 +23,7 @@ from .hybrid_rk import (
     ADV_OK,
     ADV_REACHED,
     ARMED_ROLL,
+    ARMED_ROT,
     ARMED_SPIN,
     STALL_BAND,
     advance,
@@ -32,6 +33,7 @@ from .hybrid_rk import (
     hybrid_attempt,
     kink_step,
     stalled,
+    stalled_rot,
     step_controller,
 )
 from .layouts import P_CRR, P_G, P_K, P_M, P_MU, P_R_VERTEX, P_RIM, P_THETA_MAX, P_V_REST
@@ -48,6 +50,7 @@ from .sliding import (
 
 __all__ = [
     "ARMED_ROLL",
+    "ARMED_ROT",
     "ARMED_SPIN",
     "STALL_BAND",
     "decide",
@@ -65,14 +68,26 @@ EV_STICK = 4
 EV_SPIN_STOP = 5
 EV_SPIN_GO = 6
 EV_REST = 7
-N_EVENTS = 8
+#: The tangential spin (p1, p2) stopped while sliding (rolling resistance holds it at zero from
+#: there: docs/physics.md "Rolling resistance while sliding"). Located like the others, but
+#: not one of the story's events (:data:`HYBRID_EVENT_NAMES`): it is recorded for the sampled
+#: trajectory, which splits its stretches there, and left out of what the story reports.
+EV_ROT_STOP = 8
+N_EVENTS = 9
+#: Recorded, never located: the slip reached the return threshold but static friction could
+#: not hold the rolling, so the sphere slides on (its return disarmed). Not a ``roll``: left
+#: out of the story's events like :data:`EV_ROT_STOP`.
+EV_NO_HOLD = 9
 HYBRID_EVENT_NAMES = ("spill", "vertex", "horizon", "slip", "roll", "spin_stop", "spin_go",
                       "rest")  # fmt: skip
-#: The bits of ``armed`` (:data:`.hybrid_rk.ARMED_ROLL`, ``ARMED_SPIN``) that each event kind
-#: keeps for the stretch after it: a slip or a return to rolling disarms the return, a spin's
-#: stop or release the spin's stop (each is armed again by :func:`.hybrid_rk.arm`), a restart
-#: from rest keeps both (the ends keep nothing).
-ARMED_KEPT = (0, 0, 0, ARMED_SPIN, ARMED_SPIN, ARMED_ROLL, ARMED_ROLL, ARMED_ROLL | ARMED_SPIN)
+#: The bits of ``armed`` (:data:`.hybrid_rk.ARMED_ROLL`, ``ARMED_SPIN``, ``ARMED_ROT``) that each
+#: event kind keeps for the stretch after it: a slip or a return to rolling disarms the return
+#: (and the tangential spin's stop, a sliding rule), a spin's stop or release the spin's stop,
+#: the tangential spin's stop itself, a return that does not hold the return (each is armed
+#: again by :func:`.hybrid_rk.arm`), a restart from rest keeps them all (the ends keep nothing).
+ARMED_KEPT = (0, 0, 0, ARMED_SPIN, ARMED_SPIN, ARMED_ROLL | ARMED_ROT, ARMED_ROLL | ARMED_ROT,
+              ARMED_ROLL | ARMED_SPIN | ARMED_ROT, ARMED_ROLL | ARMED_SPIN,
+              ARMED_SPIN | ARMED_ROT)  # fmt: skip
 #: Largest number of function evaluations (re-steps) to locate one event.
 LOCATE_ITERATIONS = 60
 
@@ -80,10 +95,12 @@ LOCATE_ITERATIONS = 60
 @kernel
 def event_value(kind, y, hp, mode, stuck, armed, ref):
     """g(y) of event ``kind``, or -inf where it is off. ``ref`` = (sign of w, slip direction
-    (d1, d2)) at the start of the step: the spin's stop is w crossing 0, and the return to
-    rolling is the slip's component along its direction at the step's start falling to the
-    threshold (so a step that carries the slip through zero still fires it)."""
-    w_sign, sd1, sd2 = ref
+    (d1, d2), tangential spin direction (q1, q2), velocity (u, v)) at the start of the step:
+    the spin's stop is w crossing 0, and the return to rolling is the slip's component along
+    its direction at the step's start falling to the threshold (so a step that carries the
+    slip through zero still fires it); the tangential spin's stop likewise; the rest fires on
+    a velocity turned back through zero too (:func:`.protocol.rest_value`)."""
+    w_sign, sd1, sd2, qd1, qd2, u0, v0 = ref
     off = -math.inf
     if kind == EV_RIM:
         return y[0] - hp[P_RIM]
@@ -106,7 +123,13 @@ def event_value(kind, y, hp, mode, stuck, armed, ref):
     if kind == EV_REST:
         if mode != MODE_ROLLING or hp[P_CRR] == 0.0:  # the stop needs rolling resistance
             return off
+        if y[2] * u0 + y[3] * v0 <= 0.0:  # turned back through zero: the stop was on the way
+            return hp[P_V_REST]  # (as .protocol.rest_value)
         return hp[P_V_REST] - math.sqrt(y[2] * y[2] + y[3] * y[3])
+    if kind == EV_ROT_STOP:
+        if mode != MODE_SLIDING or not armed & ARMED_ROT:
+            return off
+        return hp[P_V_REST] - (y[4] * qd1 + y[5] * qd2)
     return off
 
 
@@ -163,7 +186,10 @@ def first_event(method, y0, y1, h, hp, mode, stuck, armed, K, ytmp, yout, rtol, 
     w_sign = 0.0 if w_ref == 0.0 else math.copysign(1.0, w_ref)
     sl = slip_speed(y0)
     isl = 1.0 / sl if sl > 0.0 else 0.0
-    ref = (w_sign, (y0[2] - y0[5]) * isl, (y0[3] + y0[4]) * isl)
+    ql = math.sqrt(y0[4] * y0[4] + y0[5] * y0[5])
+    iql = 1.0 / ql if ql > 0.0 else 0.0
+    ref = (w_sign, (y0[2] - y0[5]) * isl, (y0[3] + y0[4]) * isl, y0[4] * iql, y0[5] * iql,
+           y0[2], y0[3])  # fmt: skip
     best = -1
     best_th = 2.0
     for kind in range(N_EVENTS):
@@ -215,6 +241,12 @@ def segment(method, y, hp, mode, stuck, armed, t, t_end, rtol, atol, max_steps, 
                                rtol, atol)  # fmt: skip
         if kind < 0 and mode == MODE_SLIDING and armed & ARMED_ROLL and stalled(y, ynew, K, hp):
             kind = EV_STICK  # the slip is as near zero as the steps can follow it
+            th = 1.0
+            for j in range(n):
+                yev[j] = ynew[j]
+        if kind < 0 and mode == MODE_SLIDING and armed & ARMED_ROT and stalled_rot(y, ynew, K,
+                                                                                  hp):  # fmt: skip
+            kind = EV_ROT_STOP  # the tangential spin, likewise
             th = 1.0
             for j in range(n):
                 yev[j] = ynew[j]

@@ -64,6 +64,7 @@ from .story_parts import (
     story_result,
     story_runs_out,
 )
+from .story_switches import stretch_start
 
 #: Columns of a lane's floats: the time its rolling stretch's run started at (restarts), the
 #: stretch's horizon (from its start) and the story's steps before the stretch.
@@ -132,6 +133,9 @@ def _lane_story(method, effects, spin, l, rtol, t_horizon, max_steps, W, I, F, L
     hi = LHI[l]
     while hi[HI_FATE] < 0:
         if story_runs_out(max_steps, hi):
+            break
+        stretch_start(p, y, LHP[l], t_horizon, hs, hi, hev_t, hev_kind, hev_y)  # as the scalar
+        if hi[HI_FATE] >= 0:
             break
         if hi[HI_MODE] == MODE_ROLLING and spin == 0:
             rolling_stretch(effects, p, y, LY0[l], LAT[l], rtol, hs, hi, yr, ra)

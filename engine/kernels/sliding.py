@@ -102,10 +102,25 @@ def free_slip_rate(r, u, v, p1, p2, w, t1, t2, hp):
 
 
 @kernel
+def clamp_pair(h1, h2, cap):
+    """(h1, h2) if its size is at most cap (held: True), else scaled to size cap (False): a
+    static couple, which gives at most its limit."""
+    hl = math.sqrt(h1 * h1 + h2 * h2)
+    if hl <= cap:
+        return h1, h2, True
+    return h1 * (cap / hl), h2 * (cap / hl), False
+
+
+@kernel
 def sliding_rates(r, u, v, p1, p2, w, stuck, hp):
     """Rates of the hybrid state while sliding (module docstring; physics "Equations of motion
     while sliding"): (rdot, thetadot, udot, vdot, p1dot, p2dot, wdot, P_rr, P_slide, P_spin),
-    the last three the powers [W] of the three dissipations (>= 0)."""
+    the last three the powers [W] of the three dissipations (>= 0).
+
+    At zero tangential spin (p1 = p2 = 0 exactly) rolling resistance is static, as the spin
+    couple is at w = 0: it holds (p1, p2) = 0 with any couple up to c_rr N a (their rates are
+    then exactly 0), and beyond that gives c_rr N a against the way they leave zero (physics
+    "Rolling resistance while sliding")."""
     M = hp[P_M]
     kM = hp[P_K] * M
     ir = 1.0 / r
@@ -117,23 +132,45 @@ def sliding_rates(r, u, v, p1, p2, w, stuck, hp):
     s2 = v + p1
     sl = math.sqrt(s1 * s1 + s2 * s2)
     fk = hp[H_MU_K] * N
+    static_rr = p1 == 0.0 and p2 == 0.0 and hp[P_CRR] > 0.0
     if sl > 0.0:
         f1 = -fk * s1 / sl
         f2 = -fk * s2 / sl
+    elif static_rr:  # at rest: the slip starts along the centre's pull ((p1, p2) held at 0)
+        d1 = v * v * ir - hp[P_G] * hp[P_COS]
+        d2 = -u * v * ir
+        dl = math.sqrt(d1 * d1 + d2 * d2)
+        f1 = -fk * d1 / dl if dl > 0.0 else 0.0
+        f2 = -fk * d2 / dl if dl > 0.0 else 0.0
     else:  # the slip starts along D (physics "Switching between rolling and sliding")
         d1, d2 = free_slip_rate(r, u, v, p1, p2, w, t1, t2, hp)
         dl = math.sqrt(d1 * d1 + d2 * d2)
         f1 = -fk * d1 / dl if dl > 0.0 else 0.0
         f2 = -fk * d2 / dl if dl > 0.0 else 0.0
+    held = False
+    if static_rr:  # the couple that keeps p1dot = p2dot = 0, up to c_rr N
+        t1, t2, held = clamp_pair(-f2, f1 - kM * kappa * v * w, hp[P_CRR] * N)
     udot = v * v * ir - hp[P_G] * hp[P_COS] + f1 / M
     vdot = -u * v * ir + f2 / M
-    p1dot = p2 * v * ir + (f2 + t1) / kM
-    p2dot = -p1 * v * ir + kappa * v * w + (t2 - f1) / kM
+    p1dot = 0.0 if held else p2 * v * ir + (f2 + t1) / kM
+    p2dot = 0.0 if held else -p1 * v * ir + kappa * v * w + (t2 - f1) / kM
     wdot = 0.0 if stuck else -kappa * v * p2 + t3 / kM
     p_rr = hp[P_CRR] * N * math.sqrt(p1 * p1 + p2 * p2)
     p_slide = fk * sl
     p_spin = 0.0 if stuck else hp[H_C_SPIN] * N * abs(w)
     return u, v * ir / hp[P_SIN], udot, vdot, p1dot, p2dot, wdot, p_rr, p_slide, p_spin
+
+
+@kernel
+def rolling_rest_couple(udot, vdot, N, hp):
+    """(T1/a, T2/a [N], held) of rolling resistance on a sphere rolling at rest (u = v = 0),
+    where (udot, vdot) is the pull of the other forces: static, it opposes the pull up to
+    c_rr N (as :func:`.model.motion_rates` does at zero speed), and holds the sphere (held)
+    if that is enough; (0, 0, False) without rolling resistance."""
+    if hp[P_CRR] == 0.0:
+        return 0.0, 0.0, False
+    m1k = hp[P_M] * (1.0 + hp[P_K])
+    return clamp_pair(m1k * vdot, -m1k * udot, hp[P_CRR] * N)
 
 
 @kernel
@@ -147,8 +184,12 @@ def rolling_rates(r, u, v, w, stuck, hp):
     N = normal_force(r, v, hp)
     t1, t2, t3 = couples(-v, u, w, N, stuck, spin_hold(r, v, u, hp), hp)
     udot = v * v * ir + k / (1.0 + k) * kappa * v * w - hp[P_G] * hp[P_COS] / (1.0 + k)
-    udot += t2 / (M * (1.0 + k))
-    vdot = -u * v * ir - t1 / (M * (1.0 + k))
+    vdot = -u * v * ir
+    held = False
+    if u == 0.0 and v == 0.0:  # at rest the resistance is static (:func:`rolling_rest_couple`)
+        t1, t2, held = rolling_rest_couple(udot, vdot, N, hp)
+    udot = 0.0 if held else udot + t2 / (M * (1.0 + k))
+    vdot = 0.0 if held else vdot - t1 / (M * (1.0 + k))
     wdot = 0.0 if stuck else -kappa * u * v + t3 / (k * M)
     p_rr = hp[P_CRR] * N * math.sqrt(u * u + v * v)
     p_spin = 0.0 if stuck else hp[H_C_SPIN] * N * abs(w)
@@ -192,6 +233,12 @@ def rolling_friction(y, hp):
     r, u, v, p1, p2, w = y[0], y[2], y[3], y[4], y[5], y[6]
     N = normal_force(r, v, hp)
     t1, t2, _ = couples(p1, p2, w, N, True, 0.0, hp)
+    if u == 0.0 and v == 0.0 and p1 == 0.0 and p2 == 0.0:  # rolling at rest: static resistance
+        k = hp[P_K]
+        ir = 1.0 / r
+        pull = v * v * ir + k / (1.0 + k) * hp[P_COT] * ir * v * w
+        pull -= hp[P_G] * hp[P_COS] / (1.0 + k)
+        t1, t2, _ = rolling_rest_couple(pull, -u * v * ir, N, hp)
     d1, d2 = free_slip_rate(r, u, v, p1, p2, w, t1, t2, hp)
     c = -hp[P_K] * hp[P_M] / (1.0 + hp[P_K])
     return c * d1, c * d2

@@ -34,9 +34,12 @@ from .fate import (
 )
 from .hybrid_step import (
     ARMED_ROLL,
+    ARMED_ROT,
     ARMED_SPIN,
+    EV_NO_HOLD,
     EV_REST,
     EV_RIM,
+    EV_ROT_STOP,
     EV_SLIP,
     EV_SPIN_GO,
     EV_SPIN_STOP,
@@ -45,13 +48,12 @@ from .hybrid_step import (
     EV_VERTEX,
     SEG_FAILED,
     SEG_TIME,
-    ev_y_stick,
     push_event,
     release_spin,
     rolling_invariants,
     segment,
 )
-from .layouts import P_G, P_K, P_M, P_R_VERTEX, P_RIM, P_V_REST
+from .layouts import P_CRR, P_G, P_K, P_M, P_R_VERTEX, P_RIM, P_V_REST
 from .model import ROLLING_RESISTANCE, kinetic_energy, motion_rates
 from .sliding import (
     MODE_ROLLING,
@@ -64,15 +66,18 @@ from .sliding import (
     stick,
 )
 
-#: Fate codes beyond :data:`.fate.FATE_NAMES`: still sliding at the horizon.
+#: Fate codes beyond :data:`.fate.FATE_NAMES`: still sliding at the horizon; at rest and held
+#: there, but spinning in place about the normal (no spin friction to stop it: ``fate_spin``
+#: holds the spin). ``rest`` is the centre and the spin both stopped.
 SLIDING = 7
+SPINNING = 8
 HYBRID_FATE_NAMES = ("no_orbit", "rolling", "spilled", "slipped", "rest", "vertex", "failed",
-                     "sliding")  # fmt: skip
+                     "sliding", "spinning")  # fmt: skip
 #: Rows of the float output of :func:`hybrid_fate_points`.
 HYBRID_ROWS = ("fate_time", "fate_r", "fate_theta", "revolutions", "energy_lost",
                "invariant_drift", "slide_time", "slip_episodes", "fate_speed", "final_energy",
                "final_h", "final_Lz", "lost_rolling_resistance", "lost_sliding_friction",
-               "lost_spin_friction")  # fmt: skip
+               "lost_spin_friction", "fate_spin")  # fmt: skip
 
 
 @kernel
@@ -251,6 +256,8 @@ def rolled(effects, f, dt, yr, st, y, hs, hi, ev_t, ev_kind, ev_y):
             hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_VERTEX, y)
         elif f == FATE_REST:
             hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_REST, y)
+            if y[6] != 0.0:  # the centre is held at rest, the sphere spins on in place
+                hi[HI_FATE] = SPINNING
         return
     hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_SLIP, y)
     hi[HI_MODE] = MODE_SLIDING
@@ -281,6 +288,37 @@ def hybrid_stretch(method, p, y, hp, rtol, hatol, t_horizon, max_steps, K, ytmp,
         if end == EV_THETA:
             hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, end, y)
         return
+    if end == EV_REST:  # the stop: the next stretch starts within the rest threshold, where
+        return  # .story_switches.stretch_start carries it to zero speed (and what follows)
+    if end == EV_STICK:
+        # the sphere rolls again if static friction holds the rolling, or if the impulse
+        # leaves it rolling within the rest threshold where rolling resistance holds a sphere
+        # at rest (it has slid to a stop: the next stretch starts at rest); otherwise it slides
+        # on, and that is no ``roll``: an EV_NO_HOLD, recorded for the sampled trajectory only
+        yt = y.copy()
+        stick(yt, hp)
+        stops = (hp[P_CRR] > 0.0 and holds_at_rest(p)
+                 and math.sqrt(yt[2] * yt[2] + yt[3] * yt[3]) <= hp[P_V_REST])  # fmt: skip
+        if stops or hold_margin(yt, hp) <= 0.0:
+            stick(y, hp)
+            hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_STICK, y)
+            hi[HI_MODE] = MODE_ROLLING
+            fe, fh, fl = rolling_invariants(y, hp)
+            hs[HS_FE] = fe
+            hs[HS_FH] = fh
+            hs[HS_FL] = fl
+            hi[HI_ARMED] &= ARMED_SPIN
+        else:
+            hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_NO_HOLD, y)
+            hi[HI_ARMED] &= ARMED_SPIN | ARMED_ROT
+        return
+    if end == EV_ROT_STOP:  # (p1, p2) down to the threshold: the rest of it to the resistance
+        y[7] += 0.5 * hp[P_K] * hp[P_M] * (y[4] * y[4] + y[5] * y[5])
+        y[4] = 0.0
+        y[5] = 0.0
+        hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, end, y)  # (the state after)
+        hi[HI_ARMED] &= ARMED_ROLL | ARMED_SPIN
+        return
     hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, end, y)
     if end == EV_RIM:
         hi[HI_FATE] = FATE_SPILLED
@@ -290,44 +328,15 @@ def hybrid_stretch(method, p, y, hp, rtol, hatol, t_horizon, max_steps, K, ytmp,
         hi[HI_MODE] = MODE_SLIDING
         hi[HI_EPISODES] += 1
         hi[HI_ARMED] &= ARMED_SPIN
-    elif end == EV_STICK:
-        yt = y.copy()
-        stick(yt, hp)
-        if hold_margin(yt, hp) <= 0.0:
-            stick(y, hp)
-            ev_y_stick(ev_y, hi[HI_NEV] - 1, y)
-            hi[HI_MODE] = MODE_ROLLING
-            fe, fh, fl = rolling_invariants(y, hp)
-            hs[HS_FE] = fe
-            hs[HS_FH] = fh
-            hs[HS_FL] = fl
-        hi[HI_ARMED] &= ARMED_SPIN
     elif end == EV_SPIN_STOP:  # |w| down to the threshold: the rest of it to spin friction
         y[9] += 0.5 * hp[P_K] * hp[P_M] * y[6] * y[6]
         y[6] = 0.0
         hi[HI_STUCK] = 1 if spin_hold_margin(y, hp) <= 0.0 else 0
-        hi[HI_ARMED] &= ARMED_ROLL
+        hi[HI_ARMED] &= ARMED_ROLL | ARMED_ROT
     elif end == EV_SPIN_GO:
         hi[HI_STUCK] = 0
         release_spin(y, hp)
-        hi[HI_ARMED] &= ARMED_ROLL
-    elif end == EV_REST:
-        if holds_at_rest(p):
-            # at rest, as a fate map carries its stop on to zero speed: the motion left at the
-            # threshold (energy ~ the threshold squared) goes to the resistance that stops it
-            e_moving = _energy(y, hp, mode)
-            y[2] = 0.0
-            y[3] = 0.0
-            y[4] = 0.0
-            y[5] = 0.0
-            y[7] += e_moving - _energy(y, hp, mode)
-            hi[HI_FATE] = FATE_REST
-            return
-        y[2] = 0.0
-        y[3] = 0.0
-        y[4] = 0.0
-        y[5] = 0.0
-        hi[HI_RESTARTS] += 1
+        hi[HI_ARMED] &= ARMED_ROLL | ARMED_ROT
 
 
 @kernel
@@ -350,6 +359,8 @@ def story_result(spin, p, y, y0, hp, hs, hi, out):
         yr[3] = y[3]
         yr[4] = y[6]
         E1 = invariants(yr, p)[0]
+    if hi[HI_FATE] == FATE_REST or hi[HI_FATE] == SPINNING:  # its state at rest
+        fe, fh, fl = rolling_invariants(y, hp)
     E0 = hs[HS_E0]
     work = y[7] + y[8] + y[9]
     out[0] = hs[HS_T]
@@ -367,4 +378,5 @@ def story_result(spin, p, y, y0, hp, hs, hi, out):
     out[12] = y[7]
     out[13] = y[8]
     out[14] = y[9]
+    out[15] = y[6]
     return hi[HI_FATE]
