@@ -167,7 +167,9 @@ def test_a_real_full_disk(work, reference, size, stored):
     output gets). 7 MB: for all four blocks (4.7 MB), not the output merged beside them. The
     output is written while the blocks are computed, so the disk fills while a block is stored
     or while the output is written, whichever comes first, with fewer blocks stored than fit
-    alone."""
+    alone. Block files are made durable on a thread up to four blocks behind the output's
+    writes, so on a busy machine the output can take the room first and no block is stored:
+    the run still stops cleanly, and the message never counts more blocks than are there."""
     r = _in_small_fs(work, size)
     assert r["first.rc"].strip() == "1", r
     err = r["first.err"]
@@ -176,7 +178,9 @@ def test_a_real_full_disk(work, reference, size, stored):
     assert ("No space left on device" in err) or ("NetCDF: HDF error" in err), err
     assert r["first.ls"].split() == ["out.nc.parts"]
     blocks = [n for n in r["first.parts"].split() if n.endswith(".chunks")]
-    assert 1 <= len(blocks) <= stored, r["first.parts"]
+    assert len(blocks) <= stored, r["first.parts"]
+    if counted := re.search(r"; (\d+) of 4 blocks are stored", err):
+        assert int(counted.group(1)) <= len(blocks), (err, r["first.parts"])
     assert not [n for n in r["first.parts"].split() if ".tmp" in n]
     assert r["second.rc"].strip() == "0", r["second.err"]
     assert r["second.ls"].split() == ["out.nc"]
