@@ -111,10 +111,9 @@ class Notice:
                 wait = 0.1
                 continue
             if self.tty:
-                self.stream.write("\r" + self.line())
+                self._say("\r" + self.line())
             elif not self._shown.is_set():
-                self.stream.write(self.line() + "\n")
-            self.stream.flush()
+                self._say(self.line() + "\n")
             self._shown.set()
             wait = 1.0
 
@@ -138,9 +137,17 @@ class Notice:
                 else f"{self.label}: compiled kernels in {span}"
                 + (" (cached for later runs)" if self.kept else "")
             )
-            self.stream.write(("\r" + done.ljust(len(self.line())) if self.tty else done) + "\n")
-            self.stream.flush()
+            self._say(("\r" + done.ljust(len(self.line())) if self.tty else done) + "\n")
         return took
+
+    def _say(self, text: str) -> None:
+        """Write to the stream, unless it is closed by now (a test runner's captured stream,
+        a pipe whose reader left): a notice is never worth an error."""
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except (ValueError, OSError):  # "I/O operation on closed file", EPIPE
+            pass
 
 
 class _Compiles(event.Listener):

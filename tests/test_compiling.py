@@ -9,6 +9,7 @@ import io
 import re
 import subprocess
 import sys
+import threading
 import time
 
 import numba
@@ -129,3 +130,23 @@ def test_a_compile_during_a_run_ends_before_the_next_progress_line(
     lines = err.splitlines(keepends=True)
     assert lines[0] == STARTED and ENDED.fullmatch(lines[1]), err
     assert lines[2].startswith("conesurvey: 2/2 points (100.0%)") and len(lines) == 3, err
+
+
+def test_a_notice_on_a_closed_stream_says_nothing_and_raises_nothing():
+    """A test runner closes its captured stream, a pipe's reader leaves: the notice's thread
+    and its end write nothing and raise nothing (no 'exception in thread' warning)."""
+    stream = io.StringIO()
+    notice = _compiling.Notice(stream, tty=True, delay=0.0)
+    notice.start()
+    time.sleep(0.05)
+    stream.close()
+    time.sleep(0.15)  # the thread redraws into the closed stream
+    errors = []
+    previous = threading.excepthook
+    threading.excepthook = lambda args: errors.append(args.exc_value)
+    try:
+        took = notice.stop()
+    finally:
+        threading.excepthook = previous
+    assert took >= 0.2 - 0.01 and errors == []
+    assert notice._thread is not None and not notice._thread.is_alive()
