@@ -244,10 +244,13 @@ def test_a_return_that_does_not_hold_is_not_a_roll():
 def test_with_kinetic_equal_to_static_friction_the_events_are_the_models():
     """The same launch against the rigid-body model (its return is a roll only if static
     friction then holds the rolling): the same mode changes at the same times (3 minutes of
-    the model's Python right-hand side)."""
+    the model's Python right-hand side). At mu_k = mu the second return is ill-conditioned:
+    its time moves about 1000 times the step tolerance (measured: 1.1e-6 s at rtol 1e-9,
+    1.3e-7 s at 1e-10, 1.6e-9 s at 1e-11 from its value at 1e-12), so the engine runs at
+    rtol 1e-12 for a comparison to 1e-7."""
     sc = Scene(M=1.0, a=A, k=0.4, **MU_K_IS_MU)
     alpha, r0, v0, w0 = AT_THE_LIMIT
-    out = story(alpha, r0, v0, w0, scene=sc, rtol=1e-10, horizon_time=2.0)
+    out = story(alpha, r0, v0, w0, scene=sc, rtol=1e-12, horizon_time=2.0)
     oracle = Oracle(alpha, 1.0, sc.g, A, 0.4, sc.mu, sc.mu_k, rim_centre=1.0 - A / math.tan(alpha))
     ev, _, _ = oracle.run(start_state(alpha, r0, 0.0, v0, w0, 0.0, 0.0, A), "rolling", 2.0, 1.5)
     assert [e["kind"] for e in out["events"]] == [e[0] for e in ev]
