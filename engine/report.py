@@ -31,7 +31,16 @@ from .io.results import Result
 from .mapspec import MapSpec, fixed_text, flag_table, plan
 from .plot import figure_png, flag_color, map_figure, matplotlib_parts
 
-__all__ = ["Range", "Stats", "gather", "build_report", "scene_first", "write_report"]
+__all__ = [
+    "Range",
+    "Stats",
+    "gather",
+    "build_report",
+    "check_report",
+    "map_spec",
+    "scene_first",
+    "write_report",
+]
 
 #: Integrator diagnostics drawn in their own section, in this order.
 DIAGNOSTICS = ("status", "energy_drift")
@@ -144,14 +153,44 @@ def _figure(fig: Any, alt: str, caption: str, variable: str) -> str:
     )
 
 
+def map_spec(ds: Any, name: str, base: MapSpec) -> MapSpec:
+    """The map of ``name`` on the page: over the base map's axes (``base``), or, for a variable
+    stored on fewer dims that lacks one of them (r_circ and V_min do not depend on the energy),
+    over the base map's axis it has and its longest other one, the others at their middle
+    values."""
+    dims = set(map(str, ds[name].dims))
+    if {base.x, base.y} <= dims:
+        fixed = {d: v for d, v in base.fixed.items() if d in dims}
+        return MapSpec(name, base.x, base.y, None, fixed)
+    x = base.x if base.x in dims else None  # the base map's axes it has keep their places
+    y = base.y if base.y in dims else None
+    return plan(ds, name, x, y)
+
+
+def check_report(result: Result) -> None:
+    """LookError, before anything is counted or drawn, for a map of the page larger than a
+    figure draws (:data:`engine.mapspec.MAX_CELLS`)."""
+    ds = result.ds
+    base = plan(ds, "orbit_class")
+    for name in ds.data_vars:
+        map_spec(ds, str(name), base)
+
+
 def _maps(result: Result, names: Iterable[str], base: MapSpec) -> list[str]:
     ds = result.ds
     out = []
     for name in names:
-        spec = MapSpec(name, base.x, base.y, None, dict(base.fixed))
+        spec = map_spec(ds, name, base)
         fig = map_figure(ds, spec, result.computed(), context=False)
         long_name = ds[name].attrs.get("long_name", name)
-        out.append(_figure(fig, f"map of {name}", f"<b>{_e(name)}</b>: {_e(long_name)}", name))
+        caption = f"<b>{_e(name)}</b>: {_e(long_name)}"
+        if (spec.x, spec.y) != (base.x, base.y):
+            where = _e(fixed_text(ds, spec)) or "no other axes"
+            caption += (
+                f" (over {_e(spec.x)} and {_e(spec.y)}: it does not depend on "
+                f"{_e(base.y if base.y not in ds[name].dims else base.x)}; {where})"
+            )
+        out.append(_figure(fig, f"map of {name}", caption, name))
     return out
 
 
@@ -242,6 +281,7 @@ def _state(result: Result) -> str:
 def build_report(result: Result, *, now: datetime | None = None) -> str:
     """The HTML page about ``result`` (see the module docstring)."""
     matplotlib_parts()  # fail early, before any counting, if matplotlib is missing
+    check_report(result)
     ds = result.ds
     stats = gather(result)
     base = plan(ds, "orbit_class")

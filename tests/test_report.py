@@ -148,3 +148,32 @@ def test_command_default_name_and_no_overwrite(rk, tmp_path, monkeypatch, capsys
     assert "a report is HTML" in capsys.readouterr().err
     assert cli.main(["report", "missing.nc"]) == 2
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rk_report.html"]
+
+
+def test_variables_that_do_not_depend_on_the_energy_are_not_drawn_over_it(rk, monkeypatch):
+    """r_circ and V_min are properties of an (alpha, h, Lz) family: their maps are over h and
+    Lz (the energy map drew the same value up every column), with the values of the file."""
+    import engine.report as report
+
+    nc, _ = rk
+    drawn = {}
+
+    def keep(fig, alt, caption, variable):
+        drawn[variable] = (fig, caption)
+        return ""
+
+    monkeypatch.setattr(report, "_figure", keep)
+    with open_result(nc) as r:
+        build_report(r)
+    ds = xr.open_dataset(nc)
+    for name in ("r_circ", "V_min"):
+        fig, caption = drawn[name]
+        ax = fig.axes[0]
+        assert "energy" not in ax.get_xlabel() + ax.get_ylabel(), name
+        assert (ax.get_xlabel(), ax.get_ylabel()) == ("Lz [kg m2 s-1]", "h [m s-1]")
+        assert "it does not depend on energy" in caption
+        want = ds[name].isel(alpha=ds.sizes["alpha"] // 2).transpose("h", "Lz").values
+        got = ax.collections[0].get_array().filled(np.nan).reshape(want.shape)
+        np.testing.assert_array_equal(got, want)
+    fig, _ = drawn["r_min"]  # the others stay over the two longest axes
+    assert fig.axes[0].get_ylabel().startswith("energy")

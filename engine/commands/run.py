@@ -22,7 +22,7 @@ from ..checks import PlanError, check_block_points
 from ..errortext import install_hint
 from ..grid import BLOCK_POINTS
 from ..io.codecs import COMPRESSIONS, DEFAULT_COMPRESSION, DEFAULT_LEVELS
-from ..io.formats import format_for
+from ..io.formats import FORMATS, format_for, formats_text
 from ..io.manifest import fingerprint
 from ..kernels.geometry import CLASS_NAMES
 from ..plan import RunPlan, plan_from_survey
@@ -190,6 +190,10 @@ def _positive_int(text: str) -> int:
 def _output(args: argparse.Namespace, source: Path) -> Path:
     """The output path; InputError if it is a directory, has no directory, or is the survey."""
     out = Path(args.output) if args.output else Path.cwd() / (source.stem + ".nc")
+    if not any(fmt.owns(out) for fmt in FORMATS.values()):  # not netCDF whatever its name
+        found = f"unknown suffix {out.suffix!r}" if out.suffix else "no suffix"
+        raise InputError(f"output {out}: {found}; the suffix names the format: "
+                         f"{formats_text()}")  # fmt: skip
     if out.is_dir() and not format_for(out).directory:  # a Zarr store is a directory
         raise InputError(f"output path is a directory: {out}")
     if not out.parent.is_dir():
