@@ -18,6 +18,7 @@ from .methods import DEFAULT_RTOL
 from .plan import RunPlan, map_plan, survey_plan
 from .scene import Scene
 from .schema import (
+    BACKSPIN_LAUNCH_DIMS,
     DIMS,
     axis_attrs,
     launch_dims,
@@ -209,6 +210,7 @@ def launch_survey(
     u0: Any = 0.0,
     slip_u: Any = 0.0,
     slip_v: Any = 0.0,
+    backspin: Any = None,
 ) -> xr.Dataset:
     """A map over launch states: the sphere released at distance ``r0`` [m] from its cone's
     vertex (along the generatrix) with radial speed 0, azimuthal speed ``v0`` [m/s] and spin
@@ -222,12 +224,19 @@ def launch_survey(
     thrown outward without spin: slip_u = u0; backspin makes slip_u larger). Each is a number
     or a 1-D axis; the dims are then (alpha, r0, v0, w0, u0, slip_u, slip_v), a number a
     length-1 axis, and the invariants are those of the rolling orbit through the launch point
-    with its radial speed. Without ``mu_k`` they must be 0 (a ValueError names the one that is
-    not)."""
+    with its radial speed. ``backspin`` (instead of ``slip_u``) spans the slip beyond the
+    radial speed, slip_u = u0 + backspin at every point: the dims are then (alpha, r0, v0, w0,
+    u0, backspin, slip_v), and a map of speed by backspin is not sheared. Without ``mu_k``
+    they must be 0 (a ValueError names the one that is not)."""
     scene = Scene() if scene is None else scene
     dims = launch_dims(scene)
     values = dict(alpha=alpha, r0=r0, v0=v0, w0=w0)
     release = {"u0": u0, "slip_u": slip_u, "slip_v": slip_v}
+    if backspin is not None:
+        if not (np.ndim(slip_u) == 0 and check_numbers("slip_u", slip_u) == 0.0):
+            raise ValueError("give slip_u or backspin (slip_u - u0), not both")
+        release = {"u0": u0, "backspin": backspin, "slip_v": slip_v}
+        dims = BACKSPIN_LAUNCH_DIMS if len(dims) > 4 else dims
     if len(dims) == 4:  # a scene on which every launch rolls (no mu_k)
         for name, value in release.items():
             arr = np.atleast_1d(check_numbers(name, value)).astype(np.float64)

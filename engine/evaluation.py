@@ -24,6 +24,7 @@ from .kernels.protocol import NOT_BOUNDED
 from .kernels.workqueue import CHECK_UNIT, checked_queued, orbit_units_queued, work_units
 from .launch import invariants
 from .schema import (
+    BACKSPIN_LAUNCH_DIMS,
     DIMS,
     FATE_KINDS,
     INTEGRATED,
@@ -282,6 +283,8 @@ def _flat_block(sub: list[np.ndarray], plan: RunPlan):
         inv = invariants(A, X1, u0, X2, X3, scene)
         E, H, L, r_start = inv["energy"], inv["h"], inv["Lz"], X1
         release = tuple(rel) if tuple(dims[4:]) == RELEASE else None
+        if tuple(dims) == BACKSPIN_LAUNCH_DIMS:  # slip_u = u0 + backspin
+            release = (rel[0], rel[0] + rel[1], rel[2])
     else:
         E, H, L = X1, X2, X3
         if plan.energy_relative:

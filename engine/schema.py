@@ -41,8 +41,9 @@ LAUNCH_DIMS = ("alpha", "r0", "v0", "w0")
 RELEASE = ("u0", "slip_u", "slip_v")
 #: The axes of a survey over launch states on a scene with kinetic friction.
 SLIDING_LAUNCH_DIMS = (*LAUNCH_DIMS, *RELEASE)
+BACKSPIN_LAUNCH_DIMS = (*LAUNCH_DIMS, "u0", "backspin", "slip_v")  # slip_u = u0 + backspin
 #: Every kind of survey grid, by its dims: the one place that lists them.
-GRID_DIMS = (DIMS, LAUNCH_DIMS, SLIDING_LAUNCH_DIMS)
+GRID_DIMS = (DIMS, LAUNCH_DIMS, SLIDING_LAUNCH_DIMS, BACKSPIN_LAUNCH_DIMS)
 #: The invariants a survey over launch states stores as variables.
 INVARIANTS = ("energy", "h", "Lz")
 #: Global attribute of a finished survey file holding the survey's fingerprint.
@@ -92,6 +93,7 @@ AXES: dict[str, Variable] = {
     "u0": _f("m s-1", "launch radial speed dr/dt along the generatrix (outward > 0)"),
     "slip_u": _f("m s-1", "launch slip velocity of the contact point along the generatrix"),
     "slip_v": _f("m s-1", "launch slip velocity of the contact point along the parallel"),
+    "backspin": _f("m s-1", "launch backspin a omega0 = slip_u - u0, the slip beyond u0"),
 }
 _FAM = ("alpha", "h", "Lz")  # what a property of an (alpha, h, L_z) family depends on
 _ENERGY_RELATIVE = _f("1", "energy offset from the potential minimum, (calE - V_min)/|V_min|")
@@ -277,8 +279,8 @@ def grid_dims(names: Any) -> tuple[str, ...]:
     """The dims of the survey grid whose axes include ``names`` (a Dataset's dims, a survey
     file's axes): the longest of :data:`GRID_DIMS` all of whose launch axes are named."""
     present = set(names)
-    if present & set(RELEASE):
-        return SLIDING_LAUNCH_DIMS
+    if present & {*RELEASE, "backspin"}:
+        return BACKSPIN_LAUNCH_DIMS if "backspin" in present else SLIDING_LAUNCH_DIMS
     return LAUNCH_DIMS if "r0" in present else DIMS
 
 

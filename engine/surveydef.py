@@ -15,7 +15,7 @@ from .api import run_plan
 from .fates import Horizon
 from .plan import RunPlan, survey_plan
 from .scene import Scene
-from .schema import DIMS, LAUNCH_DIMS, SLIDING_LAUNCH_DIMS
+from .schema import BACKSPIN_LAUNCH_DIMS, DIMS, LAUNCH_DIMS, SLIDING_LAUNCH_DIMS
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -30,7 +30,8 @@ class Survey:
     The axes are read-only 1-D float64 arrays: ``alpha`` [radian], ``energy`` [J] (or, when
     ``energy_relative``, the dimensionless offsets (energy - V_min)/|V_min|), ``h`` [m s-1] and
     ``Lz`` [kg m2 s-1]; or, over launch states, ``r0`` [m], ``v0`` and ``w0`` [m s-1] (and on
-    a scene with kinetic friction ``u0``, ``slip_u`` and ``slip_v`` [m s-1]). ``source_text``
+    a scene with kinetic friction ``u0``, ``slip_u`` and ``slip_v`` [m s-1], or ``backspin``
+    = slip_u - u0 instead of ``slip_u``). ``source_text``
     is the TOML text verbatim, stored with the results.
     """
 
@@ -53,6 +54,7 @@ class Survey:
     u0: np.ndarray | None = None
     slip_u: np.ndarray | None = None
     slip_v: np.ndarray | None = None
+    backspin: np.ndarray | None = None
     # the plan the parser built, each value checked once (not copied by dataclasses.replace)
     _plan: RunPlan | None = field(default=None, init=False, repr=False, compare=False)
 
@@ -92,9 +94,11 @@ class Survey:
     def dims(self) -> tuple[str, ...]:
         """The survey's axes: (alpha, energy, h, Lz), or (alpha, r0, v0, w0) over launch
         states, with (u0, slip_u, slip_v) on a scene with kinetic friction (the release's
-        radial speed and slip velocity)."""
+        radial speed and slip velocity), or (u0, backspin, slip_v)."""
         if not self.launch:
             return DIMS
+        if self.backspin is not None:
+            return BACKSPIN_LAUNCH_DIMS
         return SLIDING_LAUNCH_DIMS if self.u0 is not None else LAUNCH_DIMS
 
     @property

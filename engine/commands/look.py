@@ -70,7 +70,7 @@ examples:
   conesurvey plot gravity_precession.nc                  # orbit_class, h (x) by energy (y)
   conesurvey plot gravity_precession.nc precession_rate --at alpha=0.5 --x Lz --contour 0
   conesurvey plot gravity_precession.nc precession_per_revolution --x Lz --facet alpha
-  conesurvey plot fate_rolling_resistance.nc             # fate, r0 (x) by v0 (y)
+  conesurvey plot fate_rolling_resistance.nc             # fate, v0 (x) by r0 (y)
 
 exit status: 0 written, 1 output not written, 2 bad input or usage, 130 interrupted"""
 
