@@ -24,6 +24,8 @@ import numpy as np
 import xarray as xr
 
 from .mapspec import LookError
+from .orbitplot import orbit_figure, write_animation
+from .orbitview import orbit_of_result
 from .plot import CLASS_COLORS, draw_map, legend_handles, matplotlib_parts, style_for
 from .schema import variable_attrs
 
@@ -317,6 +319,21 @@ class ConeAccessor:
             handles = legend_handles(style, np.asarray(cls.values, float), seen)
             ax.legend(handles=handles, title="orbit class", loc="best", fontsize="small")
         return ax
+
+    def orbit(self, animate: str | None = None, **kwargs: Any) -> Any:
+        """The picture of the orbit of the grid point nearest ``kwargs`` (axis=value; the
+        other axes at their middle values), as ``conesurvey orbit RESULT --at ...`` draws it
+        (:mod:`engine.orbitplot`); other ``kwargs`` (t_end, periods, samples, method, rtol)
+        go to :func:`engine.orbitview.orbit`. ``animate="orbit.gif"`` writes the animation
+        too. Returns the matplotlib Figure; the orbit is ``fig.orbit``."""
+        point = {k: float(v) for k, v in kwargs.items() if k in self._ds.dims}
+        options = {k: v for k, v in kwargs.items() if k not in point}
+        o, _ = orbit_of_result(self._ds, point, attitude=animate is not None, **options)
+        fig = orbit_figure(o)
+        fig.orbit = o
+        if animate is not None:
+            write_animation(o, animate, overwrite=True)
+        return fig
 
     def summary(self) -> str:
         """A few lines: dims, scene, class counts and ranges of the main observables."""

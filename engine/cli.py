@@ -1,5 +1,5 @@
 """The ``conesurvey`` command line: ``conesurvey run SURVEY.toml [-o OUT.nc]``, ``validate``,
-``info``, ``plot``, ``report``, ``convert``.
+``info``, ``plot``, ``report``, ``orbit``, ``convert``.
 
 Each command lives in its own module of :mod:`engine.commands` and is registered here with
 :func:`register` (a new command is one module and one ``register`` call).
@@ -26,6 +26,7 @@ from .commands import PROG, Command, InputError, error
 from .commands import convert as _convert
 from .commands import info as _info
 from .commands import look as _look
+from .commands import orbit as _orbit
 from .commands import run as _run
 from .commands import validate as _validate
 from .commands.interrupts import interrupts_outside_compile_hooks
@@ -140,6 +141,7 @@ for _command in (
     _info.COMMAND,
     _look.PLOT,
     _look.REPORT,
+    _orbit.COMMAND,
     _convert.COMMAND,
 ):
     register(_command)

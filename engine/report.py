@@ -30,6 +30,7 @@ from .io.atomic import fsync_path, replacing
 from .io.results import Result
 from .mapspec import MapSpec, fixed_text, flag_table, plan
 from .plot import figure_png, flag_color, map_figure, matplotlib_parts
+from .reportorbits import sample_orbits
 
 __all__ = [
     "Range",
@@ -194,6 +195,37 @@ def _maps(result: Result, names: Iterable[str], base: MapSpec) -> list[str]:
     return out
 
 
+def _orbits(result: Result) -> str:
+    """The section of sample orbits: one per flag found (:mod:`engine.reportorbits`)."""
+    samples = sample_orbits(result)
+    if not samples:
+        return ""
+    var = samples[0].variable
+    figs, missing = [], []
+    for s in samples:
+        if s.figure is None:
+            missing.append(f"<li><b>{_e(s.flag)}</b>: {_e(s.reason)}</li>")
+            continue
+        png = figure_png(s.figure, dpi=72)
+        w, h = _png_size(png)
+        uri = "data:image/png;base64," + base64.b64encode(png).decode("ascii")
+        where = ", ".join(f"{k} = {v:.6g}" for k, v in (s.point or {}).items())
+        figs.append(
+            f'<figure class="orbit" data-flag="{_e(s.flag)}"><img src="{uri}" '
+            f'alt="orbit: {_e(s.flag)}" width="{w}" height="{h}"><figcaption><b>{_e(s.flag)}'
+            f"</b> at {_e(where)}: <code>conesurvey orbit {_e(result.path.name)} --at "
+            f"{_e(','.join(f'{k}={v:.6g}' for k, v in (s.point or {}).items()))}</code>"
+            "</figcaption></figure>"
+        )
+    tail = f"<p>Not drawn:</p><ul>{''.join(missing)}</ul>" if missing else ""
+    return (
+        f'<section id="orbits"><h2>Sample orbits</h2><p>For each {_e(var)} found, the first '
+        "computed grid point that has it, integrated and drawn from above and as r(t), with "
+        "the turning circles of the closed form (dashed) and the events marked.</p>"
+        f'<div class="maps">{"".join(figs)}</div>{tail}</section>'
+    )
+
+
 def scene_first(names: list[str]) -> list[str]:
     """The variables of a fate map with ``fate`` and the variables after it (what happened on
     the scene) first, then the launch orbit's on the ideal cone; other maps as they are."""
@@ -305,7 +337,8 @@ def build_report(result: Result, *, now: datetime | None = None) -> str:
         f" &middot; grid {grid} = {result.tiling.size:,} points, "
         f'<span id="points" data-points="{stats.points}">{stats.points:,}</span> computed'
         f" &middot; method <code>{_e(ds.attrs.get('method', '?'))}</code></p>",
-        '<nav><a href="#flags">flags</a><a href="#maps">maps</a><a href="#ranges">ranges</a>'
+        '<nav><a href="#flags">flags</a><a href="#maps">maps</a><a href="#orbits">orbits</a>'
+        '<a href="#ranges">ranges</a>'
         '<a href="#provenance">provenance</a><a href="#definition">definition</a></nav>'
         "</header>",
         f'<section id="flags"><h2>Counts</h2>{_flag_tables(stats, result)}</section>',
@@ -320,6 +353,7 @@ def build_report(result: Result, *, now: datetime | None = None) -> str:
     figs = "".join(_maps(result, others, base))
     sections += [
         f'<section id="maps"><h2>Maps</h2>{maps_intro}<div class="maps">{figs}</div></section>',
+        _orbits(result),
         '<section id="ranges"><h2>Value ranges</h2><p>Over the finite values of the '
         f"computed points.</p>{_ranges_table(stats, result)}</section>",
         f'<section id="provenance"><h2>Provenance</h2>{_provenance(result)}</section>',
