@@ -207,3 +207,36 @@ def test_an_mp4_needs_ffmpeg_or_is_refused_saying_so(tmp_path, monkeypatch, caps
     assert cli.main(args) == 2
     assert "needs ffmpeg on the PATH" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_mp4_pipes_every_frame_to_ffmpeg(tmp_path, monkeypatch, capsys):
+    """Where ffmpeg is on the PATH the frames go to it raw (RGBA, the frame's size, the rate
+    asked): here a stand-in ffmpeg (a real process on the PATH) that counts what it reads and
+    writes it where the encoder would."""
+    import json
+    import os
+    import sys
+
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    fake = bin_dir / "ffmpeg"
+    fake.write_text(
+        f"#!{sys.executable}\n"
+        "import json, sys\n"
+        "a = sys.argv[1:]\n"
+        "n = len(sys.stdin.buffer.read())\n"
+        "json.dump({'size': a[a.index('-s') + 1], 'rate': a[a.index('-r') + 1],\n"
+        "           'fmt': a[a.index('-pix_fmt') + 1], 'bytes': n}, open(a[-1], 'w'))\n"
+    )
+    fake.chmod(0o755)
+    monkeypatch.setenv("PATH", f"{bin_dir}{os.pathsep}{os.environ['PATH']}")
+    monkeypatch.chdir(tmp_path)
+    frames, dpi = 5, 40
+    rc = cli.main(["orbit", *sum(([f"--{k}", str(v)] for k, v in LAUNCH.items()), []),
+                   "--method", "rk45", "--animate", "roll.mp4", "--frames", str(frames),
+                   "--fps", "12", "--dpi", str(dpi)])  # fmt: skip
+    assert rc == 0, capsys.readouterr().err
+    got = json.loads((tmp_path / "roll.mp4").read_text())
+    w, h = (int(round(x * dpi)) for x in (9.6, 4.8))
+    assert got == {"size": f"{w}x{h}", "rate": "12", "fmt": "rgba", "bytes": frames * w * h * 4}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bin", "orbit.png", "roll.mp4"]
