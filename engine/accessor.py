@@ -24,10 +24,12 @@ import numpy as np
 import xarray as xr
 
 from .mapspec import LookError
+from .orbitplot import orbit_figure, write_animation
+from .orbitview import orbit_of_result
 from .plot import CLASS_COLORS, draw_map, legend_handles, matplotlib_parts, style_for
 from .schema import variable_attrs
 
-__all__ = ["ConeAccessor", "CLASS_COLORS"]
+__all__ = ["ConeAccessor", "CLASS_COLORS", "DERIVED", "with_derived"]
 
 #: Classes whose apsidal angle is a half radial period (so 2 psi - 2 pi is a precession).
 _PRECESSING = ("bounded", "circular", "spills")
@@ -40,6 +42,27 @@ _UNIT_ALIASES = {
     "radians": "radian",
     "rad": "radian",
 }
+
+
+#: Variables computed from a result's own (``conesurvey plot`` draws them as stored ones), by
+#: name: what they are.
+DERIVED: dict[str, str] = {
+    "precession_per_revolution": "apsidal precession per radial period, 2 psi - 2 pi [degree]",
+    "energy_absolute": "radial energy calE [J] of a survey whose energy axis is relative",
+}
+
+
+def with_derived(ds: xr.Dataset, name: str) -> xr.Dataset:
+    """``ds`` with the derived variable ``name`` (:data:`DERIVED`) added, computed by its
+    ``ds.cone`` method; ``ds`` itself if it holds ``name`` or ``name`` is not derived.
+    LookError if ``ds`` lacks what it is computed from."""
+    if name in ds.data_vars or name not in DERIVED:
+        return ds
+    try:
+        da = getattr(ds.cone, name)()
+    except ValueError as exc:
+        raise LookError(f"{name} cannot be computed from this result: {exc}") from None
+    return ds.assign({name: da})
 
 
 @xr.register_dataset_accessor("cone")
@@ -141,32 +164,64 @@ class ConeAccessor:
         out.attrs = dict(self._ds.attrs)
         return out
 
-    def class_counts(self, dim: str | Sequence[Hashable] | None = None) -> xr.DataArray:
-        """Number of points per class (dim ``class_name``), summed over ``dim`` (default: all)."""
-        cls = self._class_var()
-        dims = _reduce_dims(cls, dim)
-        names = self.class_names
-        codes = self.class_codes
-        counts = [(cls == codes[n]).sum(dim=dims) for n in names]
-        out = xr.concat(counts, dim=xr.DataArray(list(names), dims="class_name", name="class_name"))
+    def class_counts(
+        self,
+        variable: str | None = None,
+        dim: str | Sequence[Hashable] | None = None,
+    ) -> xr.DataArray:
+        """Number of points per flag of ``variable`` (default ``orbit_class``; ``fate``,
+        ``status``, any CF flag variable), dim ``class_name`` in flag order, summed over ``dim``
+        (default: all). An axis given first (``class_counts("alpha")``) is taken as ``dim``."""
+        variable, dim = self._flag_and_dim(variable, dim)
+        da = self._ds[variable]
+        dims = _reduce_dims(da, dim)
+        table = self._flags(variable)
+        counts = [(da == code).sum(dim=dims) for code in table]
+        names = list(table.values())
+        out = xr.concat(counts, dim=xr.DataArray(names, dims="class_name", name="class_name"))
         out.name = "class_count"
-        out.attrs = {"long_name": "number of points per orbit class", "units": "1"}
+        what = "orbit class" if variable == "orbit_class" else f"flag of {variable}"
+        out.attrs = {"long_name": f"number of points per {what}", "units": "1"}
         return out
 
-    def class_fractions(self, dim: str | Sequence[Hashable] | None = None) -> xr.DataArray:
-        """Fraction of points in each class (dim ``class_name``), over ``dim`` (default: all).
+    def class_fractions(
+        self,
+        variable: str | None = None,
+        dim: str | Sequence[Hashable] | None = None,
+    ) -> xr.DataArray:
+        """Fraction of points with each flag of ``variable`` (default ``orbit_class``; e.g.
+        ``class_fractions("fate", dim="v0")``), dim ``class_name``, over ``dim`` (default:
+        all). An axis given first is taken as ``dim``.
 
-        Points whose class is NaN (masked by :meth:`where_class`) are not counted, so the
+        Points whose value is NaN (masked by :meth:`where_class`) are not counted, so the
         fractions along ``class_name`` sum to 1 wherever any point is left.
         """
-        cls = self._class_var()
-        dims = _reduce_dims(cls, dim)
-        counts = self.class_counts(dim)
-        total = cls.notnull().sum(dim=dims)
+        variable, dim = self._flag_and_dim(variable, dim)
+        da = self._ds[variable]
+        dims = _reduce_dims(da, dim)
+        counts = self.class_counts(variable, dim)
+        total = da.notnull().sum(dim=dims)
         out = counts / total
         out.name = "class_fraction"
-        out.attrs = {"long_name": "fraction of points per orbit class", "units": "1"}
+        what = "orbit class" if variable == "orbit_class" else f"flag of {variable}"
+        out.attrs = {"long_name": f"fraction of points per {what}", "units": "1"}
         return out
+
+    def _flag_and_dim(self, variable: Any, dim: Any) -> tuple[str, Any]:
+        """(flag variable, dim) of a call of :meth:`class_counts` or :meth:`class_fractions`:
+        the first argument may be an axis (the older ``class_counts(dim)``)."""
+        if variable is None:
+            variable = "orbit_class"
+        elif not isinstance(variable, str) or (
+            variable not in self._ds.data_vars and variable in self._ds.dims
+        ):
+            if dim is not None:
+                raise ValueError(f"{variable!r} is not a flag variable of the Dataset")
+            variable, dim = "orbit_class", variable
+        if variable == "orbit_class":
+            _ = self.class_names  # raises for a Dataset that is not a conesurvey result
+        self._flags(variable)  # raises for one that is not a flag variable
+        return variable, dim
 
     def precession_per_revolution(self, units: str = "degree") -> xr.DataArray:
         """Apsidal precession per radial period, 2 psi - 2 pi, in ``units`` ("degree", "radian").
@@ -265,6 +320,21 @@ class ConeAccessor:
             ax.legend(handles=handles, title="orbit class", loc="best", fontsize="small")
         return ax
 
+    def orbit(self, animate: str | None = None, **kwargs: Any) -> Any:
+        """The picture of the orbit of the grid point nearest ``kwargs`` (axis=value; the
+        other axes at their middle values), as ``conesurvey orbit RESULT --at ...`` draws it
+        (:mod:`engine.orbitplot`); other ``kwargs`` (t_end, periods, samples, method, rtol)
+        go to :func:`engine.orbitview.orbit`. ``animate="orbit.gif"`` writes the animation
+        too. Returns the matplotlib Figure; the orbit is ``fig.orbit``."""
+        point = {k: float(v) for k, v in kwargs.items() if k in self._ds.dims}
+        options = {k: v for k, v in kwargs.items() if k not in point}
+        o, _ = orbit_of_result(self._ds, point, attitude=animate is not None, **options)
+        fig = orbit_figure(o)
+        fig.orbit = o
+        if animate is not None:
+            write_animation(o, animate, overwrite=True)
+        return fig
+
     def summary(self) -> str:
         """A few lines: dims, scene, class counts and ranges of the main observables."""
         ds = self._ds
@@ -312,7 +382,7 @@ def _reduce_dims(da: xr.DataArray, dim: str | Sequence[Hashable] | None) -> list
     dims = [dim] if isinstance(dim, str) else list(dim)
     missing = [d for d in dims if d not in da.dims]
     if missing:
-        raise ValueError(f"{missing} are not dimensions of orbit_class {da.dims}")
+        raise ValueError(f"{missing} are not dimensions of {da.name} {da.dims}")
     return dims
 
 

@@ -211,6 +211,7 @@ def launch_survey(
     u0: Any = 0.0,
     slip_u: Any = 0.0,
     slip_v: Any = 0.0,
+    backspin: Any = None,
     surface: Surface | None = None,
     rho0: Any = None,
     z0: Any = None,
@@ -229,8 +230,10 @@ def launch_survey(
     or a 1-D axis: an axis is a dim after (alpha, r0, v0, w0), in the order u0, slip_u,
     slip_v; a number is no axis (the same for every launch: a scalar coordinate of the map
     where it is not 0), and the invariants are those of the rolling orbit through the launch
-    point with its radial speed. Without ``mu_k`` they must be 0 (a ValueError names the one
-    that is not).
+    point with its radial speed. ``backspin`` (instead of ``slip_u``) is the slip beyond the
+    radial speed, slip_u = u0 + backspin at every launch (an axis between u0 and slip_v: a
+    map of speed by backspin is not sheared). Without ``mu_k`` they must be 0 (a ValueError
+    names the one that is not).
 
     On a ``surface`` of revolution (:mod:`engine.surfaces`: ``Bowl(0.5)``, ``Funnel(0.1,
     0.02)``, ...) a launch is the centre at distance ``rho0`` [m] from the axis (the cylinder:
@@ -248,6 +251,10 @@ def launch_survey(
             progress=progress, block_points=block_points,
         )  # fmt: skip
     release = {"u0": u0, "slip_u": slip_u, "slip_v": slip_v}
+    if backspin is not None:
+        if not (np.ndim(slip_u) == 0 and check_numbers("slip_u", slip_u) == 0.0):
+            raise ValueError("give slip_u or backspin (slip_u - u0), not both")
+        release = {"u0": u0, "backspin": backspin, "slip_v": slip_v}
     dims = launch_dims(scene, [n for n, v in release.items() if np.ndim(v) > 0])
     values = dict(alpha=alpha, r0=r0, v0=v0, w0=w0)
     fixed: dict[str, Any] = {}

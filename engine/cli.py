@@ -1,5 +1,5 @@
 """The ``conesurvey`` command line: ``conesurvey run SURVEY.toml [-o OUT.nc]``, ``validate``,
-``info``, ``plot``, ``report``, ``convert``.
+``info``, ``plot``, ``report``, ``orbit``, ``convert``.
 
 Each command lives in its own module of :mod:`engine.commands` and is registered here with
 :func:`register` (a new command is one module and one ``register`` call).
@@ -27,6 +27,7 @@ from .commands import accuracy as _accuracy
 from .commands import convert as _convert
 from .commands import info as _info
 from .commands import look as _look
+from .commands import orbit as _orbit
 from .commands import run as _run
 from .commands import validate as _validate
 from .commands.interrupts import interrupts_outside_compile_hooks
@@ -34,14 +35,18 @@ from .commands.interrupts import interrupts_outside_compile_hooks
 __all__ = ["COMMANDS", "build_parser", "main", "register"]
 
 DESCRIPTION = """\
-Orbit surveys of a sphere rolling without slipping inside a cone.
+Orbit surveys of a sphere inside a cone: rolling without slipping on the ideal cone, and on a
+scene with rolling resistance, a rim, a friction limit, sliding under kinetic friction and
+spin friction.
 
 A survey evaluates every point of the grid alpha x energy x h x Lz (from a TOML survey
-definition) or over launch states alpha x r0 x v0 x w0, classifies each orbit (forbidden,
-bounded, circular, hyperbolic, radial, spills, slips, off_cone, out_of_range) and stores
-turning points, period, apsidal angle, precession rate, the friction needed to roll and, for a
-scene with rolling resistance, a rim or a friction limit, where and when rolling ends or each
-orbit's fate, in a CF-1.11 netCDF file (or a Zarr store). plot and report show a result."""
+definition) or over launch states alpha x r0 x v0 x w0 (and, where the ball may slide, its
+radial speed u0 and slip or backspin at release), classifies each orbit (forbidden, bounded,
+circular, hyperbolic, radial, spills, slips, off_cone, out_of_range) and stores turning
+points, period, apsidal angle, precession rate, the friction needed to roll and, on a scene
+with effects, each orbit's fate (rolling, spilled, slipped or sliding, rest, vertex) and where
+and when it came, in a CF-1.11 netCDF file (or a Zarr store). plot and report show a result;
+orbit draws one orbit on its cone (and animates it)."""
 
 #: The registered commands, by name, in the order ``--help`` lists them.
 COMMANDS: dict[str, Command] = {}
@@ -137,6 +142,7 @@ for _command in (
     _info.COMMAND,
     _look.PLOT,
     _look.REPORT,
+    _orbit.COMMAND,
     _convert.COMMAND,
     _accuracy.COMMAND,
 ):

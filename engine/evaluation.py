@@ -28,7 +28,6 @@ from .schema import (
     DIMS,
     FATE_KINDS,
     INTEGRATED,
-    RELEASE,
     REPLACED_BY_INTEGRATION,
     RESULTS,
     variable_dims,
@@ -285,10 +284,15 @@ def _flat_block(sub: list[np.ndarray], plan: RunPlan):
         # its axes, or numbers, 0 where not given)
         given = dict(zip(dims[4:], rel, strict=True))
         fixed = dict(plan.release)
-        cols = [given[n] if n in given else np.full(A.shape, fixed.get(n, 0.0)) for n in RELEASE]
-        inv = invariants(A, X1, cols[0], X2, X3, scene)
+
+        def column(name: str) -> np.ndarray:
+            return given[name] if name in given else np.full(A.shape, fixed.get(name, 0.0))
+
+        u0 = column("u0")
+        slip_u = u0 + column("backspin") if "backspin" in {*given, *fixed} else column("slip_u")
+        inv = invariants(A, X1, u0, X2, X3, scene)
         E, H, L, r_start = inv["energy"], inv["h"], inv["Lz"], X1
-        release = tuple(cols) if "sliding" in scene.effects else None
+        release = (u0, slip_u, column("slip_v")) if "sliding" in scene.effects else None
     else:
         E, H, L = X1, X2, X3
         if plan.energy_relative:

@@ -16,12 +16,18 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from .errortext import suggest
+
 __all__ = [
     "AXIS_PREFERENCE",
+    "MAX_CELLS",
+    "MAX_PANELS",
     "LookError",
     "MapSpec",
     "axis_label",
     "default_axes",
+    "default_variable",
+    "facet_panels",
     "fixed_text",
     "flag_table",
     "is_log_spaced",
@@ -32,6 +38,14 @@ __all__ = [
 
 #: Axis preference when choosing default map axes among equally long ones (first = y).
 AXIS_PREFERENCE = ("energy", "Lz", "h", "alpha")
+#: The variable a map shows when none is named: the first of these the result holds (a fate
+#: map's ``fate``: what happened on the scene; else the orbit class).
+DEFAULT_VARIABLES = ("fate", "orbit_class")
+#: Most cells one figure draws, over all its panels (a 2000 x 2000 map: about 0.4 GB and 12 s
+#: to draw on one core); a larger request is refused before anything is read.
+MAX_CELLS = 4_000_000
+#: Most panels of a small-multiples grid (more values are thinned, and the ones left out named).
+MAX_PANELS = 25
 
 
 class LookError(ValueError):
@@ -49,6 +63,7 @@ class MapSpec:
     y: str
     facet: str | None = None
     fixed: dict[str, tuple[int, str]] = field(default_factory=dict)
+    contours: tuple[float, ...] = ()
 
     def selection(self) -> dict[str, int]:
         return {k: i for k, (i, _) in self.fixed.items()}
@@ -81,26 +96,51 @@ def default_axes(sizes: Mapping[str, int], exclude: Sequence[str] = ()) -> list[
     return sorted(names, key=lambda a: (-sizes[a], rank.get(a, len(rank)), a))
 
 
+def default_variable(ds: xr.Dataset) -> str:
+    """The variable a map of ``ds`` shows when none is named: ``fate`` on a fate map, else
+    ``orbit_class`` (:data:`DEFAULT_VARIABLES`)."""
+    for name in DEFAULT_VARIABLES:
+        if name in ds.data_vars:
+            return name
+    return str(next(iter(ds.data_vars), "orbit_class"))
+
+
+def _unknown(what: str, name: str, known: Sequence[str]) -> str:
+    """``no variable 'precesion_rate'; did you mean 'precession_rate'?`` (or the list)."""
+    hint = suggest(name, tuple(known))
+    if not hint.startswith("; did you mean"):
+        hint = f"; {'variables' if what == 'variable' else 'axes'}: {', '.join(known)}"
+    return f"no {what} {name!r}{hint}"
+
+
 def plan(
     ds: xr.Dataset,
-    variable: str = "orbit_class",
+    variable: str | None = None,
     x: str | None = None,
     y: str | None = None,
     at: Mapping[str, float] | None = None,
     facet: str | None = None,
+    contours: Sequence[float] = (),
+    derived: Sequence[str] = (),
 ) -> MapSpec:
-    """Check a map request against ``ds``; LookError names what does not exist or clashes.
+    """Check a map request against ``ds``; LookError names what does not exist or clashes
+    (with a did-you-mean for a misspelt name; ``derived`` names the variables a caller can
+    add, offered too).
 
-    Axes not given default to the longest ones (y prefers energy); axes not drawn are fixed at
-    the value nearest to ``at[axis]``, or at their middle value.
+    The variable defaults to :func:`default_variable`; axes not given default to the longest
+    ones (y prefers energy); axes not drawn are fixed at the value nearest to ``at[axis]``, or
+    at their middle value. ``contours``: values at which contour lines are drawn over a
+    variable that is not a flag.
     """
     at = dict(at or {})
+    variable = default_variable(ds) if variable is None else variable
     if variable not in ds.data_vars:
-        raise LookError(f"no variable {variable!r}; variables: {', '.join(map(str, ds.data_vars))}")
+        known = [str(v) for v in ds.data_vars] + [d for d in derived if d not in ds.data_vars]
+        raise LookError(_unknown("variable", variable, known))
     dims = [str(d) for d in ds[variable].dims]
     for role, name in (("--x", x), ("--y", y), ("--facet", facet), *(("--at", a) for a in at)):
         if name is not None and name not in dims:
-            raise LookError(f"{role}: no axis {name!r}; axes: {', '.join(dims)}")
+            raise LookError(f"{role}: {_unknown('axis', name, dims)}")
     chosen = [a for a in (x, y, facet) if a is not None]
     if len(set(chosen)) < len(chosen):
         raise LookError(f"--x, --y and --facet must be different axes; got {', '.join(chosen)}")
@@ -109,6 +149,11 @@ def plan(
         raise LookError(f"--at {clash[0]}: {clash[0]} is drawn, it cannot also be fixed")
     if len(dims) < 2:
         raise LookError(f"{variable} has {len(dims)} dimension(s); a map needs two")
+    levels = tuple(float(c) for c in contours)
+    if levels and flag_table(ds[variable].attrs) is not None:
+        raise LookError(f"--contour: {variable} is a flag variable; contours need numbers")
+    if any(not math.isfinite(c) for c in levels):
+        raise LookError(f"--contour must be finite; got {', '.join(map(str, levels))}")
     sizes = {d: int(ds.sizes[d]) for d in dims}
     free = default_axes(sizes, exclude=[*chosen, *at])
     if x is None or y is None:
@@ -127,7 +172,7 @@ def plan(
             x = pair[1]
         else:
             y = pair[1]
-    spec = MapSpec(variable, str(x), str(y), facet)
+    spec = MapSpec(variable, str(x), str(y), facet, contours=levels)
     for d in dims:
         if d in (spec.x, spec.y, facet):
             continue
@@ -138,7 +183,36 @@ def plan(
             spec.fixed[d] = (i, f"nearest to {at[d]:g}")
         else:
             spec.fixed[d] = (values.size // 2, "middle value")
+    cells = int(ds.sizes[spec.x]) * int(ds.sizes[spec.y])
+    panels = len(facet_panels(ds, spec)[0] or [0])
+    if cells * panels > MAX_CELLS:
+        what = f"{cells:,} cells" + (f" x {panels} panels" if panels > 1 else "")
+        raise LookError(
+            f"a map of {spec.x} ({ds.sizes[spec.x]:,} values) by {spec.y} "
+            f"({ds.sizes[spec.y]:,}) is {what}; a figure draws at most {MAX_CELLS:,}: draw "
+            "shorter axes (--x, --y) or fewer panels"
+        )
     return spec
+
+
+def facet_panels(ds: xr.Dataset, spec: MapSpec) -> tuple[list[int] | None, str]:
+    """Indices of the facet axis drawn (None: one panel) and, where some are left out, a note
+    naming them. Up to :data:`MAX_PANELS` values are all drawn; of more, the first and last,
+    0 where the axis holds it and values evenly spaced between them."""
+    if spec.facet is None:
+        return None, ""
+    values = np.asarray(ds[spec.facet].values, float)
+    n = values.size
+    if n <= MAX_PANELS:
+        return list(range(n)), ""
+    keep = set(np.round(np.linspace(0, n - 1, MAX_PANELS - 1)).astype(int).tolist())
+    zero = np.flatnonzero(values == 0.0)
+    if zero.size:
+        keep.add(int(zero[0]))
+    idx = sorted(keep)
+    left = [_fmt(float(values[i])) for i in range(n) if i not in keep]
+    shown = ", ".join(left[:12]) + (f" and {len(left) - 12} more" if len(left) > 12 else "")
+    return idx, f"{len(idx)} of {n} values of {spec.facet}; left out: {shown}"
 
 
 def _check_in_range(coord: xr.DataArray, name: str, value: float) -> None:

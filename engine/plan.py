@@ -123,7 +123,7 @@ class RunPlan(MapPlan):
 
     dims: tuple[str, ...] = DIMS
     axes: tuple[np.ndarray, ...] = ()
-    #: (name, value) of each release value (:data:`engine.schema.RELEASE`) given as a number,
+    #: (name, value) of each release value (:data:`engine.schema.RELEASE_AXES`) given as a number,
     #: not an axis, on a launch grid of a scene with kinetic friction (absent: 0).
     release: tuple[tuple[str, float], ...] = ()
     energy_relative: bool = False

@@ -11,29 +11,37 @@ zero. NaN is drawn as "undefined" (light grey), +-inf in the colour bar's extens
 points of an unfinished run that are not computed yet hatched white.
 
 matplotlib is an optional extra (``pip install '.[plot]'`` in the checkout): this module imports it
-only when a figure is drawn (:func:`matplotlib_parts`), so importing ``engine`` never does.
+only when a figure is drawn (:func:`engine.figurefile.matplotlib_parts`), so importing
+``engine`` never does. The figure's file (its format, its size bounds, the write) is
+:mod:`engine.figurefile`'s; its names are re-exported here.
 """
 
 from __future__ import annotations
 
-import io
-import os
 import textwrap
 from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
-from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 import xarray as xr
 
-from .errortext import install_hint
-from .io.atomic import fsync_path, replacing
+from .figurefile import (
+    FORMATS,
+    INSTALL_HINT,
+    MAX_DPI,
+    MAX_PIXELS,
+    MIN_DPI,
+    check_figure_size,
+    figure_png,
+    matplotlib_parts,
+    output_format,
+    save_figure,
+)
 from .mapspec import (
-    LookError,
     MapSpec,
     axis_label,
+    facet_panels,
     fixed_text,
     flag_table,
     is_log_spaced,
@@ -44,9 +52,14 @@ __all__ = [
     "CLASS_COLORS",
     "FORMATS",
     "INSTALL_HINT",
+    "MAX_DPI",
+    "MAX_PIXELS",
+    "MIN_DPI",
     "Style",
+    "check_figure_size",
     "draw_map",
     "figure_png",
+    "figure_size",
     "flag_color",
     "legend_handles",
     "map_figure",
@@ -55,8 +68,6 @@ __all__ = [
     "save_figure",
     "style_for",
 ]
-
-INSTALL_HINT = install_hint("plot")
 
 #: Characters of medium-size text per inch of figure width (titles are wrapped to fit).
 CHARS_PER_INCH = 11
@@ -107,24 +118,10 @@ FALLBACK_COLORS = ("#e41a1c", "#377eb8", "#984ea3", "#ff7f00", "#a65628", "#f781
 UNDEFINED_COLOR = "#d9d9d9"
 NOT_COMPUTED_COLOR = "#ffffff"
 OVER_COLOR, UNDER_COLOR = "#000000", "#ff00ff"
-#: Most panels of a small-multiples grid (more values are thinned evenly).
-MAX_PANELS = 16
+#: Colour of contour lines (``--contour``).
+CONTOUR_COLOR = "#000000"
 #: A positive variable whose finite values span this factor or more gets a log colour scale.
 LOG_COLOR_SPAN = 1e3
-
-
-def matplotlib_parts() -> SimpleNamespace:
-    """matplotlib's Figure, colors and patches (imported here, not at module import), or
-    LookError telling how to install it."""
-    try:
-        import matplotlib
-        from matplotlib import colors, patches
-        from matplotlib.figure import Figure
-    except ImportError:
-        raise LookError(
-            f"drawing maps needs matplotlib, which is not installed: {INSTALL_HINT}"
-        ) from None
-    return SimpleNamespace(mpl=matplotlib, Figure=Figure, colors=colors, patches=patches)
 
 
 # --- axes and colour scales -------------------------------------------------------------------
@@ -191,12 +188,29 @@ def style_for(values: np.ndarray, attrs: Mapping[str, Any], name: str) -> Style:
 # --- drawing ----------------------------------------------------------------------------------
 
 
+def figure_size(panels: int) -> tuple[float, float]:
+    """The size [inch] of a map figure of ``panels`` panels (up to 5 a row)."""
+    if panels <= 1:
+        return (7.2, 5.0)
+    ncols = min(panels, 5)
+    nrows = -(-panels // ncols)
+    return (3.3 * ncols + 1.6, 2.8 * nrows + 1.3)
+
+
 def draw_map(
-    ax: Any, da: xr.DataArray, x: str, y: str, style: Style, computed: Any = None
+    ax: Any,
+    da: xr.DataArray,
+    x: str,
+    y: str,
+    style: Style,
+    computed: Any = None,
+    contours: tuple[float, ...] = (),
 ) -> tuple[Any, dict[str, bool]]:
     """Draw the 2-D ``da`` over coordinates ``x``, ``y`` into ``ax`` with ``style``; hatch the
-    points where ``computed`` (same dims as ``da``) is False. Returns the mesh (for a colour
-    bar) and which special cells occur (``undefined``, ``not computed``, ``+inf``, ``-inf``)."""
+    points where ``computed`` (same dims as ``da``) is False; lines where ``da`` crosses each
+    value of ``contours`` (through the cell centres). Returns the mesh (for a colour bar) and
+    which special cells occur (``undefined``, ``not computed``, ``+inf``, ``-inf``,
+    ``contour``: a contour line was drawn)."""
     m = matplotlib_parts()
     xc, yc = da[x], da[y]
     separable = xc.ndim == 1 and yc.ndim == 1 and xc.dims != yc.dims
@@ -207,14 +221,17 @@ def draw_map(
         if computed is not None:
             computed = computed.isel(order).transpose(yc.dims[0], xc.dims[0])
         xs, ys = np.asarray(da[x].values, float), np.asarray(da[y].values, float)
+        centres = (xs, ys)
         logs = (is_log_spaced(xs), is_log_spaced(ys))
         X, Y = _edges(xs, logs[0]), _edges(ys, logs[1])
         shading = "flat"
     else:  # 2-D coordinates (an evaluate() result): matplotlib's nearest-cell shading
         xb, yb = xr.broadcast(xc, yc)
         X, Y = xb.transpose(*da.dims).values, yb.transpose(*da.dims).values
+        centres = (X, Y)
         logs, shading = (False, False), "nearest"
     z = np.array(da.values, float)
+    raw = z.copy()  # the values as they are, for the contour lines
     done = np.ones(z.shape, bool) if computed is None else np.asarray(computed.values, bool)
     seen = {
         "undefined": bool((np.isnan(z) & done).any()),
@@ -236,6 +253,14 @@ def draw_map(
             cmap=m.colors.ListedColormap([NOT_COMPUTED_COLOR]),
             hatch="////", edgecolor="#b0b0b0", linewidth=0.0, shading=shading,
         )  # fmt: skip
+    seen["contour"] = False
+    levels = sorted(set(contours))
+    finite = raw[np.isfinite(raw) & done]
+    if levels and finite.size and min(levels) <= finite.max() and max(levels) >= finite.min():
+        ok = np.isfinite(raw) & done
+        ax.contour(*centres, np.ma.masked_where(~ok, raw), levels=levels,
+                   colors=CONTOUR_COLOR, linewidths=1.2)  # fmt: skip
+        seen["contour"] = True
     if logs[0]:
         ax.set_xscale("log")
     if logs[1]:
@@ -249,12 +274,22 @@ def draw_map(
 
 
 def legend_handles(
-    style: Style, z: np.ndarray, seen: Mapping[str, bool], variable: str = ""
+    style: Style,
+    z: np.ndarray,
+    seen: Mapping[str, bool],
+    variable: str = "",
+    contours: tuple[float, ...] = (),
 ) -> list[Any]:
     """Legend patches: the flags present in ``z`` (flag variables), then undefined (what NaN
-    means for ``variable``: :data:`NAN_LABELS`), not computed yet and +-inf where they occur."""
+    means for ``variable``: :data:`NAN_LABELS`), not computed yet and +-inf where they occur,
+    and the contour lines drawn (at ``contours``)."""
     p = matplotlib_parts().patches
     handles = []
+    if seen.get("contour"):
+        from matplotlib.lines import Line2D
+
+        at = ", ".join(f"{c:g}" for c in sorted(set(contours)))
+        handles.append(Line2D([], [], color=CONTOUR_COLOR, lw=1.2, label=f"{variable} = {at}"))
     if style.flags is not None:
         present = set(np.unique(z[np.isfinite(z)]).astype(int).tolist())
         handles += [
@@ -274,17 +309,6 @@ def legend_handles(
                 p.Patch(facecolor=color, edgecolor="#808080", hatch=hatch, label=label, lw=0.5)
             )
     return handles
-
-
-def _panels(ds: xr.Dataset, spec: MapSpec) -> tuple[list[int] | None, str]:
-    """Indices of the facet axis drawn (None: one panel) and a note if some are left out."""
-    if spec.facet is None:
-        return None, ""
-    n = int(ds.sizes[spec.facet])
-    if n <= MAX_PANELS:
-        return list(range(n)), ""
-    idx = np.unique(np.round(np.linspace(0, n - 1, MAX_PANELS)).astype(int)).tolist()
-    return idx, f"{len(idx)} of {n} values of {spec.facet}, evenly spaced"
 
 
 def on_grid(ds: xr.Dataset, name: str, dims: Any) -> xr.DataArray:
@@ -312,16 +336,19 @@ def map_figure(
     m = matplotlib_parts()
     sel = spec.selection()
     da = on_grid(ds, spec.variable, {spec.x, spec.y, spec.facet, *sel}).isel(sel).load()
-    comp = None if computed is None else computed.isel(sel).load()
-    idx, thinned = _panels(ds, spec)
+    comp = None if computed is None else computed.isel(sel)
+    if comp is not None and set(comp.dims) - set(da.dims):
+        comp = None  # a variable on fewer dims (r_circ, V_min) is computed whole, at once
+    comp = None if comp is None else comp.load()
+    idx, thinned = facet_panels(ds, spec)
     if idx is not None:
         da = da.isel({spec.facet: idx})
         comp = None if comp is None else comp.isel({spec.facet: idx})
     style = style_for(da.values, da.attrs, spec.variable)
     n = 1 if idx is None else len(idx)
-    ncols = min(n, 4)
+    ncols = min(n, 5)
     nrows = -(-n // ncols)
-    size = (7.2, 5.0) if n == 1 else (3.3 * ncols + 1.6, 2.8 * nrows + 1.3)
+    size = figure_size(n)
     fig = m.Figure(figsize=size, layout="constrained")
     axes = fig.subplots(nrows, ncols, squeeze=False, sharex=True, sharey=True).ravel()
     seen: dict[str, bool] = {}
@@ -332,7 +359,7 @@ def map_figure(
             continue
         one = da if idx is None else da.isel({spec.facet: k})
         done = None if comp is None else (comp if idx is None else comp.isel({spec.facet: k}))
-        mesh, s = draw_map(ax, one, spec.x, spec.y, style, done)
+        mesh, s = draw_map(ax, one, spec.x, spec.y, style, done, spec.contours)
         ax.label_outer()
         seen = {key: seen.get(key, False) or v for key, v in s.items()}
         if idx is not None:
@@ -341,7 +368,9 @@ def map_figure(
             unit = f" {units}" if units and units != "1" else ""
             ax.set_title(f"{spec.facet} = {value:.4g}{unit}", fontsize="small")
     used = list(axes[:n])
-    handles = legend_handles(style, np.asarray(da.values, float), seen, spec.variable)
+    handles = legend_handles(
+        style, np.asarray(da.values, float), seen, spec.variable, spec.contours
+    )
     chars = int(size[0] * CHARS_PER_INCH)  # a line of text as wide as the figure
     if style.flags is None:
         if style.finite:
@@ -362,35 +391,3 @@ def map_figure(
     lines = [textwrap.fill(line, chars) for line in lines if line]  # never wider than the figure
     fig.suptitle("\n".join(lines), fontsize="medium")
     return fig
-
-
-def figure_png(fig: Any, dpi: int = 80) -> bytes:
-    """The figure as PNG bytes (for embedding)."""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    return buf.getvalue()
-
-
-#: Output formats by file suffix.
-FORMATS = {".png": "png", ".svg": "svg", ".pdf": "pdf"}
-
-
-def output_format(path: Path) -> str:
-    """The figure format of ``path``'s suffix; LookError for one matplotlib is not asked for."""
-    fmt = FORMATS.get(path.suffix.lower())
-    if fmt is None:
-        raise LookError(f"output {path}: unknown format {path.suffix!r}; use {', '.join(FORMATS)}")
-    return fmt
-
-
-def save_figure(
-    fig: Any, path: str | os.PathLike[str], *, overwrite: bool = False, dpi: int = 100
-) -> Path:
-    """Write ``fig`` to ``path`` (format from the suffix) through ``path.tmp`` and a rename;
-    FileExistsError if ``path`` exists and not ``overwrite``."""
-    path = Path(path)
-    fmt = output_format(path)
-    with replacing(path, overwrite=overwrite) as tmp:
-        fig.savefig(tmp, format=fmt, dpi=dpi)
-        fsync_path(tmp)
-    return path

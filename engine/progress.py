@@ -17,6 +17,11 @@ time it has taken so far, so that a first run does not look like a hang::
 
 The notice is the API's own (:mod:`engine._compiling`, which also announces any compile of a
 Python session), written on the reporter's stream.
+
+A resumed run says so before it computes (:meth:`Progress.resumed`), and its rates and the time
+left count only the points computed by this run, not the stored ones::
+
+    conesurvey: resuming: 6 of 18 blocks verified and kept (720 of 2,160 points); 12 to compute
 """
 
 from __future__ import annotations
@@ -110,6 +115,8 @@ class Progress:
         self._closed = False
         #: Set when the kernels are known to be in numba's cache: the wait is then a load.
         self.kernels_cached = False
+        #: Points an earlier run stored (:meth:`resumed`): not counted in the rates.
+        self.kept = 0
 
     def __call__(self, done: int, total: int) -> None:
         """Record that ``done`` of ``total`` points are finished; show it if it is time."""
@@ -119,6 +126,18 @@ class Progress:
         now = self.clock()
         if done >= total or now - self._last_shown >= self.interval:
             self._show(now)
+
+    def resumed(self, blocks: int, blocks_total: int, points: int, points_total: int) -> None:
+        """Say that the run resumes: ``blocks`` of ``blocks_total`` stored blocks (``points``
+        of ``points_total`` points) were verified against their checksums and are kept. The
+        rates shown from now on count only the points this run computes."""
+        self.kept = int(points)
+        left = blocks_total - blocks
+        self.stream.write(
+            f"{self.label}: resuming: {blocks:,} of {blocks_total:,} blocks verified and kept "
+            f"({points:,} of {points_total:,} points); {left:,} to compute\n"
+        )
+        self.stream.flush()
 
     @contextlib.contextmanager
     def compiling(self, delay: float = COMPILE_DELAY) -> Iterator[None]:
@@ -163,10 +182,11 @@ class Progress:
         done, total = self._state
         elapsed = max(now - self.start, 0.0)
         fraction = done / total if total > 0 else 1.0
-        rate = done / elapsed if elapsed > 0 else float("nan")
+        computed = done - self.kept  # the points of this run (a resumed run kept the others)
+        rate = computed / elapsed if elapsed > 0 else float("nan")
         if done >= total:
             when = f"done in {format_duration(elapsed)}"
-        elif done > 0 and elapsed > 0:
+        elif computed > 0 and elapsed > 0:
             when = f"{format_duration((total - done) / rate)} left"
         else:
             when = "? left"

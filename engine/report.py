@@ -30,8 +30,18 @@ from .io.atomic import fsync_path, replacing
 from .io.results import Result
 from .mapspec import MapSpec, fixed_text, flag_table, plan
 from .plot import figure_png, flag_color, map_figure, matplotlib_parts
+from .reportorbits import sample_orbits
 
-__all__ = ["Range", "Stats", "gather", "build_report", "scene_first", "write_report"]
+__all__ = [
+    "Range",
+    "Stats",
+    "gather",
+    "build_report",
+    "check_report",
+    "map_spec",
+    "scene_first",
+    "write_report",
+]
 
 #: Integrator diagnostics drawn in their own section, in this order.
 DIAGNOSTICS = ("status", "energy_drift")
@@ -144,15 +154,76 @@ def _figure(fig: Any, alt: str, caption: str, variable: str) -> str:
     )
 
 
+def map_spec(ds: Any, name: str, base: MapSpec) -> MapSpec:
+    """The map of ``name`` on the page: over the base map's axes (``base``), or, for a variable
+    stored on fewer dims that lacks one of them (r_circ and V_min do not depend on the energy),
+    over the base map's axis it has and its longest other one, the others at their middle
+    values."""
+    dims = set(map(str, ds[name].dims))
+    if {base.x, base.y} <= dims:
+        fixed = {d: v for d, v in base.fixed.items() if d in dims}
+        return MapSpec(name, base.x, base.y, None, fixed)
+    x = base.x if base.x in dims else None  # the base map's axes it has keep their places
+    y = base.y if base.y in dims else None
+    return plan(ds, name, x, y)
+
+
+def check_report(result: Result) -> None:
+    """LookError, before anything is counted or drawn, for a map of the page larger than a
+    figure draws (:data:`engine.mapspec.MAX_CELLS`)."""
+    ds = result.ds
+    base = plan(ds, "orbit_class")
+    for name in ds.data_vars:
+        map_spec(ds, str(name), base)
+
+
 def _maps(result: Result, names: Iterable[str], base: MapSpec) -> list[str]:
     ds = result.ds
     out = []
     for name in names:
-        spec = MapSpec(name, base.x, base.y, None, dict(base.fixed))
+        spec = map_spec(ds, name, base)
         fig = map_figure(ds, spec, result.computed(), context=False)
         long_name = ds[name].attrs.get("long_name", name)
-        out.append(_figure(fig, f"map of {name}", f"<b>{_e(name)}</b>: {_e(long_name)}", name))
+        caption = f"<b>{_e(name)}</b>: {_e(long_name)}"
+        if (spec.x, spec.y) != (base.x, base.y):
+            where = _e(fixed_text(ds, spec)) or "no other axes"
+            caption += (
+                f" (over {_e(spec.x)} and {_e(spec.y)}: it does not depend on "
+                f"{_e(base.y if base.y not in ds[name].dims else base.x)}; {where})"
+            )
+        out.append(_figure(fig, f"map of {name}", caption, name))
     return out
+
+
+def _orbits(result: Result) -> str:
+    """The section of sample orbits: one per flag found (:mod:`engine.reportorbits`)."""
+    samples = sample_orbits(result)
+    if not samples:
+        return ""
+    var = samples[0].variable
+    figs, missing = [], []
+    for s in samples:
+        if s.figure is None:
+            missing.append(f"<li><b>{_e(s.flag)}</b>: {_e(s.reason)}</li>")
+            continue
+        png = figure_png(s.figure, dpi=72)
+        w, h = _png_size(png)
+        uri = "data:image/png;base64," + base64.b64encode(png).decode("ascii")
+        where = ", ".join(f"{k} = {v:.6g}" for k, v in (s.point or {}).items())
+        figs.append(
+            f'<figure class="orbit" data-flag="{_e(s.flag)}"><img src="{uri}" '
+            f'alt="orbit: {_e(s.flag)}" width="{w}" height="{h}"><figcaption><b>{_e(s.flag)}'
+            f"</b> at {_e(where)}: <code>conesurvey orbit {_e(result.path.name)} --at "
+            f"{_e(','.join(f'{k}={v:.6g}' for k, v in (s.point or {}).items()))}</code>"
+            "</figcaption></figure>"
+        )
+    tail = f"<p>Not drawn:</p><ul>{''.join(missing)}</ul>" if missing else ""
+    return (
+        f'<section id="orbits"><h2>Sample orbits</h2><p>For each {_e(var)} found, the first '
+        "computed grid point that has it, integrated and drawn from above and as r(t), with "
+        "the turning circles of the closed form (dashed) and the events marked.</p>"
+        f'<div class="maps">{"".join(figs)}</div>{tail}</section>'
+    )
 
 
 def scene_first(names: list[str]) -> list[str]:
@@ -242,6 +313,7 @@ def _state(result: Result) -> str:
 def build_report(result: Result, *, now: datetime | None = None) -> str:
     """The HTML page about ``result`` (see the module docstring)."""
     matplotlib_parts()  # fail early, before any counting, if matplotlib is missing
+    check_report(result)
     ds = result.ds
     stats = gather(result)
     base = plan(ds, "orbit_class")
@@ -265,7 +337,8 @@ def build_report(result: Result, *, now: datetime | None = None) -> str:
         f" &middot; grid {grid} = {result.tiling.size:,} points, "
         f'<span id="points" data-points="{stats.points}">{stats.points:,}</span> computed'
         f" &middot; method <code>{_e(ds.attrs.get('method', '?'))}</code></p>",
-        '<nav><a href="#flags">flags</a><a href="#maps">maps</a><a href="#ranges">ranges</a>'
+        '<nav><a href="#flags">flags</a><a href="#maps">maps</a><a href="#orbits">orbits</a>'
+        '<a href="#ranges">ranges</a>'
         '<a href="#provenance">provenance</a><a href="#definition">definition</a></nav>'
         "</header>",
         f'<section id="flags"><h2>Counts</h2>{_flag_tables(stats, result)}</section>',
@@ -280,6 +353,7 @@ def build_report(result: Result, *, now: datetime | None = None) -> str:
     figs = "".join(_maps(result, others, base))
     sections += [
         f'<section id="maps"><h2>Maps</h2>{maps_intro}<div class="maps">{figs}</div></section>',
+        _orbits(result),
         '<section id="ranges"><h2>Value ranges</h2><p>Over the finite values of the '
         f"computed points.</p>{_ranges_table(stats, result)}</section>",
         f'<section id="provenance"><h2>Provenance</h2>{_provenance(result)}</section>',

@@ -230,6 +230,9 @@ def run_survey(
         pending = [i for i in range(tiling.nblocks) if i not in done]
         if check_space:
             _check_space(out, run, tiling, pending)
+        if done and (resumed := getattr(progress, "resumed", None)) is not None:
+            kept = tiling.size - sum(tiling.points(i) for i in pending)
+            resumed(len(done), tiling.nblocks, kept, tiling.size)  # said before the compile
         # Compile (or load from numba's cache) on one point of the grid before anything is
         # written: the engine may still refuse the survey. This also warms the cache before
         # dask workers start (concurrent first compiles race, numba#4807).

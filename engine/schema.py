@@ -50,6 +50,7 @@ __all__ = [
     "LAUNCH_DIMS",
     "GRID_DIMS",
     "RELEASE",
+    "RELEASE_AXES",
     "FINGERPRINT_ATTR",
     "Variable",
     "AXES",
@@ -91,9 +92,19 @@ RELEASE = ("u0", "slip_u", "slip_v")
 #: The axes of a survey over launch states on a scene with kinetic friction, each release
 #: value an axis (one not given as an axis is none: a grid has any of them, in this order).
 SLIDING_LAUNCH_DIMS = (*LAUNCH_DIMS, *RELEASE)
-#: Every kind of survey grid, by its dims: the one place that lists them.
-GRID_DIMS = (DIMS, LAUNCH_DIMS, *((*LAUNCH_DIMS, *(n for i, n in enumerate(RELEASE) if b >> i & 1))
-                                  for b in range(1, 8)))  # fmt: skip
+#: The launch axes a grid may add after (alpha, r0, v0, w0), in this order: the release values
+#: and ``backspin`` = slip_u - u0, which spans the slip beyond the radial speed (slip_u or
+#: backspin, not both).
+RELEASE_AXES = ("u0", "slip_u", "backspin", "slip_v")
+
+
+def _release_grids() -> tuple[tuple[str, ...], ...]:
+    subsets = (tuple(n for i, n in enumerate(RELEASE_AXES) if b >> i & 1) for b in range(1, 16))
+    return tuple((*LAUNCH_DIMS, *s) for s in subsets if not {"slip_u", "backspin"} <= set(s))
+
+
+#: Every kind of survey grid over the cone, by its dims: the one place that lists them.
+GRID_DIMS = (DIMS, LAUNCH_DIMS, *_release_grids())
 #: Global attribute of a finished survey file holding the survey's fingerprint.
 FINGERPRINT_ATTR = "survey_fingerprint"
 
@@ -156,8 +167,8 @@ def grid_dims(names: Any) -> tuple[str, ...]:
     present = set(names)
     if present & {"rho0", "z0"}:
         return tuple(d for d in SURFACE_AXES if d in present)
-    if present & set(RELEASE):
-        return (*LAUNCH_DIMS, *(n for n in RELEASE if n in present))
+    if present & set(RELEASE_AXES):
+        return (*LAUNCH_DIMS, *(n for n in RELEASE_AXES if n in present))
     return LAUNCH_DIMS if "r0" in present else DIMS
 
 
@@ -181,8 +192,9 @@ def is_surface_grid(dims: tuple[str, ...]) -> bool:
 
 def launch_dims(scene: Scene, release: Any = ()) -> tuple[str, ...]:
     """The dims of a survey over launch states of ``scene`` with the release values named in
-    ``release`` as axes (in the order of :data:`RELEASE`; only with kinetic friction)."""
-    return (*LAUNCH_DIMS, *(n for n in RELEASE if n in release and "sliding" in scene.effects))
+    ``release`` as axes (in the order of :data:`RELEASE_AXES`; only with kinetic friction)."""
+    sliding = "sliding" in scene.effects
+    return (*LAUNCH_DIMS, *(n for n in RELEASE_AXES if n in release and sliding))
 
 
 def effect_variables(scene: Scene, output: str) -> tuple[str, ...]:

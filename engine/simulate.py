@@ -98,6 +98,26 @@ def _start_radius(alpha, energy, h, Lz, scene, p, periods):
     return r1, r1, r2, rc, CLASS_NAMES[cls]
 
 
+def _launch_radius(alpha, energy, h, Lz, scene, p, periods, r0):
+    """(r0, r1, r2, rc, class name) of a start at the launch point ``r0``; ValueError if the
+    orbit does not reach it or ``periods`` cannot be counted on it."""
+    r0 = _real("r0", r0)
+    cls = int(ideal_orbit(alpha, energy, h, Lz, scene.params(alpha), CIRCULAR_TOL)[0])
+    ok, r1, r2, rc = orbit_start(p, energy, h, Lz)
+    if cls == HYPERBOLIC:
+        A, B, _ = coefficients(alpha, h, Lz, scene.M, scene.g, scene.k)
+        r1, r2 = float(free_fall_r_min(energy, A, B)), math.inf
+    elif not ok and cls == CIRCULAR:
+        r1 = r2 = rc
+    if not (r0 > 0.0 and r1 * (1 - 1e-9) <= r0 <= r2 * (1 + 1e-9)):
+        raise ValueError(f"r0={r0!r} is not on the orbit (energy={energy!r}, h={h!r}, "
+                         f"Lz={Lz!r}), whose radii are {r1:.6g} .. {r2:.6g} m")  # fmt: skip
+    if periods is not None and cls not in (BOUNDED,):
+        raise ValueError(f"the orbit is {CLASS_NAMES[cls]}: it has no radial period to "
+                         "count; give t_end instead of periods")  # fmt: skip
+    return r0, r1, r2, rc, CLASS_NAMES[cls]
+
+
 def simulate(
     alpha: float | None = None,
     energy: float | None = None,
@@ -114,13 +134,15 @@ def simulate(
     u0: float = 0.0,
     slip_u: float = 0.0,
     slip_v: float = 0.0,
+    r0: float | None = None,
     surface: Surface | None = None,
     rho0: float | None = None,
     z0: float | None = None,
     v0: float | None = None,
     w0: float | None = None,
 ) -> xr.Dataset:
-    """Integrate one trajectory from the inner turning point r_min (u = 0, theta = 0, t = 0).
+    """Integrate one trajectory from the inner turning point r_min (u = 0, theta = 0, t = 0),
+    or from a launch point ``r0`` of the orbit.
 
     Parameters
     ----------
@@ -137,6 +159,11 @@ def simulate(
     max_steps : step budget.
     u0, slip_u, slip_v : radial speed at the start and the contact point's slip velocity
         (along the generatrix and the parallel) [m/s]; nonzero only on a scene with ``mu_k``.
+    r0 : start here [m] instead of at r_min, at rest radially (plus ``u0``): a launch at r0,
+        whose invariants (``engine.invariants``, with u = 0) are energy, h, Lz, so that r0 is
+        a turning point of the orbit (a fate map over launch states starts there too). r0
+        must lie between the orbit's turning points (to 1e-9 relative); any orbit class
+        that reaches it (a spilling or escaping orbit too).
 
     On a scene with kinetic friction ``mu_k`` the trajectory follows the ball through its modes
     (rolling, sliding, rolling again; docs/physics.md "Sliding, rolling again, and spin
@@ -177,6 +204,8 @@ def simulate(
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be an engine.Scene; got {scene!r}")
     if surface is not None or rho0 is not None or z0 is not None:
+        if r0 is not None:
+            raise ValueError(f"r0={r0!r} is a launch on the cone; on a surface give rho0 (or z0)")
         return _on_surface(surface, dict(alpha=alpha, energy=energy, h=h, Lz=Lz),
                            dict(rho0=rho0, z0=z0, v0=v0, w0=w0, u0=u0), scene, method, rtol,
                            t_end, periods, dt_out, max_steps)  # fmt: skip
@@ -226,7 +255,10 @@ def simulate(
 
     effects = scene.effects_mask
     p = scene.params(alpha)
-    r0, r1, r2, rc, cls_name = _start_radius(alpha, energy, h, Lz, scene, p, periods)
+    if r0 is None:
+        r0, r1, r2, rc, cls_name = _start_radius(alpha, energy, h, Lz, scene, p, periods)
+    else:
+        r0, r1, r2, rc, cls_name = _launch_radius(alpha, energy, h, Lz, scene, p, periods, r0)
     if scene.mu_k is not None:
         return hybrid_trajectory(alpha, energy, h, Lz, r0, scene, m.kernel_id, method, rtol,
                                  t_end, dt_out, int(max_steps), launch["u0"], launch["slip_u"],

@@ -16,7 +16,7 @@ from .fates import Horizon
 from .plan import RunPlan, survey_plan
 from .precision import stored
 from .scene import Scene
-from .schema import DIMS, LAUNCH_DIMS, RELEASE
+from .schema import DIMS, LAUNCH_DIMS, RELEASE_AXES
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -33,7 +33,8 @@ class Survey:
     The axes are read-only 1-D float64 arrays: ``alpha`` [radian], ``energy`` [J] (or, when
     ``energy_relative``, the dimensionless offsets (energy - V_min)/|V_min|), ``h`` [m s-1] and
     ``Lz`` [kg m2 s-1]; or, over launch states, ``r0`` [m], ``v0`` and ``w0`` [m s-1] (and on
-    a scene with kinetic friction ``u0``, ``slip_u`` and ``slip_v`` [m s-1]). ``source_text``
+    a scene with kinetic friction ``u0``, ``slip_u`` and ``slip_v`` [m s-1], or ``backspin``
+    = slip_u - u0 instead of ``slip_u``). ``source_text``
     is the TOML text verbatim, stored with the results.
     """
 
@@ -56,6 +57,7 @@ class Survey:
     u0: np.ndarray | None = None
     slip_u: np.ndarray | None = None
     slip_v: np.ndarray | None = None
+    backspin: np.ndarray | None = None
     #: A survey over launches on a surface of revolution: the surface, and its axes by name
     #: (``engine.schema.surface_dims``); alpha, energy, h, Lz are then None.
     surface: Surface | None = None
@@ -102,14 +104,14 @@ class Survey:
     @property
     def dims(self) -> tuple[str, ...]:
         """The survey's axes: (alpha, energy, h, Lz), or (alpha, r0, v0, w0) over launch
-        states, then those of (u0, slip_u, slip_v) it has (a scene with kinetic friction: the
-        release's radial speed and slip velocity; one without an axis is 0); on a surface, its
-        launch axes."""
+        states, then those of (u0, slip_u or backspin, slip_v) it has (a scene with kinetic
+        friction: the release's radial speed and slip velocity, backspin = slip_u - u0; one
+        without an axis is 0); on a surface, its launch axes."""
         if self.surface_axes is not None:
             return tuple(self.surface_axes)
         if not self.launch:
             return DIMS
-        return (*LAUNCH_DIMS, *(n for n in RELEASE if getattr(self, n) is not None))
+        return (*LAUNCH_DIMS, *(n for n in RELEASE_AXES if getattr(self, n) is not None))
 
     @property
     def shape(self) -> tuple[int, ...]:

@@ -75,10 +75,11 @@ from .methods import DEFAULT_RTOL
 from .plan import MapPlan, OutputPlan, grid_plan, map_plan
 from .scene import Scene
 from .schema import DIMS as AXES
-from .schema import LAUNCH_DIMS, RELEASE, launch_dims, surface_dims
+from .schema import LAUNCH_DIMS, RELEASE_AXES, launch_dims, surface_dims
 from .surfaces import Surface
 from .surveyaxes import MAX_AXIS_POINTS, RELATIVE_TO, SCALES, AxisReader, frozen
 from .surveydef import Survey
+from .surveyhelp import HORIZON_KEYS, TOP_KEYS
 from .surveysurface import read_surface
 
 __all__ = [
@@ -97,9 +98,8 @@ DEFAULT_METHOD = "exact"
 #: Largest survey file read [bytes] (``values`` lists of ~10^5 numbers fit).
 MAX_SURVEY_BYTES = 4 << 20
 
-_TOP_KEYS = ("title", "method", "rtol", "circular_tol", "precision", "scene", "horizon", "axes",
-             "surface")  # fmt: skip
-_HORIZON_KEYS = ("time", "revolutions")
+_TOP_KEYS = tuple(TOP_KEYS)  # the keys run --help lists (engine.surveyhelp), no other
+_HORIZON_KEYS = tuple(HORIZON_KEYS)
 #: Key paths of the plan's fields that a survey file spells otherwise.
 _KEYS = {"horizon_time": "horizon.time", "horizon_revolutions": "horizon.revolutions"}
 #: How a survey file asks for a horizon (:func:`engine.checks.check_horizon`'s ``hint``).
@@ -208,9 +208,11 @@ class _Reader(AxisReader):
             return self.surface_survey(doc, text, title, scene)
         mp = self.map(doc, scene)
         axes = self.table(doc, "axes", "", required=True)
-        launch = any(n in axes for n in (*LAUNCH_DIMS[1:], *RELEASE))
+        launch = any(n in axes for n in (*LAUNCH_DIMS[1:], *RELEASE_AXES))
+        if "backspin" in axes and "slip_u" in axes:
+            raise self.fail("axes.backspin", "give slip_u or backspin (slip_u - u0), not both")
         dims = launch_dims(mp.scene, axes) if launch else AXES
-        other = AXES if launch else (*LAUNCH_DIMS, *RELEASE)
+        other = AXES if launch else (*LAUNCH_DIMS, *RELEASE_AXES)
         for name in axes:
             if name in other and name not in dims:
                 raise self.fail(
@@ -218,10 +220,10 @@ class _Reader(AxisReader):
                     "a survey spans invariants (alpha, energy, h, Lz) or launch states "
                     "(alpha, r0, v0, w0), not both",
                 )
-        release = [n for n in RELEASE if n in axes and n not in dims]  # a scene without mu_k
+        release = [n for n in RELEASE_AXES if n in axes and n not in dims]  # a scene without mu_k
         self.check_keys(axes, (*dims, *release), "axes")
         for name in dims:
-            if name not in axes and name not in RELEASE:
+            if name not in axes and name not in RELEASE_AXES:
                 sets = "alpha, energy, h, Lz (invariants) or alpha, r0, v0, w0 (launch states)"
                 raise self.fail(f"axes.{name}", f"missing; give every axis of {sets}")
         if why := grid_too_large(_counts(axes, dims)):  # before any axis is built

@@ -67,6 +67,7 @@ AXES: dict[str, Variable] = {
     "u0": _f("m s-1", "launch radial speed dr/dt along the generatrix (outward > 0)"),
     "slip_u": _f("m s-1", "launch slip velocity of the contact point along the generatrix"),
     "slip_v": _f("m s-1", "launch slip velocity of the contact point along the parallel"),
+    "backspin": _f("m s-1", "launch backspin a omega0 = slip_u - u0, the slip beyond u0"),
     # surveys over launches on a surface of revolution (engine.surfaces)
     "rho0": _f("m", "launch position: distance of the centre from the axis"),
     "z0": _f("m", "launch position: height of the centre (the cylinder)"),

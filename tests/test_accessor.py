@@ -153,3 +153,27 @@ def test_summary_mentions_classes_and_method(grid):
     text = grid.cone.summary()
     assert "method exact" in text and "bounded" in text and "forbidden" in text
     assert len(text.splitlines()) <= 6
+
+
+def test_class_fractions_of_any_flag_variable_over_a_dim():
+    """``class_fractions("fate", dim=...)``: the share of each fate along the other axes,
+    counted here with numpy from the fate codes; an axis given first is still a dim."""
+    ds = engine.launch_survey(
+        alpha=[0.6, 1.5], r0=np.linspace(0.5, 2.5, 4), v0=np.linspace(0.2, 6.0, 5), w0=0.0,
+        scene=engine.Scene(c_rr=0.1, rim=3.0, mu=0.5), method="rk45", horizon_time=20.0,
+    )  # fmt: skip
+    frac = ds.cone.class_fractions("fate", dim=["r0", "v0", "w0"])
+    names = ds.fate.attrs["flag_meanings"].split()
+    codes = np.atleast_1d(ds.fate.attrs["flag_values"])
+    assert frac.class_name.values.tolist() == names and frac.dims == ("class_name", "alpha")
+    for a in range(2):
+        f = ds.fate.isel(alpha=a).values.ravel()
+        for name, code in zip(names, codes, strict=True):
+            assert frac.sel(class_name=name).isel(alpha=a).item() == (f == code).sum() / f.size
+    assert len(set(ds.fate.values.ravel().tolist())) >= 2  # more than one fate is counted
+    counts = ds.cone.class_counts("fate")
+    assert int(counts.sum()) == ds.fate.size
+    by_alpha = ds.cone.class_fractions("alpha")  # the older call: the first argument a dim
+    assert by_alpha.dims == ("class_name", "r0", "v0", "w0")
+    with pytest.raises(ValueError, match="not a flag variable"):
+        ds.cone.class_fractions("fate_time")

@@ -397,3 +397,16 @@ def test_format_duration(seconds, text):
 def test_format_rate(rate, text):
     assert format_rate(rate) == text
     assert format_rate(rate, "/s") == text.replace(" points/s", "/s")
+
+
+# --- the output's name ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["out.txt", "out", "out.nc.bak"])
+def test_an_output_whose_suffix_names_no_format_is_refused(workdir, capsys, name):
+    """``-o out.txt`` wrote a netCDF file under that name; it is refused, naming the suffixes
+    that pick a format, before anything is written."""
+    assert cli.main(["run", "small.toml", "-o", name]) == 2
+    err = capsys.readouterr().err
+    assert f"output {name}:" in err and ".nc" in err and ".zarr" in err
+    assert listing(workdir) == ["bad.toml", "small.toml"]

@@ -178,14 +178,36 @@ def test_facet_grid_shares_one_colour_scale(nc):
         assert (norm.vmin, norm.vmax) == (fin.min(), fin.max())
 
 
-def test_facet_over_a_long_axis_is_thinned_and_says_so(nc):
+def test_facet_over_up_to_25_values_draws_them_all(nc):
     with open_result(nc) as r:
         fig = map_figure(r.ds, plan(r.ds, "period", x="h", y="energy", facet="Lz"))
     panels = [ax for ax in fig.axes if ax.get_visible() and ax.get_title()]
-    assert len(panels) == 16
-    assert "16 of 20 values of Lz, evenly spaced" in fig._suptitle.get_text()
+    assert len(panels) == 20  # every value of Lz
+    assert "values of Lz" not in fig._suptitle.get_text()
     assert panels[0].get_title() == "Lz = 0 kg m2 s-1"
     assert panels[-1].get_title() == "Lz = 2 kg m2 s-1"
+
+
+def test_facet_over_many_values_keeps_zero_and_names_the_ones_left_out():
+    """41 values of h (-2 .. 2 by 0.1): 25 panels, h = 0 among them (evenly spaced indices
+    skip it), and every value not drawn is named in the title."""
+    h = np.round(np.linspace(-2.0, 2.0, 41), 12)
+    period = np.arange(41 * 3 * 2, dtype=float).reshape(41, 3, 2) + 1.0
+    ds = xr.Dataset(
+        {"period": (("h", "energy", "Lz"), period, {"units": "s"})},
+        coords={"h": ("h", h, {"units": "m s-1"}), "energy": [1.0, 2.0, 3.0], "Lz": [0.5, 1.0]},
+    )
+    fig = map_figure(ds, plan(ds, "period", x="Lz", y="energy", facet="h"))
+    titles = [ax.get_title() for ax in fig.axes if ax.get_visible() and ax.get_title()]
+    assert len(titles) == 25
+    drawn = {float(t.split("=")[1].split()[0]) for t in titles}
+    assert 0.0 in drawn and -2.0 in drawn and 2.0 in drawn
+    text = " ".join(fig._suptitle.get_text().split())
+    assert "25 of 41 values of h; left out:" in text
+    named = text.split("left out:")[1]
+    shown = [float(x) for x in named.replace(" and", ",").split(",")[:12]]
+    missing = sorted(set(h.tolist()) - drawn)
+    assert len(missing) == 16 and shown == missing[:12] and "and 4 more" in named
 
 
 def test_flag_legend_and_colours_come_from_the_attributes():
@@ -293,6 +315,126 @@ def test_reading_an_unfinished_run_never_changes_it(tmp_path, capsys):
     assert {p.name: p.read_bytes() for p in root.iterdir()} == before
 
 
+# --- fate maps, derived variables, contours ---------------------------------------------------
+
+#: A small fate map (rolling resistance, a rim, a friction limit: the effects of
+#: surveys/fate_rolling_resistance.toml): 2 x 4 x 5 x 1 launches.
+FATE = """\
+title = "fate look"
+method = "rk45"
+
+[scene]
+c_rr = 0.01
+rim = 3.0
+mu = 0.5
+
+[horizon]
+time = 5.0
+
+[axes.alpha]
+values = [0.6, 1.2]
+
+[axes.r0]
+start = 0.5
+stop = 2.0
+num = 4
+
+[axes.v0]
+start = 0.2
+stop = 2.0
+num = 5
+
+[axes.w0]
+values = [0.0]
+"""
+
+
+@pytest.fixture(scope="module")
+def fate_nc(tmp_path_factory) -> Path:
+    return run_file(FATE, tmp_path_factory.mktemp("plot") / "fate.nc")
+
+
+def test_a_fate_map_is_drawn_by_fate_by_default(fate_nc, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    rc, out, err = _main(["plot", fate_nc], capsys)
+    assert rc == 0, err
+    assert out.startswith(f"wrote {tmp_path / 'fate_fate.png'}: fate over ")
+    with open_result(fate_nc) as r:
+        spec = plan(r.ds)
+        fig = map_figure(r.ds, spec)
+    assert spec.variable == "fate"
+    ds = xr.open_dataset(fate_nc)
+    want = ds.fate.isel(spec.selection()).transpose(spec.y, spec.x).values
+    np.testing.assert_array_equal(_mesh(fig.axes[0]).get_array().reshape(want.shape), want)
+    names = ds.fate.attrs["flag_meanings"].split()
+    assert _labels(fig) == [names[c] for c in np.unique(want)]
+
+
+def test_precession_per_revolution_is_plotted_from_the_command_line(nc, tmp_path, capsys):
+    """A derived variable: 2 psi - 2 pi in degrees on bounded, circular and spilling orbits,
+    computed here from the file's apsidal_angle and orbit_class."""
+    out = tmp_path / "ppr.png"
+    rc, text, err = _main(["plot", nc, "precession_per_revolution", "-o", out], capsys)
+    assert rc == 0, err
+    assert out.read_bytes()[:8] == PNG and "precession_per_revolution over Lz (x)" in text
+    from engine.accessor import with_derived
+
+    with open_result(nc) as r:
+        ds = with_derived(r.ds, "precession_per_revolution")
+        fig = map_figure(ds, plan(ds, "precession_per_revolution"))
+    f = xr.open_dataset(nc).isel(alpha=1, h=1).transpose("energy", "Lz")
+    names = f.orbit_class.attrs["flag_meanings"].split()
+    codes = [names.index(c) for c in ("bounded", "circular", "spills") if c in names]
+    want = np.where(np.isin(f.orbit_class.values, codes),
+                    np.degrees(2.0 * f.apsidal_angle.values - 2.0 * np.pi), np.nan)  # fmt: skip
+    got = _mesh(fig.axes[0]).get_array().filled(np.nan).reshape(want.shape)
+    assert np.isfinite(want).sum() > 100
+    np.testing.assert_allclose(got, want, rtol=1e-12, equal_nan=True)
+
+
+def test_a_zero_contour_runs_where_the_variable_changes_sign(nc, tmp_path, capsys):
+    """--contour 0 on precession_rate (both signs at alpha = 0.3, h = -1): each crossing of
+    zero between two neighbouring cells along Lz, interpolated linearly here, is a vertex of
+    the drawn line, and every vertex lies on the grid lines where the values interpolate to 0."""
+    args = ["precession_rate", "--at", "alpha=0.3,h=-1", "--contour", "0"]
+    rc, _, err = _main(["plot", nc, *args, "-o", tmp_path / "c.png"], capsys)
+    assert rc == 0, err
+    with open_result(nc) as r:
+        spec = plan(r.ds, "precession_rate", at={"alpha": 0.3, "h": -1.0}, contours=[0.0])
+        fig = map_figure(r.ds, spec)
+    ax = fig.axes[0]
+    f = xr.open_dataset(nc).precession_rate.isel(alpha=0, h=0).transpose("energy", "Lz")
+    z, lz, en = f.values, f.Lz.values, f.energy.values
+    verts = np.concatenate([p.vertices for c in ax.collections[1:] for p in c.get_paths()
+                            if len(p.vertices)])  # fmt: skip
+    crossings = []  # along Lz (x) and along energy (y), linear in the data coordinates
+    for j in range(en.size):
+        for i in range(lz.size - 1):
+            a, b = z[j, i], z[j, i + 1]
+            if np.isfinite(a) and np.isfinite(b) and a * b < 0:
+                crossings.append((lz[i] + a / (a - b) * (lz[i + 1] - lz[i]), en[j]))
+    for i in range(lz.size):
+        for j in range(en.size - 1):
+            a, b = z[j, i], z[j + 1, i]
+            if np.isfinite(a) and np.isfinite(b) and a * b < 0:
+                crossings.append((lz[i], en[j] + a / (a - b) * (en[j + 1] - en[j])))
+    assert len(crossings) >= 3
+    for x, y in crossings:
+        d = np.hypot(verts[:, 0] - x, (verts[:, 1] - y) / y)
+        assert d.min() < 1e-9, (x, y)
+    assert len(verts) >= len(crossings)
+    for x, y in verts:  # on a grid line, where the neighbours' values interpolate to 0
+        i = np.flatnonzero(np.isclose(lz, x, rtol=0, atol=1e-12))
+        j = np.flatnonzero(np.isclose(en, y, rtol=1e-12, atol=0))
+        assert i.size or j.size, (x, y)
+        if i.size:
+            v = np.interp(y, en, z[:, i[0]])
+        else:
+            v = np.interp(x, lz, z[j[0], :])
+        assert abs(v) < 1e-9 * np.nanmax(np.abs(z)), (x, y, v)
+    assert "precession_rate = 0" in _labels(fig)
+
+
 # --- errors and overwriting -------------------------------------------------------------------
 
 ERRORS = [
@@ -308,7 +450,12 @@ ERRORS = [
     (["--x", "h", "--at", "h=0"], "--at h: h is drawn"),
     (["-o", "map.jpg"], "unknown format '.jpg'"),
     (["-o", "missing/map.png"], "output directory does not exist"),
-    (["--dpi", "0"], "--dpi must be at least 10"),
+    (["--dpi", "0"], "--dpi must be in 10..1200; got 0"),
+    (["--dpi", "100000"], "--dpi must be in 10..1200; got 100000"),
+    (["--dpi", "1200", "--facet", "alpha"], "pixels, more than 50,000,000; at most --dpi"),
+    (["precesion_rate"], "no variable 'precesion_rate'; did you mean 'precession_rate'?"),
+    (["--x", "lz"], "--x: no axis 'lz'; did you mean 'Lz'?"),
+    (["orbit_class", "--contour", "0"], "orbit_class is a flag variable; contours need numbers"),
     (["--x", "h", "--at", "alpha=1,energy=1,Lz=1"], "no axis left to draw"),
 ]
 
@@ -369,6 +516,44 @@ def test_plan_errors_name_what_exists():
     ds = xr.Dataset({"v": (("a",), [1.0, 2.0])}, coords={"a": [0.0, 1.0]})
     with pytest.raises(LookError, match="v has 1 dimension"):
         plan(ds, "v")
+
+
+def test_a_map_larger_than_a_figure_draws_is_refused_before_anything_is_read():
+    """3000 x 2000 cells (6 million, over MAX_CELLS): refused by the plan, from the sizes
+    alone (the values are a dask array that is never computed), for plot and report."""
+    from types import SimpleNamespace
+
+    import dask.array as da
+
+    from engine.mapspec import MAX_CELLS
+    from engine.report import check_report
+
+    big = xr.Dataset(
+        {"orbit_class": (("energy", "Lz"), da.zeros((3000, 2000), dtype="i1", chunks=500),
+                         {"flag_values": [0, 1], "flag_meanings": "a b"})},
+        coords={"energy": np.arange(3000.0), "Lz": np.arange(2000.0)},
+    )  # fmt: skip
+    assert 3000 * 2000 > MAX_CELLS
+    with pytest.raises(LookError, match=r"is 6,000,000 cells; a figure draws at most 4,000,000"):
+        plan(big)
+    with pytest.raises(LookError, match="a figure draws at most"):
+        check_report(SimpleNamespace(ds=big))
+    small = big.isel(energy=slice(0, 1000))  # 2 million: drawn
+    assert plan(small).x == "Lz"
+    faceted = xr.Dataset(
+        {"orbit_class": (("h", "energy", "Lz"), da.zeros((3, 750, 2000), dtype="i1"),
+                         big.orbit_class.attrs)},
+        coords={"h": [-1.0, 0.0, 1.0], "energy": np.arange(750.0), "Lz": np.arange(2000.0)},
+    )  # fmt: skip
+    assert plan(faceted).facet is None  # one panel of 1.5 million cells
+    with pytest.raises(LookError, match="x 3 panels"):  # 3 panels of 1.5 million
+        plan(faceted, facet="h")
+
+
+def test_dpi_bounds_are_checked_before_the_result_is_opened(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    rc, _, err = _main(["plot", "missing.nc", "--dpi", "100000"], capsys)
+    assert rc == 2 and err.count("\n") == 1 and "--dpi must be in 10..1200" in err
 
 
 # --- matplotlib stays optional ----------------------------------------------------------------

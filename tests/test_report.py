@@ -74,7 +74,9 @@ def test_a_map_of_every_variable_and_the_integrator_diagnostics(rk):
     nc, text = rk
     ds = xr.open_dataset(nc)
     imgs = [a for tag, a in Page(text).tags if tag == "img"]
-    assert sorted(a["data-variable"] for a in imgs) == sorted(ds.data_vars)
+    maps = [a for a in imgs if "data-variable" in a]  # the others: sample orbits
+    assert sorted(a["data-variable"] for a in maps) == sorted(ds.data_vars)
+    assert len(imgs) > len(maps)
     for a in imgs:
         assert a["src"].startswith("data:image/png;base64,")
         png = base64.b64decode(a["src"].split(",", 1)[1])
@@ -148,3 +150,52 @@ def test_command_default_name_and_no_overwrite(rk, tmp_path, monkeypatch, capsys
     assert "a report is HTML" in capsys.readouterr().err
     assert cli.main(["report", "missing.nc"]) == 2
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rk_report.html"]
+
+
+def test_variables_that_do_not_depend_on_the_energy_are_not_drawn_over_it(rk, monkeypatch):
+    """r_circ and V_min are properties of an (alpha, h, Lz) family: their maps are over h and
+    Lz (the energy map drew the same value up every column), with the values of the file."""
+    import engine.report as report
+
+    nc, _ = rk
+    drawn = {}
+
+    def keep(fig, alt, caption, variable):
+        drawn[variable] = (fig, caption)
+        return ""
+
+    monkeypatch.setattr(report, "_figure", keep)
+    with open_result(nc) as r:
+        build_report(r)
+    ds = xr.open_dataset(nc)
+    for name in ("r_circ", "V_min"):
+        fig, caption = drawn[name]
+        ax = fig.axes[0]
+        assert "energy" not in ax.get_xlabel() + ax.get_ylabel(), name
+        assert (ax.get_xlabel(), ax.get_ylabel()) == ("Lz [kg m2 s-1]", "h [m s-1]")
+        assert "it does not depend on energy" in caption
+        want = ds[name].isel(alpha=ds.sizes["alpha"] // 2).transpose("h", "Lz").values
+        got = ax.collections[0].get_array().filled(np.nan).reshape(want.shape)
+        np.testing.assert_array_equal(got, want)
+    fig, _ = drawn["r_min"]  # the others stay over the two longest axes
+    assert fig.axes[0].get_ylabel().startswith("energy")
+
+
+def test_a_sample_orbit_of_each_class_found(rk):
+    """One picture per orbit class present (those with an orbit), each of a grid point that
+    has that class in the file; the classes without one named as not drawn."""
+    nc, text = rk
+    ds = xr.open_dataset(nc)
+    section = text[text.index('<section id="orbits">') :]
+    section = section[: section.index("</section>")]
+    names = ds.orbit_class.attrs["flag_meanings"].split()
+    present = {names[c] for c in np.unique(ds.orbit_class.values)}
+    drawn = re.findall(r'<figure class="orbit" data-flag="(\w+)">', section)
+    no_orbit = {"forbidden", "out_of_range", "off_cone"}
+    assert set(drawn) == present - no_orbit and drawn
+    for flag in present & no_orbit:
+        assert f"<li><b>{flag}</b>: no orbit to draw</li>" in section
+    for flag, at in re.findall(r'data-flag="(\w+)">.*?--at ([^<]+)</code>', section):
+        point = {k: float(v) for k, v in (x.split("=") for x in html.unescape(at).split(","))}
+        code = int(ds.orbit_class.sel(point, method="nearest"))
+        assert names[code] == flag, (flag, point)

@@ -395,3 +395,25 @@ def test_hybrid_launch_keys_need_mu_k_and_t_end():
         _call(slip_v=math.nan)
     with pytest.raises(ValueError, match=r"periods=1: a scene with mu_k .*give t_end"):
         _call(scene=engine.Scene(mu=0.5, mu_k=0.4))
+
+
+def test_a_launch_at_its_apocentre_starts_there():
+    """``r0``: a ball released at rest radially at r0 = 2 m slower than circular starts at its
+    apocentre (the closed form's r_max is r0); on the ideal cone its path is the one from r_min
+    half a closed-form period later."""
+    sc = engine.Scene()
+    inv = engine.invariants(0.5, 2.0, 0.0, 1.0, 0.3, sc)
+    E, h, L = float(inv["energy"]), float(inv["h"]), float(inv["Lz"])
+    ev = engine.evaluate(0.5, E, h, L, sc)
+    T = float(ev.period)
+    assert float(ev.r_max) == pytest.approx(2.0, rel=1e-12)
+    a = engine.simulate(0.5, E, h, L, sc, t_end=2 * T, dt_out=T / 200, r0=2.0, method="dop853",
+                        rtol=1e-11)  # fmt: skip
+    b = engine.simulate(0.5, E, h, L, sc, t_end=3 * T, dt_out=T / 200, method="dop853",
+                        rtol=1e-11)  # fmt: skip
+    assert a.r.values[0] == 2.0 and a.u.values[0] == 0.0
+    np.testing.assert_allclose(a.r.min(), ev.r_min, rtol=1e-9)
+    shifted = np.interp(a.time.values + T / 2, b.time.values, b.r.values)
+    np.testing.assert_allclose(a.r.values, shifted, rtol=0, atol=1e-8)
+    with pytest.raises(ValueError, match="r0=3.0 is not on the orbit"):
+        engine.simulate(0.5, E, h, L, sc, t_end=T, r0=3.0)

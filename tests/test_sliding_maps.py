@@ -245,3 +245,63 @@ def test_a_survey_file_has_the_release_axes_it_names(tmp_path):
     s = load_survey(tmp_path / "s.toml")
     assert s.dims == ("alpha", "r0", "v0", "w0", "slip_u") and s.u0 is None
     assert s.plan.dims == s.dims
+
+
+def test_backspin_is_an_axis_a_speed_by_backspin_map_is_a_rectangle():
+    """``backspin`` = slip_u - u0 as a launch axis: the map over u0 x backspin is the launches'
+    own stories at slip_u = u0 + backspin (launch_fates, bit for bit), and in the flat limit
+    each slides for k (u0 + b) / ((1+k) mu_k g) and rolls on at (u0 - k b)/(1+k) (the closed
+    forms of docs/physics.md "Checks")."""
+    sc = Scene(k=0.4, mu=0.5, mu_k=0.25, rim=5000.0)
+    u0, b = np.array([1.0, 2.0]), np.array([-0.5, 0.0, 1.0, 4.0])
+    ds = engine.launch_survey(FLAT, 1000.0, 0.0, 0.0, scene=sc, method="dop853",
+                              horizon_time=2.0, u0=u0, backspin=b)  # fmt: skip
+    assert ds["fate"].dims == ("alpha", "r0", "v0", "w0", "u0", "backspin")
+    assert ds["backspin"].attrs["units"] == "m s-1" and "slip_u - u0" in ds["backspin"].attrs[
+        "long_name"]  # fmt: skip
+    U, B = np.meshgrid(u0, b, indexing="ij")
+    ref = launch_fates(FLAT, 1000.0, 0.0, 0.0, u0=U, slip_u=U + B, scene=sc, method="dop853",
+                       horizon_time=2.0)  # fmt: skip
+    for name in ("fate", "slide_time", "fate_speed", "slip_episodes", "final_energy"):
+        np.testing.assert_array_equal(ds[name].values[0, 0, 0, 0], ref[name], name)
+    t = ds["slide_time"].values[0, 0, 0, 0]
+    np.testing.assert_allclose(t, 0.4 * (U + B) / (1.4 * 0.25 * G), rtol=1e-3)
+    speed = np.abs(U - 0.4 * B) / 1.4
+    rolling = ds["fate"].values[0, 0, 0, 0] == engine.FATE_NAMES.index("rolling")
+    assert rolling.sum() >= 6
+    np.testing.assert_allclose(ds["fate_speed"].values[0, 0, 0, 0][rolling],
+                               speed[rolling], atol=G * 2.0 / math.tan(FLAT))  # fmt: skip
+    with pytest.raises(ValueError, match="slip_u or backspin"):
+        engine.launch_survey(FLAT, 1000.0, 0.0, 0.0, scene=sc, method="dop853",
+                             horizon_time=2.0, u0=u0, slip_u=[1.0, 2.0], backspin=b)  # fmt: skip
+    with pytest.raises(ValueError, match=r"^backspin = .*needs Scene\.mu_k"):
+        engine.launch_survey([0.5], [0.3], [1.0], [0.0], scene=ROLLING, method="dop853",
+                             horizon_time=1.0, backspin=[0.0, 1.0])  # fmt: skip
+
+
+def test_a_survey_file_spans_backspin(tmp_path, monkeypatch, capsys):
+    """[axes.backspin] in a survey file: the same map as the API's; with slip_u too, or on a
+    scene without mu_k, refused naming the key (exit 2, nothing written)."""
+    monkeypatch.chdir(tmp_path)
+    text = SURVEY + "[axes.backspin]\nvalues = [0.0]\n"
+    Path("spin.toml").write_text(text)
+    assert cli.main(["run", "spin.toml", "-o", "spin.nc", "-q"]) == 0
+    with xr.open_dataset("spin.nc") as ds:
+        assert ds["fate"].dims == ("alpha", "r0", "v0", "w0", "u0", "backspin")
+        api = engine.launch_survey([0.5, 1.2], [0.1, 0.4], [0.3, 1.2], [-1.0], scene=NEVER_SLIPS,
+                                   method="dop853", horizon_time=1.5, u0=[0.0],
+                                   backspin=[0.0])  # fmt: skip
+        for name in api.data_vars:
+            np.testing.assert_array_equal(ds[name].values, api[name].values, err_msg=name)
+    both = text + "[axes.slip_u]\nvalues = [0.0]\n"
+    Path("both.toml").write_text(both)
+    assert cli.main(["validate", "both.toml"]) == 2
+    assert "axes.backspin: give slip_u or backspin" in capsys.readouterr().err
+    rolling = text.replace("mu_k = 0.3\n", "").replace(
+        "[axes.backspin]\nvalues = [0.0]", "[axes.backspin]\nvalues = [0.5]"
+    )
+    Path("rolling.toml").write_text(rolling)
+    assert cli.main(["validate", "rolling.toml"]) == 2
+    err = capsys.readouterr().err
+    assert "axes.backspin" in err and "0.5" in err and "mu_k" in err
+    assert sorted(os.listdir()) == ["both.toml", "rolling.toml", "spin.nc", "spin.toml"]

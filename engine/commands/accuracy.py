@@ -21,7 +21,8 @@ import numpy as np
 import xarray as xr
 
 from ..accuracy import DEFAULT_RTOLS, SAMPLE_POINTS, recommend, work_precision
-from ..plot import LookError, matplotlib_parts, save_figure
+from ..figurefile import matplotlib_parts, save_figure
+from ..mapspec import LookError
 from ..progress import format_duration
 from . import PROG, Command, InputError, load_plan
 

@@ -12,29 +12,65 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..accessor import DERIVED, with_derived
 from ..io import OutputError
 from ..io.results import Result, open_result
-from ..mapspec import LookError, fixed_text, parse_at, plan
-from ..plot import FORMATS, map_figure, matplotlib_parts, output_format, save_figure
-from ..report import write_report
+from ..mapspec import (
+    AXIS_PREFERENCE,
+    DEFAULT_VARIABLES,
+    MAX_CELLS,
+    MAX_PANELS,
+    LookError,
+    facet_panels,
+    fixed_text,
+    parse_at,
+    plan,
+)
+from ..plot import (
+    FORMATS,
+    MAX_DPI,
+    MAX_PIXELS,
+    MIN_DPI,
+    check_figure_size,
+    figure_size,
+    map_figure,
+    matplotlib_parts,
+    output_format,
+    save_figure,
+)
+from ..report import check_report, write_report
 from . import Command, error
 
 __all__ = ["PLOT", "REPORT"]
 
-PLOT_DESCRIPTION = """\
+_DERIVED_LINES = "\n".join(f"  {name}: {text}" for name, text in DERIVED.items())
+
+PLOT_DESCRIPTION = f"""\
 Draw a map of one variable of a survey result over two of its axes, the other axes fixed at
 the values nearest to --at (default: their middle values), or one map per value of --facet.
 
-Flag variables (orbit_class, status) get a legend of their flags, other variables a colour
-bar with their long name and units; axes with log-spaced values are drawn on a log scale.
-Grey cells are undefined (NaN). FILE may be a run that is not finished yet (OUT.nc absent,
-OUT.nc.parts/ present): the blocks computed so far are drawn, the rest hatched."""
+VARIABLE defaults to {" if present, else ".join(DEFAULT_VARIABLES)} (a fate map's fate:
+what happened on the scene). The axes default to the two with the most values; of two equally
+long ones the first of {", ".join(AXIS_PREFERENCE)} is drawn upwards. Besides the stored
+variables, these are computed from the result:
+{_DERIVED_LINES}
+
+Flag variables (orbit_class, fate, status) get a legend of their flags, other variables a
+colour bar with their long name and units, and --contour lines where they cross a value
+(--contour 0: where a precession changes sign); axes with log-spaced values are drawn on a
+log scale. Grey cells are undefined (NaN). FILE may be a run that is not finished yet (OUT.nc
+absent, OUT.nc.parts/ present): the blocks computed so far are drawn, the rest hatched.
+
+Sizes are bounded, refused before anything is drawn: --dpi {MIN_DPI}..{MAX_DPI}, at most
+{MAX_PIXELS:,} pixels a figure, {MAX_CELLS:,} cells a figure, {MAX_PANELS} panels (more values
+of --facet are thinned, keeping 0, and the ones left out are named)."""
 
 PLOT_EPILOG = """\
 examples:
-  conesurvey plot precession.nc                          # orbit_class, Lz vs energy
-  conesurvey plot precession.nc precession_rate --at alpha=0.5,h=0 -o rate.png
-  conesurvey plot precession.nc mu_required --x Lz --y energy --facet alpha
+  conesurvey plot gravity_precession.nc                  # orbit_class, h (x) by energy (y)
+  conesurvey plot gravity_precession.nc precession_rate --at alpha=0.5 --x Lz --contour 0
+  conesurvey plot gravity_precession.nc precession_per_revolution --x Lz --facet alpha
+  conesurvey plot fate_rolling_resistance.nc             # fate, v0 (x) by r0 (y)
 
 exit status: 0 written, 1 output not written, 2 bad input or usage, 130 interrupted"""
 
@@ -48,7 +84,10 @@ are embedded; the page needs no network and no JavaScript. Works on unfinished r
 def _plot_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("file", metavar="FILE.nc", help="a conesurvey result (or unfinished run)")
     p.add_argument(
-        "variable", nargs="?", default="orbit_class", help="variable to draw (orbit_class)"
+        "variable",
+        nargs="?",
+        default=None,
+        help=f"variable to draw (default: {' if present, else '.join(DEFAULT_VARIABLES)})",
     )
     p.add_argument("--x", metavar="AXIS", help="horizontal axis (default: a longest axis)")
     p.add_argument("--y", metavar="AXIS", help="vertical axis (default: energy if it is long)")
@@ -58,14 +97,33 @@ def _plot_arguments(p: argparse.ArgumentParser) -> None:
         metavar="AXIS=VALUE[,...]",
         help="fix other axes at the nearest value, e.g. alpha=0.5,h=0 (default: middle value)",
     )
-    p.add_argument("--facet", metavar="AXIS", help="one map per value of AXIS (at most 16)")
+    p.add_argument(
+        "--facet",
+        metavar="AXIS",
+        help=f"one map per value of AXIS (at most {MAX_PANELS}; of more, the ones left out "
+        "are named)",
+    )
+    p.add_argument(
+        "--contour",
+        action="append",
+        type=float,
+        default=[],
+        metavar="VALUE",
+        help="draw the line where the variable equals VALUE (repeatable; e.g. --contour 0)",
+    )
     p.add_argument(
         "-o",
         "--output",
         metavar="MAP.png",
         help=f"output ({', '.join(FORMATS)}; default: FILE's stem_VARIABLE.png here)",
     )
-    p.add_argument("--dpi", type=int, default=100, help="resolution of a PNG (default 100)")
+    p.add_argument(
+        "--dpi",
+        type=int,
+        default=100,
+        help=f"resolution of a PNG (default 100; {MIN_DPI}..{MAX_DPI}, at most "
+        f"{MAX_PIXELS:,} pixels)",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace the output if it exists")
 
 
@@ -113,20 +171,24 @@ def _check_output(out: Path, overwrite: bool) -> None:
 
 def _plot(args: argparse.Namespace) -> int:
     at = parse_at(args.at)
-    if args.dpi < 10:
-        raise LookError(f"--dpi must be at least 10; got {args.dpi}")
+    check_figure_size(figure_size(1), args.dpi)  # the bounds, before any file is opened
     with open_result(args.file) as result:
-        spec = plan(result.ds, args.variable, args.x, args.y, at, args.facet)
+        ds = result.ds if args.variable is None else with_derived(result.ds, args.variable)
+        spec = plan(ds, args.variable, args.x, args.y, at, args.facet, args.contour,
+                    derived=tuple(DERIVED))  # fmt: skip
+        idx, left_out = facet_panels(ds, spec)
+        check_figure_size(figure_size(1 if idx is None else len(idx)), args.dpi)
         name = f"{_stem(result)}_{spec.variable}.png"
         out = Path(args.output) if args.output else Path.cwd() / name
         output_format(out)
         _check_output(out, args.overwrite)
         matplotlib_parts()
-        fig = map_figure(result.ds, spec, result.computed(), result.note)
+        fig = map_figure(ds, spec, result.computed(), result.note)
         save_figure(fig, out, overwrite=args.overwrite, dpi=args.dpi)
-        fixed = fixed_text(result.ds, spec)
+        fixed = fixed_text(ds, spec)
     what = f"{spec.variable} over {spec.x} (x) and {spec.y} (y)"
     what += f", one map per {spec.facet}" if spec.facet else ""
+    what += f" ({left_out})" if left_out else ""
     print(f"wrote {out}: {what}" + (f"; {fixed}" if fixed else ""))
     return 0
 
@@ -137,6 +199,7 @@ def _report(args: argparse.Namespace) -> int:
         if out.suffix.lower() not in (".html", ".htm"):
             raise LookError(f"output {out}: a report is HTML; name it *.html")
         _check_output(out, args.overwrite)
+        check_report(result)
         matplotlib_parts()
         write_report(result, out, overwrite=args.overwrite)
         note = result.note

@@ -9,12 +9,9 @@ output, too little disk); 130 interrupted.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import logging
 import os
-import re
 import sys
-import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
@@ -22,13 +19,13 @@ from ..checks import PlanError, check_block_points
 from ..errortext import install_hint
 from ..grid import BLOCK_POINTS
 from ..io.codecs import COMPRESSIONS, DEFAULT_COMPRESSION, DEFAULT_LEVELS
-from ..io.formats import format_for
+from ..io.formats import FORMATS, format_for, formats_text
 from ..io.manifest import fingerprint
 from ..plan import RunPlan, plan_from_survey
 from ..progress import Progress
 from ..runner import AlreadyComplete, RunError, RunFailed, RunStats, run_survey
-from ..scene import Scene
 from ..schema import flag_table
+from ..surveyhelp import survey_file_help
 from . import PROG, Command, InputError, error, load
 from .validate import compile_seconds, energy_warning
 
@@ -38,55 +35,18 @@ if TYPE_CHECKING:
 __all__ = ["COMMAND", "print_summary"]
 
 
-def _scene_keys() -> str:
-    """One line per field of :class:`engine.Scene`, from the dataclass and its docstring (so the
-    list cannot drift from the scene the engine reads)."""
-    doc = {}
-    for line in (Scene.__doc__ or "").splitlines():
-        m = re.match(r"\s*(\w+) : (.*)", line)
-        if m:
-            doc[m.group(1)] = m.group(2).strip()
-    lines = []
-    for f in dataclasses.fields(Scene):
-        if f.name.startswith("_"):
-            continue
-        text = doc.get(f.name, "").rstrip(".")
-        default = f.default
-        if default is None or isinstance(default, bool):  # as TOML would say it
-            default = "absent" if default is None else str(default).lower()
-        text = f"{text}; default {default}" if text else f"default {default}"
-        lines += textwrap.wrap(
-            text, 92, initial_indent=f"  {f.name:<9} ", subsequent_indent=" " * 12
-        )
-    return "\n".join(lines)
-
-
 DESCRIPTION = f"""\
 Run the survey defined in SURVEY.toml and write the results to a netCDF file (or a Zarr
 store: -o OUT.zarr).
 
 A survey file holds (see the examples in surveys/ and docs/surveys.md):
 
-title, method (exact | rk45 | dop853 | symplectic), rtol, circular_tol at the top;
-[scene], any of:
-{_scene_keys()}
-four axes, each values = [...] or start, stop, num with scale = "linear" or "log":
-  [axes.alpha]   half-aperture [radian], in (0, pi/2), and either the invariants
-  [axes.energy]  radial energy [J]; relative_to = "V_min": offsets (energy - V_min)/|V_min|
-  [axes.h]       spin invariant [m s-1]
-  [axes.Lz]      angular momentum about the axis [kg m2 s-1]
-  or the launch states (released with radial speed 0):
-  [axes.r0]      launch radius [m], > 0
-  [axes.v0]      speed along the parallel [m s-1]
-  [axes.w0]      spin a omega_nu [m s-1]
-[horizon], required by a fate map (an integrator on a scene with c_rr, rim or mu):
-  time           how long each orbit is followed [s], and/or
-  revolutions    how many revolutions about the axis
+{survey_file_help()}
 
 The TOML text is stored verbatim in the output's survey_definition attribute. The first run
 compiles the numba kernels (cached: later runs load them). One run at a time writes an output
 (a lock file OUT.lock beside it); a killed run resumes where it stopped when the same command
-is run again (docs/guarantees.md)."""
+is run again, and says so (docs/guarantees.md)."""
 
 EPILOG = """\
 example:
@@ -189,6 +149,10 @@ def _positive_int(text: str) -> int:
 def _output(args: argparse.Namespace, source: Path) -> Path:
     """The output path; InputError if it is a directory, has no directory, or is the survey."""
     out = Path(args.output) if args.output else Path.cwd() / (source.stem + ".nc")
+    if not any(fmt.owns(out) for fmt in FORMATS.values()):  # not netCDF whatever its name
+        found = f"unknown suffix {out.suffix!r}" if out.suffix else "no suffix"
+        raise InputError(f"output {out}: {found}; the suffix names the format: "
+                         f"{formats_text()}")  # fmt: skip
     if out.is_dir() and not format_for(out).directory:  # a Zarr store is a directory
         raise InputError(f"output path is a directory: {out}")
     if not out.parent.is_dir():

@@ -5,10 +5,12 @@ It refuses exactly what ``conesurvey run`` refuses about the definition (the one
 against the method); exit status 2 when it is invalid.
 
 The run time it prints is measured: the survey's own plan evaluated on a sample of its grid
-(:func:`measured_rate`, about :data:`SAMPLE_POINTS` points, each axis sampled evenly), scaled
-to the whole grid. Where the kernels are not compiled yet the sample would compile them
-(30-120 s), so a stored rate per kind of map is used instead (:data:`STORED_RATES`; none for
-fate maps, whose time depends on how long their orbits roll).
+(:func:`measured_rate`: each axis sampled evenly, grown until its evaluation takes
+:data:`TIMED_SECONDS`), scaled to the whole grid, plus the compression of its output (the
+sample's values deflated as the run deflates them, timed) and a run's fixed cost
+(:data:`RUN_OVERHEAD`: its store, files and threads). Where the kernels are not compiled yet
+the sample would compile them (30-120 s), so a stored rate per kind of map is used instead
+(:data:`STORED_RATES`; none for fate maps, whose time depends on how long their orbits roll).
 """
 
 from __future__ import annotations
@@ -27,7 +29,8 @@ from .._jit import CACHE_DIR
 from ..api import minimum_energy
 from ..evaluation import evaluate_block
 from ..io.blocks import estimate_bytes
-from ..io.codecs import DEFAULT_COMPRESSION
+from ..io.codecs import DEFAULT_COMPRESSION, level
+from ..io.deflate import compress_chunk
 from ..kernels import batch
 from ..plan import RunPlan
 from ..progress import format_bytes
@@ -38,6 +41,9 @@ __all__ = [
     "COMMAND",
     "SAMPLE_POINTS",
     "STORED_RATES",
+    "TIMED_SECONDS",
+    "RUN_OVERHEAD",
+    "deflate_seconds_per_byte",
     "compile_seconds",
     "energy_warning",
     "measured_rate",
@@ -78,8 +84,16 @@ def _kernel_cache_dir() -> Path | None:
     return None
 
 
-#: Points of the sample ``validate`` times to estimate a run (each axis sampled evenly).
+#: Points of the first sample ``validate`` evaluates (each axis sampled evenly), and how long
+#: the evaluation of the sample it times takes at least (it grows until then).
 SAMPLE_POINTS = 64
+TIMED_SECONDS = 0.5
+#: The largest sample (a block of a run: its memory), timed as often as it takes.
+MAX_SAMPLE_POINTS = 1 << 20
+#: Seconds a run spends whatever its size: its block store, output file, journal, fsyncs and
+#: threads (a one-point run computed for 0.26-0.48 s on the project's 2-core machine under a
+#: load of 10).
+RUN_OVERHEAD = 0.4
 #: Throughput [points/s] assumed, by kind of map, while its kernels are not compiled yet (a
 #: sample cannot be timed without compiling them: 30-120 s): the closed form and one period
 #: on 2 cores (docs/performance.md). A fate map's time depends on how long its orbits roll
@@ -106,27 +120,64 @@ def sample_plan(plan: RunPlan, points: int = SAMPLE_POINTS) -> RunPlan:
     return dataclasses.replace(plan, axes=tuple(axes))
 
 
-def measured_rate(plan: RunPlan) -> tuple[float, int]:
-    """(points per second, points timed): the plan's evaluation timed on a sample of its grid
-    (:func:`sample_plan`), after a one-point call that loads its kernels from the cache."""
-    sample = sample_plan(plan)
-    evaluate_block(sample, tuple(slice(0, 1) for _ in sample.dims))
-    t0 = time.perf_counter()
-    evaluate_block(sample, tuple(slice(None) for _ in sample.dims))
-    return sample.size / max(time.perf_counter() - t0, 1e-9), sample.size
+def measured_rate(plan: RunPlan) -> tuple[float, int, dict[str, np.ndarray]]:
+    """(points per second, points timed, the values of the last sample): the plan's
+    evaluation timed on a sample of its grid (:func:`sample_plan`) that grows until one
+    evaluation of it takes :data:`TIMED_SECONDS` (or is the whole grid; a sample of
+    :data:`MAX_SAMPLE_POINTS` is evaluated as often as it takes), after an untimed evaluation
+    of the first sample that loads its kernels from the cache. A sample timed for
+    milliseconds was at the mercy of one scheduling delay (64 points: estimates of 1.6 s and
+    45 s for the same 0.9 s run)."""
+    sample = sample_plan(plan, SAMPLE_POINTS)
+    whole = tuple(slice(None) for _ in sample.dims)
+    evaluate_block(sample, whole)  # loads the kernels
+    while True:
+        t0 = time.perf_counter()
+        values = evaluate_block(sample, whole)
+        took = max(time.perf_counter() - t0, 1e-9)
+        if took >= TIMED_SECONDS or sample.size >= plan.size:
+            return sample.size / took, sample.size, values
+        if sample.size >= MAX_SAMPLE_POINTS:  # as large as a block: time it again and again
+            runs = math.ceil(TIMED_SECONDS / took)
+            t0 = time.perf_counter()
+            for _ in range(runs):
+                evaluate_block(sample, whole)
+            rate = runs * sample.size / max(time.perf_counter() - t0, 1e-9)
+            return rate, runs * sample.size, values
+        grow = min(max(1.3 * TIMED_SECONDS / took, 2.0), 64.0)  # to about TIMED_SECONDS
+        sample = sample_plan(plan, min(int(sample.size * grow), MAX_SAMPLE_POINTS))
+        whole = tuple(slice(None) for _ in sample.dims)
+
+
+def deflate_seconds_per_byte(values: dict[str, np.ndarray]) -> float:
+    """Seconds per uncompressed byte to deflate ``values`` as a run's output is deflated by
+    default (shuffle and deflate at the default level, chunks of 2^16 values), on one core."""
+    lvl = level(DEFAULT_COMPRESSION, None)
+    total, t0 = 0, time.perf_counter()
+    for arr in values.values():
+        flat = np.ascontiguousarray(arr).reshape(-1)
+        for i in range(0, flat.size, 1 << 16):
+            compress_chunk(flat[i : i + (1 << 16)], lvl)
+        total += flat.nbytes
+    return (time.perf_counter() - t0) / max(total, 1)
 
 
 def run_seconds(plan: RunPlan) -> tuple[float | None, str]:
     """The estimated run time [s] of ``plan`` on this machine, without its compile (None: no
-    estimate), and how it was made: a timed sample once the kernels are compiled, else the
-    kind's stored rate."""
+    estimate), and how it was made: a timed sample once the kernels are compiled (the
+    evaluation, the output's compression shared by the cores, and :data:`RUN_OVERHEAD`), else
+    the kind's stored rate."""
     if compile_seconds(plan) == 0.0:
-        rate, n = measured_rate(plan)
-        return plan.size / rate, f"on {os.cpu_count()} cores, from a timed sample of {n} points"
+        rate, n, values = measured_rate(plan)
+        cores = max(os.cpu_count() or 1, 1)
+        deflate = estimate_bytes(plan) * deflate_seconds_per_byte(values) / cores
+        seconds = RUN_OVERHEAD + plan.size / rate + deflate
+        return seconds, f"on {cores} cores, from a timed sample of {n:,} points"
     rate = STORED_RATES.get(plan.map_kind)
     if rate is None:
         return None, "once the kernels are compiled (a fate map's time depends on its orbits)"
-    return plan.size / rate, "on 2 cores, at a stored rate (measured once the kernels are compiled)"
+    seconds = RUN_OVERHEAD + plan.size / rate
+    return seconds, "on 2 cores, at a stored rate (measured once the kernels are compiled)"
 
 
 def energy_warning(plan: RunPlan) -> str | None:
