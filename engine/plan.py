@@ -16,7 +16,7 @@ import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -34,8 +34,8 @@ from .checks import (
     check_rtol,
     check_scene,
 )
-from .fates import Horizon
 from .grid import BLOCK_POINTS
+from .horizon import Horizon
 from .io.codecs import DEFAULT_COMPRESSION
 from .io.formats import OutputFormat, format_for
 from .kernels.geometry import CIRCULAR_TOL
@@ -46,8 +46,6 @@ from .schema import DIMS, map_kind, result_variables, survey_attrs
 #: The title of a survey's results when none is given (a survey file's default too).
 DEFAULT_TITLE = "conesurvey survey"
 
-if TYPE_CHECKING:
-    from .surveyfile import Survey
 
 __all__ = [
     "MapPlan",
@@ -259,6 +257,14 @@ def plan_with_output(
     points = check_block_points(points, plan.shape)
     output = OutputPlan(path, fmt, compression, complevel, plan.output.precision, points)
     return dataclasses.replace(plan, output=output)
+
+
+class Survey(Protocol):
+    """What :func:`plan_from_survey` takes: a survey file's definition
+    (:class:`engine.surveydef.Survey`), whose plan was checked when the file was read."""
+
+    @property
+    def plan(self) -> RunPlan: ...
 
 
 def plan_from_survey(

@@ -24,7 +24,7 @@ from .kernels.protocol import EVENT_NAMES, STATUS_FLAGS
 from .methods import METHODS, get_method
 
 if TYPE_CHECKING:
-    from .fates import Horizon
+    from .horizon import Horizon
     from .scene import Scene
 
 __all__ = ["DIMS", "LAUNCH_DIMS", "GRID_DIMS", "RELEASE", "FINGERPRINT_ATTR", "Variable", "AXES",

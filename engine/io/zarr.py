@@ -51,7 +51,7 @@ from .zarrstore import RunStore, parts_state
 if TYPE_CHECKING:
     import xarray as xr
 
-    from ..plan import RunPlan
+    from .planshape import RunPlan
 
 __all__ = [
     "SUFFIX",
