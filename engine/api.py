@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from .checks import check_numbers, check_values
+from .checks import check_numbers, check_release, check_scene, check_values
 from .evaluation import bad_inputs, evaluate_block, evaluate_flat
 from .families import family_values, minimum_energy_flat
 from .grid import BLOCK_POINTS, Tiling
@@ -139,7 +139,7 @@ def _checked_points(names: list[str], arrays: list[np.ndarray]) -> list[np.ndarr
 
 def minimum_energy(alpha: Any, h: Any, Lz: Any, scene: Scene | None = None) -> np.ndarray:
     """V_min [J] of the effective potential at (alpha, h, Lz); NaN where V has no minimum."""
-    scene = Scene() if scene is None else scene
+    scene = check_scene(scene)
     for name, value in (("alpha", alpha), ("h", h), ("Lz", Lz)):
         check_numbers(name, value)
     views = np.broadcast_arrays(*[np.asarray(v, np.float64) for v in (alpha, h, Lz)])
@@ -152,7 +152,7 @@ def minimum_energy(alpha: Any, h: Any, Lz: Any, scene: Scene | None = None) -> n
 def radial_energy(E: Any, h: Any, scene: Scene | None = None) -> Any:
     """Radial energy calE [J] = E/(1+k) - k M h^2 / (2(1+k)) from the total energy E [J]
     (numbers or arrays)."""
-    s = Scene() if scene is None else scene
+    s = check_scene(scene)
     return _radial_energy.py_func(E, h, s.M, s.k)
 
 
@@ -224,19 +224,13 @@ def launch_survey(
     length-1 axis, and the invariants are those of the rolling orbit through the launch point
     with its radial speed. Without ``mu_k`` they must be 0 (a ValueError names the one that is
     not)."""
-    scene = Scene() if scene is None else scene
+    scene = check_scene(scene)
     dims = launch_dims(scene)
     values = dict(alpha=alpha, r0=r0, v0=v0, w0=w0)
     release = {"u0": u0, "slip_u": slip_u, "slip_v": slip_v}
     if len(dims) == 4:  # a scene on which every launch rolls (no mu_k)
         for name, value in release.items():
-            arr = np.atleast_1d(check_numbers(name, value)).astype(np.float64)
-            if np.any(arr != 0.0):
-                raise ValueError(
-                    f"{name} = {value!r}: a launch with a radial speed or a slip velocity needs "
-                    "Scene.mu_k (kinetic friction: the sliding model); without it every launch "
-                    "rolls from rest radially"
-                )
+            check_release(name, check_numbers(name, value), scene)
     else:
         values.update(release)
     plan = survey_plan(

@@ -28,6 +28,7 @@ from .checks import (
     check_circular_tol,
     check_energy_relative,
     check_horizon,
+    check_launch_axes,
     check_method,
     check_output,
     check_precision,
@@ -210,6 +211,7 @@ def survey_plan(
     path, fmt, compression, complevel = check_output(out, compression, complevel, output_format)
     check_block_points(block_points)
     axes = check_axes(tuple(dims), values)
+    check_launch_axes(tuple(dims), axes, mp.scene)
     block_points = check_block_points(block_points, tuple(a.size for a in axes))
     output = OutputPlan(path, fmt, compression, complevel, precision, block_points)
     return grid_plan(mp, tuple(dims), axes, energy_relative=energy_relative, output=output,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from numbers import Real
 from typing import Any
 
 import numpy as np
@@ -10,6 +11,17 @@ import xarray as xr
 
 from ._jit import call_specialized
 from ._version import __version__
+from .checks import (
+    PlanError,
+    check_launch,
+    check_max_steps,
+    check_method,
+    check_number,
+    check_positive,
+    check_release,
+    check_rtol,
+    check_scene,
+)
 from .kernels.fate import REST_SPEED
 from .kernels.geometry import BOUNDED, CIRCULAR, CIRCULAR_TOL, CLASS_NAMES, HYPERBOLIC, ideal_orbit
 from .kernels.model import (
@@ -34,7 +46,7 @@ from .kernels.protocol import (
 )
 from .kernels.roots import free_fall_r_min
 from .kernels.trajectory import solve_restarting
-from .methods import DEFAULT_RTOL, check_method, check_rtol
+from .methods import DEFAULT_RTOL
 from .scene import Scene
 from .schema import TRAJECTORY, effect_variables
 from .simulate_hybrid import hybrid_trajectory
@@ -43,16 +55,6 @@ __all__ = ["simulate", "DEFAULT_MAX_STEPS"]
 
 #: Step budget of one simulation (a guard against runaway runs, not a tuning knob).
 DEFAULT_MAX_STEPS = 100_000_000
-
-
-def _real(name: str, value: Any) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a real number; got {value!r}") from None
-    if not math.isfinite(v):
-        raise ValueError(f"{name} must be finite; got {value!r}")
-    return v
 
 
 def _capacities(alpha, energy, h, Lz, scene, t_end, periods, dt_out) -> tuple[int, int]:
@@ -163,44 +165,36 @@ def simulate(
     ------
     ValueError for invalid arguments or an orbit that cannot start at r_min.
     """
-    scene = Scene() if scene is None else scene
-    if not isinstance(scene, Scene):
-        raise ValueError(f"scene must be an engine.Scene; got {scene!r}")
-    alpha = _real("alpha", alpha)
-    if not 0.0 < alpha < math.pi / 2:
-        raise ValueError(f"alpha must lie in the open interval (0, pi/2); got {alpha!r}")
-    energy = _real("energy", energy)
-    h = _real("h", h)
-    Lz = _real("Lz", Lz)
+    scene = check_scene(scene)
+    point = {"alpha": alpha, "energy": energy, "h": h, "Lz": Lz}
+    alpha, energy, h, Lz = (check_number(n, x) for n, x in point.items())
     if Lz == 0.0:
-        raise ValueError("Lz must be nonzero (Lz=0.0 is a radial orbit through the axis)")
+        raise PlanError("Lz", "must be nonzero (a radial orbit through the axis)", Lz)
     m = check_method(method, scene, integrator=True)
-    rtol = check_rtol(rtol)
+    rtol = check_rtol(rtol, m)
     if (t_end is None) == (periods is None):
         raise ValueError(f"give exactly one of t_end and periods; got t_end={t_end!r}, "
                          f"periods={periods!r}")  # fmt: skip
     if t_end is not None:
-        t_end = _real("t_end", t_end)
-        if not t_end > 0.0:
-            raise ValueError(f"t_end must be > 0; got {t_end!r}")
+        t_end = check_positive("t_end", t_end)
     n_apsides = 0
     if periods is not None:
-        if isinstance(periods, bool) or not float(periods).is_integer() or periods < 1:
-            raise ValueError(f"periods must be a positive integer; got {periods!r}")
+        if (
+            isinstance(periods, bool)
+            or not isinstance(periods, Real)
+            or not (float(periods).is_integer() and periods >= 1)
+        ):
+            raise PlanError("periods", "must be a positive integer", periods)
         n_apsides = 2 * int(periods)
     if dt_out is not None:
-        dt_out = _real("dt_out", dt_out)
-        if not dt_out > 0.0:
-            raise ValueError(f"dt_out must be > 0; got {dt_out!r}")
-    if int(max_steps) < 1:
-        raise ValueError(f"max_steps must be >= 1; got {max_steps!r}")
-    launch = {n: _real(n, x) for n, x in (("u0", u0), ("slip_u", slip_u), ("slip_v", slip_v))}
-    if scene.mu_k is None:
-        moving = [f"{n}={x!r}" for n, x in launch.items() if x != 0.0]
-        if moving:
-            raise ValueError(f"{', '.join(moving)}: a launch that slides or moves radially "
-                             "needs kinetic friction, Scene.mu_k")  # fmt: skip
-    elif periods is not None:
+        dt_out = check_positive("dt_out", dt_out)
+    max_steps = check_max_steps(max_steps)
+    release = {"u0": u0, "slip_u": slip_u, "slip_v": slip_v}
+    launch = {n: check_number(n, x) for n, x in release.items()}
+    for name, value in launch.items():
+        check_release(name, value, scene)
+    check_launch(launch, scene)  # their energies within the run's range
+    if scene.mu_k is not None and periods is not None:
         raise ValueError(f"periods={periods!r}: a scene with mu_k (sliding) has no radial "
                          "period to count; give t_end instead")  # fmt: skip
 
