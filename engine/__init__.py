@@ -18,12 +18,23 @@ from ._version import __version__
 from .accuracy import work_precision
 from .api import evaluate, launch_survey, minimum_energy, radial_energy, survey
 from .fates import Horizon
+from .io.results import read_plans_with
 from .kernels.fate import FATE_NAMES
 from .kernels.geometry import CLASS_NAMES
 from .launch import invariants, launch_state
 from .methods import METHODS
+from .plan import RunPlan
 from .scene import Scene
 from .simulate import simulate  # binds the function over the submodule's name
+from .surveyfile import parse_survey as _parse_survey
+
+
+def _plan_of_text(text: str, origin: str) -> RunPlan:
+    """The plan of a survey definition's TOML text (an unfinished run's, which io/ opens)."""
+    return _parse_survey(text, origin=origin).plan
+
+
+read_plans_with(_plan_of_text)  # io/ reads unfinished runs without importing the layers above
 
 __all__ = [
     "Scene",

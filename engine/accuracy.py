@@ -41,8 +41,9 @@ import numpy as np
 import xarray as xr
 
 from .api import minimum_energy
+from .checks import check_rtol
 from .evaluation import evaluate_block
-from .methods import METHODS, check_rtol
+from .methods import METHODS
 from .plan import RunPlan, grid_plan, map_plan
 from .schema import FATE_KINDS, flag_table
 from .simulate import simulate
@@ -295,7 +296,7 @@ def _checked_rtols(rtols: Any) -> tuple[float, ...]:
     out = []
     for r in values:
         try:
-            out.append(check_rtol(r))
+            out.append(check_rtol(r, METHODS["dop853"]))  # an integrator's range
         except ValueError as exc:
             raise ValueError(f"rtols: {exc}") from None
     return tuple(sorted(set(out), reverse=True))

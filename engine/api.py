@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from .checks import PlanError, check_numbers, check_surface, check_values
+from .checks import PlanError, check_numbers, check_release, check_scene, check_surface, check_values
 from .evaluation import bad_inputs, evaluate_block, evaluate_flat
 from .families import family_values, minimum_energy_flat
 from .grid import BLOCK_POINTS, Tiling
@@ -141,7 +141,7 @@ def _checked_points(names: list[str], arrays: list[np.ndarray]) -> list[np.ndarr
 
 def minimum_energy(alpha: Any, h: Any, Lz: Any, scene: Scene | None = None) -> np.ndarray:
     """V_min [J] of the effective potential at (alpha, h, Lz); NaN where V has no minimum."""
-    scene = Scene() if scene is None else scene
+    scene = check_scene(scene)
     for name, value in (("alpha", alpha), ("h", h), ("Lz", Lz)):
         check_numbers(name, value)
     views = np.broadcast_arrays(*[np.asarray(v, np.float64) for v in (alpha, h, Lz)])
@@ -154,7 +154,7 @@ def minimum_energy(alpha: Any, h: Any, Lz: Any, scene: Scene | None = None) -> n
 def radial_energy(E: Any, h: Any, scene: Scene | None = None) -> Any:
     """Radial energy calE [J] = E/(1+k) - k M h^2 / (2(1+k)) from the total energy E [J]
     (numbers or arrays)."""
-    s = Scene() if scene is None else scene
+    s = check_scene(scene)
     return _radial_energy.py_func(E, h, s.M, s.k)
 
 
@@ -242,7 +242,7 @@ def launch_survey(
     values). Dims (the swept parameters, rho0 or z0, v0, w0); the exact map is Routh's
     reduction (docs/physics.md "Any surface of revolution"), the integrators rk45 and dop853
     serve it too."""
-    scene = Scene() if scene is None else scene
+    scene = check_scene(scene)
     if surface is not None or rho0 is not None or z0 is not None:
         return _surface_survey(
             surface, dict(alpha=alpha, r0=r0), dict(rho0=rho0, z0=z0, v0=v0, w0=w0),
@@ -260,13 +260,7 @@ def launch_survey(
     fixed: dict[str, Any] = {}
     if "sliding" not in scene.effects:  # a scene on which every launch rolls (no mu_k)
         for name, value in release.items():
-            arr = np.atleast_1d(check_numbers(name, value)).astype(np.float64)
-            if np.any(arr != 0.0):
-                raise ValueError(
-                    f"{name} = {value!r}: a launch with a radial speed or a slip velocity needs "
-                    "Scene.mu_k (kinetic friction: the sliding model); without it every launch "
-                    "rolls from rest radially"
-                )
+            check_release(name, check_numbers(name, value), scene)
     else:
         values.update({n: release[n] for n in dims[4:]})
         fixed = {n: v for n, v in release.items() if n not in dims}

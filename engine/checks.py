@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from .bounds import check_launch, launch_extremes
 from .errortext import PlanError, real_value, suggest
 from .grid import MAX_BLOCKS, Tiling, grid_too_large
 from .horizon import Horizon
@@ -30,9 +31,9 @@ from .scene import Scene
 from .schema import AXES, FATE_KINDS, GRID_DIMS, is_surface_grid
 from .surfaces import Surface
 
-#: Axes whose values must be > 0: the cone's launch radius, a surface's launch distance and
-#: its parameters.
-POSITIVE_AXES = ("r0", "rho0", "radius", "scale", "hole", "n")
+#: Inputs whose values must be > 0: the cone's launch radius (a state's r), a surface's
+#: launch distance and its parameters.
+POSITIVE_AXES = ("r0", "r", "rho0", "radius", "scale", "hole", "n")
 
 __all__ = [
     "PlanError",
@@ -44,8 +45,15 @@ __all__ = [
     "check_energy_relative",
     "check_horizon",
     "HORIZON_HINT",
+    "check_launch",
+    "check_launch_axes",
+    "check_launch_values",
+    "check_max_steps",
     "check_method",
+    "check_number",
     "check_numbers",
+    "check_positive",
+    "check_release",
     "check_output",
     "check_precision",
     "check_rtol",
@@ -59,12 +67,20 @@ PRECISIONS = ("double", "single")
 # --- one validating function per input ------------------------------------------------------
 
 
-def check_scene(scene: Any) -> Scene:
-    """The scene (None: the default :class:`Scene`); every effect of a Scene has a survey map."""
+def check_scene(scene: Any, *, sliding: bool = False) -> Scene:
+    """The scene (None: the default :class:`Scene`); every effect of a Scene has a survey map.
+    ``sliding``: where a launch is followed through its modes (``engine.story``), which needs
+    kinetic friction."""
     if scene is None:
-        return Scene()
+        scene = Scene()
     if not isinstance(scene, Scene):
         raise PlanError("scene", "must be an engine.Scene", scene)
+    if sliding and scene.mu_k is None:
+        raise PlanError(
+            "scene",
+            "needs kinetic friction, Scene.mu_k: a launch's story follows it through its modes "
+            "(sliding, rolling again); engine.simulate follows a rolling one",
+        )
     return scene
 
 
@@ -97,15 +113,19 @@ def check_surface_method(method: Method, scene: Scene) -> None:
         raise PlanError("method", str(exc), method.name, whole=True) from None
 
 
-def check_method(name: Any, scene: Scene) -> Method:
+def check_method(name: Any, scene: Scene, *, integrator: bool = False) -> Method:
     """The registered method ``name`` if it honours every effect of ``scene`` (a misspelt
-    name gets a did-you-mean)."""
+    name gets a did-you-mean, from every method whatever the entry point); ``integrator``:
+    where only an integrator can do (a trajectory, a story, a fate map's kernels)."""
     if not isinstance(name, str):
         raise PlanError("method", "must be a string, one of " + ", ".join(METHODS), name)
     if name not in METHODS:
         hint = suggest(name, tuple(METHODS))  # "; did you mean 'rk45'?" or the list again
         close = f" ({hint[2:]})" if hint.startswith("; did you mean") else ""
         raise PlanError("method", "must be one of " + ", ".join(METHODS) + close, name)
+    if integrator and not METHODS[name].integrates:
+        able = ", ".join(m.name for m in METHODS.values() if m.integrates)
+        raise PlanError("method", f"must be an integrator, one of {able}", name)
     try:
         return _registry_check_method(name, scene)
     except ValueError as exc:  # "method 'exact' cannot honour ..."
@@ -158,6 +178,37 @@ def check_horizon(
     return given if given.given else None
 
 
+def check_max_steps(value: Any) -> int:
+    """A step budget: an integer >= 1 (not a boolean, not a float)."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, Integral) or value < 1:
+        raise PlanError("max_steps", "must be a positive integer", value)
+    return int(value)
+
+
+def check_positive(name: str, value: Any) -> float:
+    """A duration or a spacing (``t_end``, ``dt_out``): a finite number > 0."""
+    v = real_value(name, value)
+    if not v > 0.0:
+        raise PlanError(name, "must be > 0", value)
+    if not math.isfinite(v):
+        raise PlanError(name, "must be finite", value)
+    return v
+
+
+def check_release(name: str, value: Any, scene: Scene) -> None:
+    """A launch's radial speed or slip velocity (``u0``, ``slip_u``, ``slip_v``: numbers or
+    arrays, checked numbers): nonzero only on a scene with kinetic friction."""
+    arr = np.asarray(value, np.float64)
+    if scene.mu_k is None and np.any(arr != 0.0):
+        raise PlanError(
+            name,
+            "must be 0 without Scene.mu_k: a launch with a radial speed or a slip velocity "
+            "needs kinetic friction (the sliding model); without it every launch rolls from "
+            "rest radially",
+            float(arr[arr != 0.0].flat[0]),
+        )
+
+
 def check_energy_relative(value: Any) -> bool:
     """``value`` if it is True or False (``"no"`` is not false)."""
     if not isinstance(value, bool | np.bool_):
@@ -200,7 +251,7 @@ def axis_problem(name: str, x: float) -> str:
     if name == "alpha" and not 0.0 < x < math.pi / 2:
         return "must lie in the open interval (0, pi/2) [radian]"
     if name in POSITIVE_AXES and not x > 0.0:
-        return f"must be > 0 [{AXES[name].units}]"
+        return f"must be > 0 [{AXES[name].units if name in AXES else 'm'}]"
     return ""
 
 
@@ -226,10 +277,48 @@ def check_numbers(name: str, value: Any) -> np.ndarray:
             raise PlanError(name, "must hold real numbers", bad[0])
     elif kind not in "iuf":
         what = {"b": "booleans", "U": "text", "S": "bytes", "c": "complex numbers"}
-        first = arr.flat[0] if arr.size else arr
+        first = arr.flat[0].item() if arr.size else arr
         raise PlanError(name, f"must hold real numbers, not {what.get(kind, arr.dtype.name)}",
                         first)  # fmt: skip
     return np.asarray(arr, np.float64)
+
+
+def check_number(name: str, value: Any) -> float:
+    """One number of a single run (``engine.simulate``'s alpha, energy, h, Lz): what
+    :func:`check_numbers` and :func:`check_values` ask of an axis's values, and a scalar."""
+    arr = check_numbers(name, value)
+    if arr.ndim:
+        raise PlanError(name, f"must be one number, not an array of shape {arr.shape}")
+    check_values(name, arr)
+    return float(arr)
+
+
+def check_launch_values(values: dict[str, Any], scene: Scene) -> list[np.ndarray]:
+    """The launch states of ``engine.story`` and ``launch_fates`` (``values``: field -> a
+    number or an array; numpy broadcasting): each value checked as a launch axis's
+    (:func:`check_values`), the release by :func:`check_release`, then the launch's numbers
+    within the bounds of :func:`engine.bounds.check_launch`. Returns the float64 arrays."""
+    arrays = []
+    for name, value in values.items():
+        arr = check_numbers(name, value)
+        check_values(name, arr)
+        if name in ("u0", "slip_u", "slip_v"):
+            check_release(name, arr, scene)
+        arrays.append(arr)
+    try:
+        np.broadcast_shapes(*(a.shape for a in arrays))
+    except ValueError:
+        shapes = ", ".join(f"{n} {a.shape}" for n, a in zip(values, arrays, strict=True))
+        raise PlanError("launch", f"arrays do not broadcast together: {shapes}") from None
+    check_launch(dict(zip(values, arrays, strict=True)), scene)
+    return arrays
+
+
+def check_launch_axes(dims: tuple[str, ...], axes: tuple[np.ndarray, ...], scene: Scene) -> None:
+    """A launch grid's axes (each value checked already) within the bounds of
+    :func:`engine.bounds.check_launch`, at the grid's corners; an invariant grid passes."""
+    if "r0" in dims:
+        check_launch(launch_extremes(dims, axes), scene)
 
 
 def check_values(name: str, values: np.ndarray) -> None:
@@ -239,7 +328,7 @@ def check_values(name: str, values: np.ndarray) -> None:
     bad = ~np.isfinite(v)
     if name == "alpha":
         bad |= ~((v > 0.0) & (v < math.pi / 2))
-    elif name == "r0":
+    elif name in POSITIVE_AXES:
         bad |= ~(v > 0.0)
     if bad.any():
         x = float(v[bad].flat[0])

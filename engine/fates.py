@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from .checks import check_horizon
+from .checks import check_horizon, check_max_steps, check_method, check_rtol, check_scene
 from .horizon import Horizon
 from .hybrid import HYBRID_VARIABLES, hybrid_fates
 from .integrated import fate_points
@@ -16,7 +16,7 @@ from .kernels.effects import REVOLUTIONS
 from .kernels.fate import FATE_ROWS
 from .kernels.geometry import BOUNDED, CIRCULAR, HYPERBOLIC, RADIAL
 from .kernels.layouts import P_THETA_MAX
-from .methods import Method, check_method
+from .methods import Method
 from .scene import Scene
 from .schema import FATE_KINDS
 
@@ -60,9 +60,11 @@ def fates(
     slip_v) [m/s] the radial speed and slip velocity at the start (None: rolling at rest
     radially), ``energy`` the rolling orbit's calE through the start with that radial speed.
     """
+    scene = check_scene(scene)
     m = check_method(method, scene, integrator=True)
-    return fate_map(alpha, energy, h, Lz, r_start, scene, m, float(rtol), require_horizon(horizon),
-                    classes=classes, max_steps=max_steps, release=release)  # fmt: skip
+    return fate_map(alpha, energy, h, Lz, r_start, scene, m, check_rtol(rtol, m),
+                    require_horizon(horizon), classes=classes,
+                    max_steps=check_max_steps(max_steps), release=release)  # fmt: skip
 
 
 def fate_map(

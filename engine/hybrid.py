@@ -14,6 +14,7 @@ import numba
 import numpy as np
 
 from ._jit import call_specialized
+from .checks import check_method, check_scene
 from .kernels.effects import REVOLUTIONS, ROLLING_EFFECTS
 from .kernels.hybrid import (
     HYBRID_ROWS,
@@ -21,7 +22,6 @@ from .kernels.hybrid import (
 )
 from .kernels.lanes_hybrid import hybrid_fate_points_lanes
 from .kernels.layouts import P_THETA_MAX
-from .methods import check_method
 from .scene import Scene
 
 __all__ = ["HYBRID_VARIABLES", "HYBRID_STATE", "hybrid_fates", "hybrid_setup"]
@@ -38,8 +38,7 @@ MAX_STEPS = 10_000_000
 def hybrid_setup(scene: Scene, theta_max: float) -> tuple[np.ndarray, int, int]:
     """(params, the rolling scene's literal effects, the spin literal) of a hybrid run of
     ``scene`` with the horizon ``theta_max`` [rad] (inf: none)."""
-    if scene.mu_k is None:
-        raise ValueError("a hybrid fate map needs Scene.mu_k (kinetic friction)")
+    check_scene(scene, sliding=True)
     params = scene.params()
     params[P_THETA_MAX] = theta_max
     effects = (scene.effects_mask & ROLLING_EFFECTS) | (

@@ -19,13 +19,14 @@ import numba
 import numpy as np
 
 from ._jit import call_specialized
+from .checks import check_max_steps, check_method, check_rtol, check_scene
 from .kernels.fate import fate_points as _fate_points_kernel
 from .kernels.lanes import integrate_points_lanes as _lanes_kernel
 from .kernels.lanes_fate import fate_points_lanes as _fate_lanes_kernel
 from .kernels.orbit import PERIOD_ROWS
 from .kernels.orbit import integrate_points as _integrate_points_kernel
 from .kernels.protocol import STATUS_MESSAGES, UNSUPPORTED
-from .methods import DEFAULT_RTOL, METHODS, Method, check_method, check_rtol
+from .methods import DEFAULT_RTOL, METHODS, Method
 from .scene import Scene
 from .schema import period_variables
 
@@ -177,9 +178,10 @@ def evaluate_integrated(
     discontinuously at zero speed).
     """
     # a (method, scene) checked once; an unhashable method name goes to the check's message
+    scene = check_scene(scene)
     m = (_checked_method(method, scene) if isinstance(method, str)
          else check_method(method, scene, integrator=True))  # fmt: skip
-    r = check_rtol(rtol)
+    r = check_rtol(rtol, m)
     arrays = []
     for name, arr in (("alpha", alpha), ("energy", energy), ("h", h), ("Lz", Lz)):
         a = np.ascontiguousarray(arr, dtype=np.float64)
@@ -190,9 +192,7 @@ def evaluate_integrated(
     for name, a in zip(("energy", "h", "Lz"), arrays[1:], strict=True):
         if a.shape[0] != n:
             raise ValueError(f"{name} has length {a.shape[0]}, alpha has {n}")
-    if int(max_steps) < 1:
-        raise ValueError(f"max_steps must be >= 1; got {max_steps!r}")
-    return integrate_period(*arrays, scene, m, r, int(max_steps))
+    return integrate_period(*arrays, scene, m, r, check_max_steps(max_steps))
 
 
 def integrate_period(

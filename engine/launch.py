@@ -8,11 +8,11 @@ its inverse where it exists (the orbit reaches the radius r).
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 
+from .checks import check_numbers, check_scene, check_values
 from .kernels.cone import coefficients_sc, invariants_of, radial_energy
 from .scene import Scene
 
@@ -20,25 +20,15 @@ __all__ = ["invariants", "launch_state"]
 
 
 def _arrays(names: tuple[str, ...], values: tuple[Any, ...]) -> list[np.ndarray]:
+    """The inputs as float64 arrays broadcast together, each checked as a map's axis is
+    (:func:`engine.checks.check_numbers`, :func:`engine.checks.check_values`: numbers, finite,
+    alpha in (0, pi/2), r > 0)."""
     out = []
     for name, value in zip(names, values, strict=True):
-        if isinstance(value, bool | str) or np.ma.isMaskedArray(value):
-            raise ValueError(f"{name} must be a number or an array of numbers; got {value!r}")
-        arr = np.asarray(value, dtype=np.float64)
-        bad = ~np.isfinite(arr)
-        if bad.any():
-            raise ValueError(f"{name} must be finite; got {arr[bad].flat[0]!r}")
+        arr = check_numbers(name, value)
+        check_values(name, arr)
         out.append(arr)
     return [np.array(a) for a in np.broadcast_arrays(*out)]  # copies: numba warns on views
-
-
-def _check_cone(alpha: np.ndarray, r: np.ndarray) -> None:
-    if ((alpha <= 0.0) | (alpha >= math.pi / 2)).any():
-        bad = alpha[(alpha <= 0.0) | (alpha >= math.pi / 2)].flat[0]
-        raise ValueError(f"alpha must lie in the open interval (0, pi/2); got {bad!r}")
-    if (r <= 0.0).any():
-        raise ValueError(f"r must be > 0 (the distance of the centre from its vertex); got "
-                         f"{r[r <= 0.0].flat[0]!r}")  # fmt: skip
 
 
 def invariants(
@@ -48,9 +38,8 @@ def invariants(
     [m/s]) on a cone of half-aperture ``alpha`` [rad]: a dict of arrays (numpy broadcasting)
     ``E`` (total energy [J]), ``energy`` (radial energy calE [J], the maps' energy axis), ``h``
     [m/s] and ``Lz`` [kg m^2/s] (docs/physics.md "Invariants")."""
-    s = Scene() if scene is None else scene
+    s = check_scene(scene)
     a, rr, uu, vv, ww = _arrays(("alpha", "r", "u", "v", "w"), (alpha, r, u, v, w))
-    _check_cone(a, rr)
     E, Lz, h = invariants_of.py_func(rr, uu, vv, ww, np.sin(a), np.cos(a), s.M, s.g, s.k)
     return {"E": E, "energy": radial_energy.py_func(E, h, s.M, s.k), "h": h, "Lz": Lz}
 
@@ -69,12 +58,11 @@ def launch_state(
     h [m/s], L_z [kg m^2/s]) on a cone of half-aperture ``alpha``: the inverse of
     :func:`invariants`. u >= 0 if ``outward``, else <= 0; NaN where the orbit does not reach r
     (calE < V(r)). Returns a dict of arrays ``u``, ``v``, ``w`` (numpy broadcasting)."""
-    s = Scene() if scene is None else scene
+    s = check_scene(scene)
     if not isinstance(outward, bool):
         raise ValueError(f"outward must be true or false; got {outward!r}")
     names = ("alpha", "energy", "h", "Lz", "r")
     a, e, hh, lz, rr = _arrays(names, (alpha, energy, h, Lz, r))
-    _check_cone(a, rr)
     sn, c = np.sin(a), np.cos(a)
     A, B, C = coefficients_sc.py_func(sn, c, hh, lz, s.M, s.g, s.k)
     ke = e - (A / (rr * rr) + B / rr + C * rr)

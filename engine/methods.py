@@ -12,7 +12,6 @@ tableaux is a new method with no other change.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -33,12 +32,10 @@ __all__ = [
     "DEFAULT_RTOL",
     "get_method",
     "check_method",
-    "check_rtol",
 ]
 
 #: Relative tolerances the integrators accept (tighter is below rounding; looser is not a map).
 RTOL_RANGE = (1e-14, 1e-3)
-_RTOL_TEXT = "[1e-14, 1e-3]"
 DEFAULT_RTOL = 1e-10
 
 
@@ -229,17 +226,3 @@ def check_method(name: Any, scene: Scene, *, integrator: bool = False) -> Method
             f"methods that can: {', '.join(able)}"
         )
     return method
-
-
-def check_rtol(rtol: Any) -> float:
-    """rtol as a float in :data:`RTOL_RANGE`; ValueError otherwise."""
-    if isinstance(rtol, bool | str):
-        raise ValueError(f"rtol must be a number; got {rtol!r}")
-    try:
-        r = float(rtol)
-    except (TypeError, ValueError):
-        raise ValueError(f"rtol must be a number; got {rtol!r}") from None
-    lo, hi = RTOL_RANGE
-    if not (lo <= r <= hi) or math.isnan(r):
-        raise ValueError(f"rtol must lie in {_RTOL_TEXT}; got {rtol!r}")
-    return r

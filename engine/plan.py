@@ -16,7 +16,7 @@ import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -28,6 +28,7 @@ from .checks import (
     check_circular_tol,
     check_energy_relative,
     check_horizon,
+    check_launch_axes,
     check_method,
     check_numbers,
     check_output,
@@ -39,8 +40,8 @@ from .checks import (
     check_surface_method,
     check_values,
 )
-from .fates import Horizon
 from .grid import BLOCK_POINTS
+from .horizon import Horizon
 from .io.codecs import DEFAULT_COMPRESSION
 from .io.formats import OutputFormat, format_for
 from .kernels.geometry import CIRCULAR_TOL
@@ -53,7 +54,6 @@ DEFAULT_TITLE = "conesurvey survey"
 
 if TYPE_CHECKING:
     from .surfaces import Surface
-    from .surveyfile import Survey
 
 __all__ = [
     "MapPlan",
@@ -244,6 +244,7 @@ def survey_plan(
     check_block_points(block_points)
     axes = check_axes(tuple(dims), values)
     fixed = tuple((name, _number(name, value)) for name, value in (release or {}).items())
+    check_launch_axes(tuple(dims), axes, mp.scene)
     block_points = check_block_points(block_points, tuple(a.size for a in axes))
     output = OutputPlan(path, fmt, compression, complevel, precision, block_points)
     return grid_plan(mp, tuple(dims), axes, energy_relative=energy_relative, output=output,
@@ -300,6 +301,14 @@ def plan_with_output(
     points = check_block_points(points, plan.shape)
     output = OutputPlan(path, fmt, compression, complevel, plan.output.precision, points)
     return dataclasses.replace(plan, output=output)
+
+
+class Survey(Protocol):
+    """What :func:`plan_from_survey` takes: a survey file's definition
+    (:class:`engine.surveydef.Survey`), whose plan was checked when the file was read."""
+
+    @property
+    def plan(self) -> RunPlan: ...
 
 
 def plan_from_survey(

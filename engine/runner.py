@@ -230,15 +230,12 @@ def run_survey(
         pending = [i for i in range(tiling.nblocks) if i not in done]
         if check_space:
             _check_space(out, run, tiling, pending)
-        if done and (resumed := getattr(progress, "resumed", None)) is not None:
-            kept = tiling.size - sum(tiling.points(i) for i in pending)
-            resumed(len(done), tiling.nblocks, kept, tiling.size)  # said before the compile
-        # Compile (or load from numba's cache) on one point of the grid before anything is
-        # written: the engine may still refuse the survey. This also warms the cache before
-        # dask workers start (concurrent first compiles race, numba#4807).
+        if done and (resumed := getattr(progress, "resumed", None)) is not None:  # said first
+            resumed(len(done), tiling.nblocks, sum(map(tiling.points, done)), tiling.size)
+        # Compile (or load) on one point before anything is written: the engine may still
+        # refuse the survey; dask workers then find the cache warm (numba#4807). OpenMP's
+        # threads sleep at a region's end, off the writer's cores (7 % less CPU on 2 cores).
         tc = time.perf_counter()
-        # OpenMP's threads spin at the end of a parallel region by default, on the cores the
-        # writer needs: passive, they sleep (7 % less CPU on 2 cores). Unless the user set it.
         os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
         compiling = getattr(progress, "compiling", quiet_compiles)  # `run -q`: no notice
         with compiling():  # a first run's compile is announced, not a silent wait

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from .bounds import BOUNDS_DOC, LIMIT, LIMIT_TEXT, scene_problem
 from .kernels.cone import set_alpha
 from .kernels.effects import EFFECTS, mask_of
 from .kernels.layouts import SLOTS
@@ -23,9 +24,13 @@ from .kernels.model import make_params
 __all__ = ["Scene"]
 
 
-def _check_positive(name: str, value: float, *, allow_zero: bool = False) -> float:
+def _check_positive(
+    name: str, value: float, *, allow_zero: bool = False, divides: bool = False
+) -> float:
     """``value`` as a float; ValueError naming the field unless it is a finite real number in
-    range. Booleans, strings and arrays are not numbers (``Scene(M=True)`` is refused)."""
+    range: >= 0 (> 0 unless ``allow_zero``) and within the bounds a run's arithmetic takes
+    (:func:`engine.bounds.scene_problem`; ``divides``: the run divides by it). Booleans,
+    strings and arrays are not numbers (``Scene(M=True)`` is refused)."""
     if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
         raise ValueError(f"Scene.{name} must be a real number, got {value!r}")
     try:
@@ -37,6 +42,8 @@ def _check_positive(name: str, value: float, *, allow_zero: bool = False) -> flo
     if v < 0 or (v == 0 and not allow_zero):
         bound = ">= 0" if allow_zero else "> 0"
         raise ValueError(f"Scene.{name} must be {bound}, got {value!r}")
+    if problem := scene_problem(v, divides=divides):
+        raise ValueError(f"Scene.{name} {problem}, got {value!r}")
     return v
 
 
@@ -85,10 +92,15 @@ class Scene:
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
-        set_(self, "M", _check_positive("M", self.M))
+        set_(self, "M", _check_positive("M", self.M, divides=True))
         set_(self, "g", _check_positive("g", self.g, allow_zero=True))
-        set_(self, "a", _check_positive("a", self.a))
+        set_(self, "a", _check_positive("a", self.a, divides=True))
         set_(self, "k", _check_positive("k", self.k, allow_zero=True))
+        if self.M * self.g > LIMIT:  # the weight: every normal force and potential energy
+            raise ValueError(
+                f"Scene.g makes the weight M g = {self.M * self.g:.3g} N: beyond the "
+                f"{LIMIT_TEXT} a run holds ({BOUNDS_DOC}), got {self.g!r}"
+            )
         for effect in EFFECTS:
             name = effect.scene_field
             value = getattr(self, name)

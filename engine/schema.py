@@ -39,7 +39,7 @@ from .variables import (
 )
 
 if TYPE_CHECKING:
-    from .fates import Horizon
+    from .horizon import Horizon
     from .scene import Scene
     from .surfaces import Surface
 

@@ -3,12 +3,25 @@
 from __future__ import annotations
 
 import math
+from numbers import Real
 from typing import Any
 
 import numpy as np
 import xarray as xr
 
 from ._version import __version__
+from .checks import (
+    PlanError,
+    check_launch,
+    check_max_steps,
+    check_method,
+    check_number,
+    check_positive,
+    check_release,
+    check_rtol,
+    check_scene,
+    check_surface,
+)
 from .kernels.cone import (
     coefficients,
     contact_forces_of,
@@ -30,7 +43,7 @@ from .kernels.protocol import (
     STATUS_MESSAGES,
 )
 from .kernels.roots import free_fall_r_min
-from .methods import DEFAULT_RTOL, MODEL_BY_NAME, check_method, check_model, check_rtol
+from .methods import DEFAULT_RTOL, MODEL_BY_NAME, check_model
 from .scene import Scene
 from .schema import TRAJECTORY, effect_variables
 from .simulate_hybrid import hybrid_trajectory
@@ -42,16 +55,6 @@ __all__ = ["simulate", "DEFAULT_MAX_STEPS"]
 
 #: Step budget of one simulation (a guard against runaway runs, not a tuning knob).
 DEFAULT_MAX_STEPS = 100_000_000
-
-
-def _real(name: str, value: Any) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a real number; got {value!r}") from None
-    if not math.isfinite(v):
-        raise ValueError(f"{name} must be finite; got {value!r}")
-    return v
 
 
 def _capacities(alpha, energy, h, Lz, scene, t_end, periods, dt_out) -> tuple[int, int]:
@@ -101,7 +104,7 @@ def _start_radius(alpha, energy, h, Lz, scene, p, periods):
 def _launch_radius(alpha, energy, h, Lz, scene, p, periods, r0):
     """(r0, r1, r2, rc, class name) of a start at the launch point ``r0``; ValueError if the
     orbit does not reach it or ``periods`` cannot be counted on it."""
-    r0 = _real("r0", r0)
+    r0 = check_number("r0", r0)
     cls = int(ideal_orbit(alpha, energy, h, Lz, scene.params(alpha), CIRCULAR_TOL)[0])
     ok, r1, r2, rc = orbit_start(p, energy, h, Lz)
     if cls == HYPERBOLIC:
@@ -200,56 +203,32 @@ def simulate(
     ------
     ValueError for invalid arguments or an orbit that cannot start at r_min.
     """
-    scene = Scene() if scene is None else scene
-    if not isinstance(scene, Scene):
-        raise ValueError(f"scene must be an engine.Scene; got {scene!r}")
+    scene = check_scene(scene)
     if surface is not None or rho0 is not None or z0 is not None:
         if r0 is not None:
-            raise ValueError(f"r0={r0!r} is a launch on the cone; on a surface give rho0 (or z0)")
+            raise PlanError("r0", "is a launch on the cone; on a surface give rho0 (or z0)", r0)
         return _on_surface(surface, dict(alpha=alpha, energy=energy, h=h, Lz=Lz),
                            dict(rho0=rho0, z0=z0, v0=v0, w0=w0, u0=u0), scene, method, rtol,
                            t_end, periods, dt_out, max_steps)  # fmt: skip
     for name, value in (("v0", v0), ("w0", w0)):
         if value is not None:
-            raise ValueError(f"{name}={value!r} is a launch on a surface: give surface= and rho0=")
+            raise PlanError(name, "is a launch on a surface: give surface= and rho0=", value)
     if alpha is None or energy is None or h is None or Lz is None:
         raise ValueError("give the orbit (alpha, energy, h, Lz), or a launch on a surface "
                          "(surface=, rho0=, v0=, w0=)")  # fmt: skip
-    alpha = _real("alpha", alpha)
-    if not 0.0 < alpha < math.pi / 2:
-        raise ValueError(f"alpha must lie in the open interval (0, pi/2); got {alpha!r}")
-    energy = _real("energy", energy)
-    h = _real("h", h)
-    Lz = _real("Lz", Lz)
+    point = {"alpha": alpha, "energy": energy, "h": h, "Lz": Lz}
+    alpha, energy, h, Lz = (check_number(n, x) for n, x in point.items())
     if Lz == 0.0:
-        raise ValueError("Lz must be nonzero (Lz=0.0 is a radial orbit through the axis)")
+        raise PlanError("Lz", "must be nonzero (a radial orbit through the axis)", Lz)
     m = check_method(method, scene, integrator=True)
-    rtol = check_rtol(rtol)
-    if (t_end is None) == (periods is None):
-        raise ValueError(f"give exactly one of t_end and periods; got t_end={t_end!r}, "
-                         f"periods={periods!r}")  # fmt: skip
-    if t_end is not None:
-        t_end = _real("t_end", t_end)
-        if not t_end > 0.0:
-            raise ValueError(f"t_end must be > 0; got {t_end!r}")
-    n_apsides = 0
-    if periods is not None:
-        if isinstance(periods, bool) or not float(periods).is_integer() or periods < 1:
-            raise ValueError(f"periods must be a positive integer; got {periods!r}")
-        n_apsides = 2 * int(periods)
-    if dt_out is not None:
-        dt_out = _real("dt_out", dt_out)
-        if not dt_out > 0.0:
-            raise ValueError(f"dt_out must be > 0; got {dt_out!r}")
-    if int(max_steps) < 1:
-        raise ValueError(f"max_steps must be >= 1; got {max_steps!r}")
-    launch = {n: _real(n, x) for n, x in (("u0", u0), ("slip_u", slip_u), ("slip_v", slip_v))}
-    if scene.mu_k is None:
-        moving = [f"{n}={x!r}" for n, x in launch.items() if x != 0.0]
-        if moving:
-            raise ValueError(f"{', '.join(moving)}: a launch that slides or moves radially "
-                             "needs kinetic friction, Scene.mu_k")  # fmt: skip
-    elif periods is not None:
+    rtol = check_rtol(rtol, m)
+    t_end, n_apsides, dt_out, max_steps = _span(t_end, periods, dt_out, max_steps)
+    release = {"u0": u0, "slip_u": slip_u, "slip_v": slip_v}
+    launch = {n: check_number(n, x) for n, x in release.items()}
+    for name, value in launch.items():
+        check_release(name, value, scene)
+    check_launch(launch, scene)  # their energies within the run's range
+    if scene.mu_k is not None and periods is not None:
         raise ValueError(f"periods={periods!r}: a scene with mu_k (sliding) has no radial "
                          "period to count; give t_end instead")  # fmt: skip
 
@@ -279,38 +258,53 @@ def simulate(
 def _on_surface(surface, orbit, launch, scene, method, rtol, t_end, periods, dt_out,
                 max_steps) -> xr.Dataset:  # fmt: skip
     """:func:`simulate` on a surface: its inputs checked, then :func:`simulate_surface`."""
-    if not isinstance(surface, Surface):
-        raise ValueError(f"surface must be a surface of engine.surfaces; got {surface!r}")
-    given = [f"{n}={v!r}" for n, v in orbit.items() if v is not None]
-    if given:
-        raise ValueError(f"{', '.join(given)}: on a surface the start is a launch "
-                         f"({surface.position}, v0, w0, u0)")  # fmt: skip
+    if surface is None:
+        raise PlanError("surface", "rho0 or z0 give a launch on a surface: name it "
+                        "(surface=engine.surfaces.Bowl(0.5), ...)")  # fmt: skip
+    surface = check_surface(surface)
+    for name, value in orbit.items():
+        if value is not None:
+            raise PlanError(name, "is the cone's orbit; on a surface the start is a launch "
+                            f"({surface.position}, v0, w0, u0)", value)  # fmt: skip
     other = "z0" if surface.position == "rho0" else "rho0"
     if launch[other] is not None:
-        raise ValueError(f"{other}={launch[other]!r}: the {surface.kind}'s launch position is "
-                         f"{surface.position}")  # fmt: skip
+        raise PlanError(other, f"the {surface.kind}'s launch position is {surface.position}",
+                        launch[other])  # fmt: skip
     values = {"position": launch[surface.position], "v0": launch["v0"], "w0": launch["w0"],
               "u0": launch["u0"]}  # fmt: skip
     for name, value in values.items():
+        field = surface.position if name == "position" else name
         if value is None:
-            raise ValueError(f"{surface.position if name == 'position' else name} is needed")
-        values[name] = _real(surface.position if name == "position" else name, value)
+            raise PlanError(field, "is needed: the launch on the surface")
+        values[name] = check_number(field, value)
     m = check_method(method, scene, integrator=True)
     check_model(m, MODEL_BY_NAME["surface"], scene)
-    rtol = check_rtol(rtol)
+    rtol = check_rtol(rtol, m)
+    t_end, n_apsides, dt_out, max_steps = _span(t_end, periods, dt_out, max_steps)
+    return simulate_surface(surface, values, scene, m, rtol, t_end, n_apsides, dt_out,
+                            max_steps)  # fmt: skip
+
+
+def _span(t_end, periods, dt_out, max_steps) -> tuple[float | None, int, float | None, int]:
+    """(t_end, apsides to stop at (0: none), dt_out, max_steps) of a trajectory, checked:
+    exactly one of t_end (> 0) and periods (a positive integer)."""
     if (t_end is None) == (periods is None):
         raise ValueError(f"give exactly one of t_end and periods; got t_end={t_end!r}, "
                          f"periods={periods!r}")  # fmt: skip
-    if t_end is not None and not _real("t_end", t_end) > 0.0:
-        raise ValueError(f"t_end must be > 0; got {t_end!r}")
-    if periods is not None and (isinstance(periods, bool) or not float(periods).is_integer()
-                                or periods < 1):  # fmt: skip
-        raise ValueError(f"periods must be a positive integer; got {periods!r}")
-    if dt_out is not None and not _real("dt_out", dt_out) > 0.0:
-        raise ValueError(f"dt_out must be > 0; got {dt_out!r}")
-    n_apsides = 0 if periods is None else 2 * int(periods)
-    return simulate_surface(surface, values, scene, m, rtol, t_end, n_apsides, dt_out,
-                            int(max_steps))  # fmt: skip
+    if t_end is not None:
+        t_end = check_positive("t_end", t_end)
+    n_apsides = 0
+    if periods is not None:
+        if (
+            isinstance(periods, bool)
+            or not isinstance(periods, Real)
+            or not (float(periods).is_integer() and periods >= 1)
+        ):
+            raise PlanError("periods", "must be a positive integer", periods)
+        n_apsides = 2 * int(periods)
+    if dt_out is not None:
+        dt_out = check_positive("dt_out", dt_out)
+    return t_end, n_apsides, dt_out, check_max_steps(max_steps)
 
 
 def _dataset(scene, effects, p, method, rtol, alpha, energy, h, Lz, cls_name, y0, status,

@@ -8,13 +8,13 @@ from typing import Any
 
 import numpy as np
 
+from .checks import check_launch_values, check_method, check_number, check_rtol, check_scene
 from .fates import Horizon, require_horizon
 from .hybrid import HYBRID_STATE, MAX_STEPS, hybrid_fates, hybrid_setup
 from .kernels.cone import set_alpha
 from .kernels.hybrid import HYBRID_FATE_NAMES, HYBRID_ROWS, hybrid_story
 from .kernels.hybrid_step import HYBRID_EVENT_NAMES
 from .launch import invariants
-from .methods import check_method, check_rtol
 from .scene import Scene
 
 __all__ = ["launch_fates", "story"]
@@ -46,14 +46,11 @@ def launch_fates(
     [m/s]. A ball thrown without spin has slip_u = u0 (and slip_v = v0); backspin makes slip_u
     larger. Returns the arrays of :func:`hybrid_fates`, shaped like the broadcast inputs, plus
     ``fate_name``."""
-    rtol = check_rtol(rtol)
+    scene = check_scene(scene, sliding=True)
+    rtol = check_rtol(rtol, check_method(method, scene, integrator=True))
     t_max, theta_max = _horizon(horizon_time, horizon_revolutions)
-    names = ("alpha", "r0", "v0", "w0", "u0", "slip_u", "slip_v")
-    arrs = np.broadcast_arrays(*[np.asarray(x, np.float64) for x in
-                                 (alpha, r0, v0, w0, u0, slip_u, slip_v)])  # fmt: skip
-    for name, a in zip(names, arrs, strict=True):
-        if not np.isfinite(a).all():
-            raise ValueError(f"{name} must be finite; got {a[~np.isfinite(a)].flat[0]!r}")
+    launch = dict(alpha=alpha, r0=r0, v0=v0, w0=w0, u0=u0, slip_u=slip_u, slip_v=slip_v)
+    arrs = np.broadcast_arrays(*check_launch_values(launch, scene))
     shape = arrs[0].shape
     flat = [a.ravel() for a in arrs]
     inv = invariants(flat[0], flat[1], flat[4], flat[2], flat[3], scene)
@@ -88,9 +85,14 @@ def story(
     and ``events``: a list of dicts (``kind``: slip, roll, spin_stop, spin_go, rest, spill,
     vertex, horizon; ``t`` [s]; ``state``: dict of :data:`HYBRID_STATE`; a roll event's state is
     the one after the sticking impulse)."""
+    scene = check_scene(scene, sliding=True)
     m = check_method(method, scene, integrator=True)
-    rtol = check_rtol(rtol)
+    rtol = check_rtol(rtol, m)
     t_max, theta_max = _horizon(horizon_time, horizon_revolutions)
+    given = dict(alpha=alpha, r0=r0, v0=v0, w0=w0, u0=u0, slip_u=slip_u, slip_v=slip_v)
+    launch = {n: check_number(n, x) for n, x in given.items()}
+    check_launch_values(launch, scene)
+    alpha, r0, v0, w0, u0, slip_u, slip_v = launch.values()
     params, effects, spin = hybrid_setup(scene, theta_max)
     set_alpha(params, float(alpha))
     inv = invariants(alpha, r0, 0.0, v0, w0, scene)

@@ -66,7 +66,7 @@ from typing import Any
 
 import numpy as np
 
-from .checks import PlanError, check_precision
+from .checks import PlanError, check_launch_axes, check_precision, check_release
 from .errortext import toml_repr, toml_type
 from .grid import grid_too_large
 from .io.atomic import read_regular
@@ -233,6 +233,8 @@ class _Reader(AxisReader):
         }
         for name in release:
             self.rolling_release(self.axis(axes, name), name)
+        with self.checked("axes."):  # a launch grid's numbers within a run's range
+            check_launch_axes(dims, tuple(arrays[name] for name in dims), mp.scene)
         energy_relative = "relative_to" in axes.get("energy", {})
         with self.checked():
             precision = check_precision(doc.get("precision", "double"))
@@ -267,14 +269,8 @@ class _Reader(AxisReader):
     def rolling_release(self, values: np.ndarray, name: str) -> None:
         """An axis of the release (u0, slip_u, slip_v) on a scene without kinetic friction:
         refused unless every value is 0 (every launch rolls from rest radially there)."""
-        bad = values[values != 0.0]
-        if bad.size:
-            raise self.bad_value(
-                f"axes.{name}",
-                float(bad[0]),
-                "a launch with a radial speed or a slip velocity needs scene.mu_k (kinetic "
-                "friction: the sliding model); without it every launch rolls from rest radially",
-            )
+        with self.checked("axes."):
+            check_release(name, values, Scene())
 
     def map(self, doc: dict, scene: Scene, surface: Surface | None = None) -> MapPlan:
         """The map's inputs (method, rtol, circular_tol, ``[horizon]``) through the API's one
@@ -291,12 +287,13 @@ class _Reader(AxisReader):
                             horizon_hint=_HORIZON_HINT, surface=surface)  # fmt: skip
 
     @contextlib.contextmanager
-    def checked(self) -> Iterator[None]:
-        """A :class:`engine.checks.PlanError` as a SurveyError at the field's key path."""
+    def checked(self, table: str = "") -> Iterator[None]:
+        """A :class:`engine.checks.PlanError` as a SurveyError at the field's key path (in
+        ``table``: "axes." for an axis)."""
         try:
             yield
         except PlanError as exc:
-            key = _KEYS.get(exc.field, exc.field).replace("Scene.", "scene.")
+            key = table + _KEYS.get(exc.field, exc.field).replace("Scene.", "scene.")
             problem = exc.problem
             if exc.has_value:
                 problem += f", got {toml_repr(exc.value)}"

@@ -57,8 +57,8 @@ def test_launch_state_where_the_orbit_does_not_reach():
         (dict(alpha=math.pi / 2), "alpha must lie in the open interval"),
         (dict(r=0.0), "r must be > 0"),
         (dict(u=math.nan), "u must be finite"),
-        (dict(v="1.0"), "v must be a number"),
-        (dict(w=True), "w must be a number"),
+        (dict(v="1.0"), "v must hold real numbers, not text"),
+        (dict(w=True), "w must hold real numbers, not booleans"),
     ],
 )
 def test_bad_launch_inputs_name_the_argument(kwargs, match):

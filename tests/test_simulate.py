@@ -191,21 +191,27 @@ def _call(**kw):
 @pytest.mark.parametrize(
     "kw,match",
     [
-        ({"alpha": 0.0}, r"alpha .*\(0, pi/2\); got 0\.0"),
+        ({"alpha": 0.0}, r"alpha .*\(0, pi/2\) \[radian\]; got 0\.0"),
         ({"alpha": 2.0}, r"alpha .*got 2\.0"),
-        ({"alpha": "x"}, r"alpha must be a real number; got 'x'"),
+        ({"alpha": "x"}, r"alpha must hold real numbers, not text; got 'x'"),
         ({"energy": math.nan}, r"energy must be finite; got nan"),
         ({"h": math.inf}, r"h must be finite; got inf"),
-        ({"Lz": 0.0}, r"Lz must be nonzero"),
+        ({"Lz": 0.0}, r"Lz must be nonzero \(a radial orbit through the axis\); got 0\.0"),
         ({"t_end": 1.0}, r"exactly one of t_end and periods; got t_end=1\.0, periods=1"),
         ({"periods": None}, r"exactly one of t_end and periods"),
         ({"periods": 0}, r"periods must be a positive integer; got 0"),
         ({"periods": 1.5}, r"periods must be a positive integer; got 1\.5"),
         ({"periods": None, "t_end": -1.0}, r"t_end must be > 0; got -1\.0"),
-        ({"method": "euler"}, r"method must be one of rk45, dop853, symplectic; got 'euler'"),
-        ({"rtol": 0.0}, r"rtol must lie in \[1e-14, 1e-3\]; got 0\.0"),
+        (
+            {"method": "euler"},
+            r"method must be one of exact, rk45, dop853, symplectic; got 'euler'",
+        ),
+        ({"method": "rk54"}, r"one of exact, rk45, dop853, symplectic \(did you mean 'rk45'\?\)"),
+        ({"method": "exact"}, r"method must be an integrator, one of rk45, dop853, symplectic"),
+        ({"rtol": 0.0}, r"rtol must lie in the open interval \(0, 1\); got 0\.0"),
+        ({"rtol": 0.5}, r"rtol must lie in \[1e-14, 0\.001\] for the integrator rk45; got 0\.5"),
         ({"dt_out": 0.0}, r"dt_out must be > 0; got 0\.0"),
-        ({"max_steps": 0}, r"max_steps must be >= 1; got 0"),
+        ({"max_steps": 0}, r"max_steps must be a positive integer; got 0"),
         ({"energy": 0.0}, r"energy=0\.0.*forbidden"),
         ({"scene": "cone"}, r"scene must be an engine.Scene; got 'cone'"),
     ],
@@ -389,7 +395,7 @@ def test_hybrid_trajectory_samples_on_dt_out_agree_with_a_tighter_run():
 
 
 def test_hybrid_launch_keys_need_mu_k_and_t_end():
-    with pytest.raises(ValueError, match=r"u0=0\.5: .*needs kinetic friction, Scene\.mu_k"):
+    with pytest.raises(ValueError, match=r"u0 must be 0 without Scene\.mu_k: .*; got 0\.5"):
         _call(u0=0.5)
     with pytest.raises(ValueError, match=r"slip_v must be finite; got nan"):
         _call(slip_v=math.nan)

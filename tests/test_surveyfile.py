@@ -379,7 +379,7 @@ values = [0.0]
 [axes.slip_u]
 values = [0.0, 1.5]
 """
-    with pytest.raises(SurveyError, match=r"needs scene\.mu_k.*got 1\.5") as info:
+    with pytest.raises(SurveyError, match=r"must be 0 without Scene\.mu_k.*got 1\.5") as info:
         parse_survey(text)
     assert info.value.key == "axes.slip_u"
     sliding = parse_survey(text.replace("mu = 0.4", "mu = 0.4\nmu_k = 0.3"))

@@ -62,7 +62,7 @@ from .manifest import MANIFEST, Manifest, read_manifest, survey_variables, write
 from .npz import write_npz
 
 if TYPE_CHECKING:
-    from ..plan import RunPlan
+    from .planshape import RunPlan
 
 __all__ = [
     "JOURNAL",

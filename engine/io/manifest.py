@@ -32,7 +32,7 @@ from .atomic import NotRegularFile, read_regular, write_atomic
 from .chunkfile import ChunkCodec
 
 if TYPE_CHECKING:
-    from ..plan import RunPlan
+    from .planshape import RunPlan
 
 __all__ = [
     "FORMAT",

@@ -62,7 +62,7 @@ from .summary import Summary
 if TYPE_CHECKING:
     import xarray as xr
 
-    from ..plan import RunPlan
+    from .planshape import RunPlan
 
 __all__ = [
     "CONVENTIONS",

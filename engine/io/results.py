@@ -26,7 +26,7 @@ import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import xarray as xr
@@ -34,18 +34,25 @@ from xarray.backends import BackendArray
 from xarray.core import indexing
 
 from ..grid import Tiling, block_shape, storage_chunks
-from ..plan import plan_from_survey
 from ..schema import FINGERPRINT_ATTR, axis_attrs, grid_dims, variable_attrs, variable_dims
-from ..surveyfile import SurveyError, parse_survey
 from . import OutputError
 from .blocks import BlockStore
 from .formats import format_for
 from .manifest import parts_dir, read_manifest, survey_families
+from .planshape import RunPlan
 from .zarr import zarr_module
 from .zarrlayout import STORE, UNFINISHED_ATTR
 from .zarrstore import RunStore
 
-__all__ = ["READ_POINTS", "Result", "open_netcdf", "open_result", "open_zarr"]
+__all__ = [
+    "READ_POINTS",
+    "PlanReader",
+    "Result",
+    "open_netcdf",
+    "open_result",
+    "open_zarr",
+    "read_plans_with",
+]
 
 #: Points per tile when a finished file is read tile by tile (~16 MB of float64).
 READ_POINTS = 1 << 21
@@ -189,13 +196,32 @@ def _finished(path: Path, ds: xr.Dataset, kind: str, chunk_key: str) -> Result:
     return Result(path, ds, True, tiling, None, fp, kind)
 
 
+class PlanReader(Protocol):
+    """How an unfinished run's survey definition (the TOML text its manifest keeps) becomes its
+    plan: ``reader(text, origin)``, a ValueError naming the problem where the text is not a
+    survey. The survey-file reader sits above this layer and hands itself down
+    (:func:`read_plans_with`; ``engine/__init__.py`` does, so it is in place wherever the
+    package is imported)."""
+
+    def __call__(self, text: str, origin: str) -> RunPlan: ...
+
+
+_readers: list[PlanReader] = []
+
+
+def read_plans_with(reader: PlanReader) -> None:
+    """Read unfinished runs' survey definitions with ``reader`` from now on."""
+    _readers[:] = [reader]
+
+
 def _open_parts(path: Path) -> Result:
     root = parts_dir(path)
     manifest = read_manifest(root)
+    if not _readers:  # the package's import hands it down: only a broken install gets here
+        raise OutputError(f"{root}: no survey reader to read the unfinished run's definition")
     try:
-        survey = parse_survey(manifest.survey_definition, origin=f"{root.name}/manifest.json")
-        plan = plan_from_survey(survey)
-    except SurveyError as exc:
+        plan = _readers[0](manifest.survey_definition, f"{root.name}/manifest.json")
+    except ValueError as exc:
         raise OutputError(f"cannot read the unfinished run's survey definition: {exc}") from None
     tiling = manifest.tiling
     axes = dict(zip(plan.dims, plan.axes, strict=True))

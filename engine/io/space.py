@@ -31,7 +31,7 @@ from ..schema import variable_dims
 
 if TYPE_CHECKING:
     from ..grid import Tiling
-    from ..plan import RunPlan
+    from .planshape import RunPlan
 
 __all__ = [
     "CHUNK_OVERHEAD",

@@ -49,7 +49,7 @@ from .zarrverify import check_held, check_store, hold_file
 if TYPE_CHECKING:
     import xarray as xr
 
-    from ..plan import RunPlan
+    from .planshape import RunPlan
 
 __all__ = [
     "SUFFIX",

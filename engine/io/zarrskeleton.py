@@ -41,7 +41,7 @@ from .zarrlayout import (
 )
 
 if TYPE_CHECKING:
-    from ..plan import RunPlan
+    from .planshape import RunPlan
 
 __all__ = ["META", "extra_entries", "layout", "make_store", "repair", "skeleton"]
 

@@ -57,7 +57,7 @@ from .zarrlayout import STORE, ChunkWriter, read_meta
 from .zarrskeleton import layout, make_store, repair, skeleton
 
 if TYPE_CHECKING:
-    from ..plan import RunPlan
+    from .planshape import RunPlan
 
 __all__ = ["JOURNAL", "RunStore", "parts_state", "read_journal"]
 

@@ -81,7 +81,7 @@ HYBRID_ROWS = ("fate_time", "fate_r", "fate_theta", "revolutions", "energy_lost"
 
 
 @kernel
-def _energy(y, hp, mode):
+def mode_energy(y, hp, mode):
     """E [J] of the hybrid state: the rolling formula while rolling (as a fate map computes
     it), the sliding one otherwise."""
     if mode == MODE_ROLLING:
@@ -351,7 +351,7 @@ def story_result(spin, p, y, y0, hp, hs, hi, out):
         fe = math.nan
         fh = math.nan
         fl = math.nan
-    E1 = _energy(y, hp, mode)
+    E1 = mode_energy(y, hp, mode)
     if mode == MODE_ROLLING and episodes == 0 and spin == 0:
         yr = y0.copy()
         yr[0] = y[0]

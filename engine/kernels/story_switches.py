@@ -46,7 +46,7 @@ from .story_parts import (
     HS_FL,
     HS_T,
     SPINNING,
-    _energy,
+    mode_energy,
 )
 
 
@@ -82,7 +82,7 @@ def story_rest(p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y):
         decel = -(u * d[2] + v * d[3]) / speed
         dt = speed / decel if decel > 0.0 else 0.0
         half = 0.5 * dt
-        e_moving = _energy(y, hp, MODE_ROLLING)
+        e_moving = mode_energy(y, hp, MODE_ROLLING)
         y[0] += u * half
         y[1] += d[1] * half
         y[6] += d[6] * half
@@ -92,7 +92,7 @@ def story_rest(p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y):
         y[3] = 0.0
         y[4] = 0.0
         y[5] = 0.0
-        y[7] += e_moving - _energy(y, hp, MODE_ROLLING) - w_spin
+        y[7] += e_moving - mode_energy(y, hp, MODE_ROLLING) - w_spin
         hs[HS_T] += dt
     t = hs[HS_T]
     if not holds_at_rest(p):  # it starts again from rest

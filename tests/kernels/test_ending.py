@@ -213,8 +213,10 @@ def test_tiny_Lz_is_right_or_out_of_range():
     far = engine.evaluate(0.5, 5.0, 0.0, [1e-170, 1e-200])
     assert (far.orbit_class.values == OUT_OF_RANGE).all()
     assert np.isnan(far.r_min.values).all()
-    big = engine.evaluate(0.5, 5.0, 0.0, 0.8, scene=engine.Scene(M=1e308))
+    big = engine.evaluate(0.5, 5.0, 0.0, 1e160)  # A ~ L_z^2 / (2 M sin^2 alpha) overflows
     assert int(big.orbit_class) == OUT_OF_RANGE
+    with pytest.raises(ValueError, match="Scene.M must be at most 1e150"):
+        engine.Scene(M=1e308)  # refused before any run (docs/api.md, "Input bounds")
     thin = engine.evaluate(1e-78, 5.0, 0.0, 0.8)
     assert int(thin.orbit_class) == OUT_OF_RANGE
 
