@@ -8,7 +8,14 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from .checks import PlanError, check_numbers, check_release, check_scene, check_surface, check_values
+from .checks import (
+    PlanError,
+    check_numbers,
+    check_release,
+    check_scene,
+    check_surface,
+    check_values,
+)
 from .evaluation import bad_inputs, evaluate_block, evaluate_flat
 from .families import family_values, minimum_energy_flat
 from .grid import BLOCK_POINTS, Tiling
