@@ -386,6 +386,12 @@ with section("effect"):
         raise AssertionError("a negative c_drag was taken")
     except ValueError as exc:
         assert "Scene.c_drag" in str(exc), exc
+    # the sliding model writes its own forces: a sliding scene with the drag is refused
+    try:
+        engine.Scene(c_drag=0.5, mu=0.5, mu_k=0.3)
+        raise AssertionError("a sliding scene took air drag")
+    except ValueError as exc:
+        assert "Scene.c_drag (air_drag)" in str(exc) and "sliding model" in str(exc), exc
     # refusals: the closed form and the symplectic method cannot follow dissipative forces
     for name, why in (("exact", "lossless"), ("symplectic", "conservative")):
         try:

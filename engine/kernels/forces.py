@@ -1,8 +1,10 @@
 """The effects' forces and couples: what each effect of the effects table does to the sphere.
 
 An effect acts through a force f on the centre and a couple T on the sphere. Every model asks
-the same function of the effects, in every mode (rolling, sliding), and turns the answer into
-its rates (docs/physics.md "Effects as forces and couples"):
+the same function of the effects while rolling, and turns the answer into its rates
+(docs/physics.md "Effects as forces and couples"); its arguments take a sliding sphere's state
+too, but the sliding model (:mod:`.sliding`) still writes its own terms (``FORCE_TERMS``), and
+``engine.Scene`` refuses kinetic friction with an effect it has none for:
 
     (f1, f2, t1, t2, t3) = effect_terms(effects, p, u, v, p1, p2, w, N, pull_u, pull_v)
 

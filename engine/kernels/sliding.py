@@ -29,6 +29,11 @@ from .layouts import P_CRR, P_G, P_K, P_M, P_MU
 from .model import N_PARAMS
 
 #: Hybrid parameter array: the scene's ``model.P_*`` entries, then these two.
+#: The effects acting through forces (``effects.Effect.forces``) whose terms this model writes
+#: for itself while sliding (not yet through :mod:`.forces`): a scene with kinetic friction and
+#: any other such effect is refused (``engine.Scene``), never slid without it.
+FORCE_TERMS = ("rolling_resistance",)
+
 H_MU_K = N_PARAMS  # kinetic friction coefficient
 H_C_SPIN = N_PARAMS + 1  # spin-friction coefficient (couple c_spin a N)
 N_HYBRID_PARAMS = N_PARAMS + 2
