@@ -18,7 +18,7 @@ from runs import ROOT, here, listing
 import engine
 from engine.accuracy import EXACT_ERROR, recommend, sample_grid
 from engine.commands import accuracy as command
-from engine.plot import LookError
+from engine.mapspec import LookError
 from engine.simulate import simulate
 from engine.surveyfile import load_survey
 

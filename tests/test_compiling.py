@@ -39,7 +39,9 @@ def fresh_kernel():
 
 @pytest.fixture
 def announced_at_once(monkeypatch):
-    """Every compile announced as it starts (no delay), notices on, as the session had them."""
+    """Every compile announced as it starts (no delay), notices on, as the session had them;
+    a notice an earlier test left in its grace is ended first (a fresh session has none)."""
+    _compiling.settle()
     monkeypatch.setattr(_compiling, "COMPILE_DELAY", 0.0)
     before = engine.set_compile_notices(True)
     yield

@@ -61,16 +61,18 @@ def test_an_oversized_file_is_refused_after_reading_its_cap(workdir, capsys):
     assert "big.toml: larger than 4 MiB" in err
 
 
-@pytest.mark.parametrize("spelling", ["s.toml", "./sub/../s.toml", "link.toml", "hard.toml"])
+@pytest.mark.parametrize("spelling", ["s.nc", "./sub/../s.nc", "link.nc", "hard.nc"])
 def test_the_output_may_not_be_the_survey_file(workdir, spelling, capsys):
-    """Also with --overwrite, under another spelling, through a link or a hard link."""
+    """Also with --overwrite, under another spelling, through a link or a hard link (the survey
+    file named as an output is: an output's suffix names its format, a .toml is none)."""
+    (workdir / "s.toml").rename(workdir / "s.nc")
     (workdir / "sub").mkdir()
-    (workdir / "link.toml").symlink_to("s.toml")
-    os.link(workdir / "s.toml", workdir / "hard.toml")
+    (workdir / "link.nc").symlink_to("s.nc")
+    os.link(workdir / "s.nc", workdir / "hard.nc")
     before = runs.listing(workdir)
-    err = refused(workdir, "run", "s.toml", "-o", spelling, "--overwrite", "-q", capsys=capsys)
+    err = refused(workdir, "run", "s.nc", "-o", spelling, "--overwrite", "-q", capsys=capsys)
     assert "is the survey file itself" in err
-    assert (workdir / "s.toml").read_text() == SURVEY
+    assert (workdir / "s.nc").read_text() == SURVEY
     assert runs.listing(workdir) == before
 
 

@@ -50,7 +50,7 @@ return Array.from(document.querySelectorAll('tr')).filter(
 
 IMAGES_JS = """
 return Array.from(document.images).map(i => ({
-    variable: i.dataset.variable, complete: i.complete,
+    variable: i.dataset.variable, orbit: i.closest("figure.orbit") !== null, complete: i.complete,
     width: i.naturalWidth, height: i.naturalHeight,
 }));
 """
@@ -115,7 +115,9 @@ def test_report_in_chromium(browser, tmp_path):
     ds = xr.open_dataset(nc)
     assert browser.title.startswith(ds.attrs["title"])  # shown as text, not run as a script
     images = browser.execute_script(IMAGES_JS)
-    assert sorted(i["variable"] for i in images) == sorted(ds.data_vars)
+    maps = [i for i in images if not i["orbit"]]  # one map per variable, then sample orbits
+    assert sorted(i["variable"] for i in maps) == sorted(ds.data_vars)
+    assert all(i["variable"] is None for i in images if i["orbit"])
     for img in images:
         assert img["complete"] and img["width"] > 0 and img["height"] > 0, img
 

@@ -52,7 +52,7 @@ def test_a_funnel_trajectory_ends_in_the_hole():
 @pytest.mark.parametrize(
     "kwargs, words",
     [
-        (dict(surface=Bowl(1.0), rho0=0.3, v0=1.0, w0=0.0, alpha=0.5), "alpha=0.5"),
+        (dict(surface=Bowl(1.0), rho0=0.3, v0=1.0, w0=0.0, alpha=0.5), "alpha is the cone's orbit.*got 0.5"),
         (dict(surface=Bowl(1.0), z0=0.3, v0=1.0, w0=0.0), "launch position is rho0"),
         (dict(surface=Bowl(1.0), rho0=0.3, v0=1.0), "w0 is needed"),
         (
@@ -60,7 +60,8 @@ def test_a_funnel_trajectory_ends_in_the_hole():
             "separable split",
         ),  # fmt: skip
         (dict(surface=Bowl(1.0), rho0=1.5, v0=1.0, w0=0.0), "not a place on the bowl"),
-        (dict(rho0=0.3, v0=1.0, w0=0.0), "must be a surface"),
+        (dict(rho0=0.3, v0=1.0, w0=0.0), "rho0 or z0 give a launch on a surface: name it"),
+        (dict(surface="bowl", rho0=0.3, v0=1.0, w0=0.0), "must be a surface of engine.surfaces"),
     ],
 )
 def test_bad_surface_trajectories_are_refused(kwargs, words):

@@ -7,8 +7,10 @@ against the method); exit status 2 when it is invalid.
 The run time it prints is measured: the survey's own plan evaluated on a sample of its grid
 (:func:`measured_rate`: each axis sampled evenly, grown until its evaluation takes
 :data:`TIMED_SECONDS`), scaled to the whole grid, plus the compression of its output (the
-sample's values deflated as the run deflates them, timed) and a run's fixed cost
-(:data:`RUN_OVERHEAD`: its store, files and threads). Where the kernels are not compiled yet
+sample's values deflated as the run deflates them, timed) and a run's fixed cost, measured too
+(:func:`measured_overhead`: a one-point run of the survey in a temporary directory, removed:
+its store, files, fsyncs and threads; from 0.03 s on a quiet machine to 0.4 s under a load of
+10, so no constant serves). Where the kernels are not compiled yet
 the sample would compile them (30-120 s), so a stored rate per kind of map is used instead
 (:data:`STORED_RATES`; none for fate maps, whose time depends on how long their orbits roll).
 """
@@ -20,8 +22,10 @@ import dataclasses
 import math
 import os
 import sys
+import tempfile
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -34,6 +38,7 @@ from ..io.deflate import compress_chunk
 from ..kernels import batch
 from ..plan import RunPlan
 from ..progress import format_bytes
+from ..runner import run_survey
 from ..schema import map_summary
 from . import PROG, Command, load_plan
 
@@ -90,9 +95,9 @@ SAMPLE_POINTS = 64
 TIMED_SECONDS = 0.5
 #: The largest sample (a block of a run: its memory), timed as often as it takes.
 MAX_SAMPLE_POINTS = 1 << 20
-#: Seconds a run spends whatever its size: its block store, output file, journal, fsyncs and
-#: threads (a one-point run computed for 0.26-0.48 s on the project's 2-core machine under a
-#: load of 10).
+#: Seconds a run spends whatever its size (its block store, output file, journal, fsyncs and
+#: threads), assumed where it cannot be measured without compiling (a one-point run took
+#: 0.26-0.48 s on the project's 2-core machine under a load of 10, 0.03-0.05 s quiet).
 RUN_OVERHEAD = 0.4
 #: Throughput [points/s] assumed, by kind of map, while its kernels are not compiled yet (a
 #: sample cannot be timed without compiling them: 30-120 s): the closed form and one period
@@ -162,16 +167,28 @@ def deflate_seconds_per_byte(values: dict[str, np.ndarray]) -> float:
     return (time.perf_counter() - t0) / max(total, 1)
 
 
+def measured_overhead(plan: RunPlan) -> float:
+    """Seconds a run of ``plan`` spends whatever its size, on this machine now: a run of its
+    first grid point (kernels compiled already) into a temporary directory, removed after;
+    its compute and its finish, as a run counts them. Nothing is written where the survey's
+    output goes."""
+    one = dataclasses.replace(plan, axes=tuple(a[:1] for a in plan.axes))
+    with tempfile.TemporaryDirectory(prefix="conesurvey-validate-") as tmp:
+        stats = run_survey(SimpleNamespace(plan=one), Path(tmp) / "overhead.nc",
+                           warn=lambda message: None, check_space=False)  # fmt: skip
+    return stats.compute_seconds + stats.write_seconds
+
+
 def run_seconds(plan: RunPlan) -> tuple[float | None, str]:
     """The estimated run time [s] of ``plan`` on this machine, without its compile (None: no
     estimate), and how it was made: a timed sample once the kernels are compiled (the
-    evaluation, the output's compression shared by the cores, and :data:`RUN_OVERHEAD`), else
+    evaluation, the output's compression shared by the cores, and :func:`measured_overhead`), else
     the kind's stored rate."""
     if compile_seconds(plan) == 0.0:
         rate, n, values = measured_rate(plan)
         cores = max(os.cpu_count() or 1, 1)
         deflate = estimate_bytes(plan) * deflate_seconds_per_byte(values) / cores
-        seconds = RUN_OVERHEAD + plan.size / rate + deflate
+        seconds = measured_overhead(plan) + plan.size / rate + deflate
         return seconds, f"on {cores} cores, from a timed sample of {n:,} points"
     rate = STORED_RATES.get(plan.map_kind)
     if rate is None:

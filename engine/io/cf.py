@@ -4,7 +4,8 @@ verbatim; and flag variables' ``flag_values`` of the variable's own type.
 
 The scene's parameters (``scene_M``, ``scene_rim``, ...) and the horizon (``horizon_time``,
 ``horizon_revolutions``) have one type in every file (:func:`typed_parameters`): a number is a
-float64, a flag (``scene_attitude``) an int8 0 or 1, and a value that is not set (an infinite
+float64, a flag (``scene_attitude``) an int64 0 or 1 (what a JSON integer of a Zarr store reads
+back as), and a value that is not set (an infinite
 cone's rim, no friction limit, no horizon time) is an absent attribute, never a string.
 ``parameter_units`` gives the unit of each, ``scene_M: kg, scene_g: m s-2, ...`` (a unit in
 brackets on the field's line of :class:`engine.Scene`'s docstring, else 1).
@@ -66,7 +67,7 @@ def parameter_units() -> dict[str, str]:
 def typed_parameters(attrs: Mapping[str, Any]) -> dict[str, Any]:
     """``attrs`` with the scene's and the horizon's attributes of one type each: a value not
     set (``None`` or the string ``"none"`` of older files) left out, a flag (a bool, or the
-    scene's ``attitude``) an int8, any other number a float64; and :data:`UNITS_ATTR` naming
+    scene's ``attitude``) an int64, any other number a float64; and :data:`UNITS_ATTR` naming
     the unit of each one present."""
     units = parameter_units()
     out: dict[str, Any] = {}
@@ -77,7 +78,7 @@ def typed_parameters(attrs: Mapping[str, Any]) -> dict[str, Any]:
         if value is None or (isinstance(value, str) and value.strip().lower() == "none"):
             continue  # not set: an absent attribute (CF), never a string
         if isinstance(value, bool | np.bool_) or key == "scene_attitude":
-            out[key] = np.int8(bool(value))
+            out[key] = np.int64(bool(value))
         else:
             out[key] = np.float64(value)
     present = [k for k in units if k in out]

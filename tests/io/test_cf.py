@@ -1,5 +1,5 @@
 """The scene's and the horizon's global attributes have one type in every file, with units: a
-number is a float64, a flag an int8, a value that is not set an absent attribute (CF), never
+number is a float64, a flag an int64, a value that is not set an absent attribute (CF), never
 the string "none"; ``parameter_units`` names the unit of each."""
 
 from __future__ import annotations
@@ -68,7 +68,7 @@ def test_scene_attributes_have_one_type_in_every_file(tmp_path, suffix):
             for f in (nc, nc2):
                 for key in ("scene_M", "scene_g", "scene_c_rr"):
                     assert np.asarray(f.getncattr(key)).dtype == np.float64, key
-                assert np.asarray(f.getncattr("scene_attitude")).dtype == np.int8
+                assert np.asarray(f.getncattr("scene_attitude")).dtype == np.int64
             assert np.asarray(nc.getncattr("scene_rim")).dtype == np.float64
 
 
