@@ -52,7 +52,10 @@ def test_a_funnel_trajectory_ends_in_the_hole():
 @pytest.mark.parametrize(
     "kwargs, words",
     [
-        (dict(surface=Bowl(1.0), rho0=0.3, v0=1.0, w0=0.0, alpha=0.5), "alpha is the cone's orbit.*got 0.5"),
+        (
+            dict(surface=Bowl(1.0), rho0=0.3, v0=1.0, w0=0.0, alpha=0.5),
+            "alpha is the cone's orbit.*got 0.5",
+        ),
         (dict(surface=Bowl(1.0), z0=0.3, v0=1.0, w0=0.0), "launch position is rho0"),
         (dict(surface=Bowl(1.0), rho0=0.3, v0=1.0), "w0 is needed"),
         (
