@@ -55,6 +55,7 @@ __all__ = [
     "EXACT_ERROR",
     "SAMPLE_POINTS",
     "recommend",
+    "sample_counts",
     "sample_grid",
     "work_precision",
 ]
@@ -86,7 +87,7 @@ def _plan(survey: Any) -> RunPlan:
     raise ValueError(f"survey must be a survey file, a Survey or a RunPlan; got {survey!r}")
 
 
-def _counts(plan: RunPlan, points: int) -> list[int]:
+def sample_counts(plan: RunPlan, points: int) -> list[int]:
     """Values per axis of a sub-grid of about ``points`` points: two of each axis (its one if
     it has one), then each doubled in turn, the one with the most values per sampled value
     first."""
@@ -105,7 +106,7 @@ def sample_grid(plan: RunPlan, points: int = SAMPLE_POINTS, seed: int = 0) -> Ru
     if smaller), each axis's values drawn at random without repeats (``seed``: reproducible)."""
     rng = np.random.default_rng(seed)
     axes = []
-    for a, n in zip(plan.axes, _counts(plan, points), strict=True):
+    for a, n in zip(plan.axes, sample_counts(plan, points), strict=True):
         sub = a[np.sort(rng.choice(a.size, n, replace=False))]
         sub.setflags(write=False)
         axes.append(sub)
@@ -114,7 +115,7 @@ def sample_grid(plan: RunPlan, points: int = SAMPLE_POINTS, seed: int = 0) -> Ru
 
 def _even_grid(plan: RunPlan, points: int) -> RunPlan:
     axes = []
-    for a, n in zip(plan.axes, _counts(plan, points), strict=True):
+    for a, n in zip(plan.axes, sample_counts(plan, points), strict=True):
         sub = a[np.unique(np.linspace(0, a.size - 1, n).round().astype(np.int64))]
         sub.setflags(write=False)
         axes.append(sub)

@@ -10,6 +10,7 @@ failure nothing is written (figures and pages go through ``OUT.tmp`` and a renam
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
 
 from ..accessor import DERIVED, with_derived
@@ -137,10 +138,15 @@ def _report_arguments(r: argparse.ArgumentParser) -> None:
 
 def _run(args: argparse.Namespace, command_line: str = "") -> int:
     """Carry out ``conesurvey plot`` or ``report``; returns the exit status."""
+    return drawing(lambda: _plot(args) if args.command == "plot" else _report(args))
+
+
+def drawing(draw: Callable[[], int]) -> int:
+    """The exit status of a command that draws (``plot``, ``report``, ``orbit``): ``draw()``'s,
+    or, for what stopped it, the one error line and its status (2: bad input or an existing
+    output, nothing written; 1: the output could not be written; 130: interrupted)."""
     try:
-        if args.command == "plot":
-            return _plot(args)
-        return _report(args)
+        return draw()
     except (LookError, OutputError) as exc:
         error(str(exc))
         return 2

@@ -17,7 +17,6 @@ from typing import Any
 
 from ..errortext import suggest
 from ..figurefile import FORMATS, check_figure_size, output_format, save_figure
-from ..io import OutputError
 from ..io.results import open_result
 from ..mapspec import LookError, parse_at
 from ..orbitplot import (
@@ -31,7 +30,8 @@ from ..orbitplot import (
 from ..orbitview import DEFAULT_SAMPLES, MAX_SAMPLES, Orbit, orbit, orbit_at
 from ..scene import Scene
 from ..surveyfile import parse_survey
-from . import Command, InputError, error, load_plan
+from . import Command, InputError, load_plan
+from .look import drawing
 
 __all__ = ["COMMAND"]
 
@@ -174,20 +174,7 @@ def _source_plan(source: str) -> Any:
 
 
 def _run(args: argparse.Namespace, command_line: str = "") -> int:
-    try:
-        return _orbit_command(args)
-    except (LookError, OutputError) as exc:
-        error(str(exc))
-        return 2
-    except FileExistsError as exc:
-        error(f"output file exists: {exc.filename} (use --overwrite to replace it)")
-        return 2
-    except OSError as exc:
-        error(f"cannot write {exc.filename or 'the output'}: {exc.strerror or exc}")
-        return 1
-    except KeyboardInterrupt:
-        error("interrupted; nothing written")
-        return 130
+    return drawing(lambda: _orbit_command(args))
 
 
 def _orbit_command(args: argparse.Namespace) -> int:

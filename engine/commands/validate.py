@@ -30,6 +30,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from .._jit import CACHE_DIR
+from ..accuracy import sample_counts
 from ..api import minimum_energy
 from ..evaluation import evaluate_block
 from ..io.blocks import estimate_bytes
@@ -99,6 +100,8 @@ MAX_SAMPLE_POINTS = 1 << 20
 #: threads), assumed where it cannot be measured without compiling (a one-point run took
 #: 0.26-0.48 s on the project's 2-core machine under a load of 10, 0.03-0.05 s quiet).
 RUN_OVERHEAD = 0.4
+#: One-point runs :func:`measured_overhead` takes the median of.
+OVERHEAD_RUNS = 3
 #: Throughput [points/s] assumed, by kind of map, while its kernels are not compiled yet (a
 #: sample cannot be timed without compiling them: 30-120 s): the closed form and one period
 #: on 2 cores (docs/performance.md). A fate map's time depends on how long its orbits roll
@@ -110,15 +113,8 @@ def sample_plan(plan: RunPlan, points: int = SAMPLE_POINTS) -> RunPlan:
     """``plan`` on a sample of its grid: each axis sampled evenly (its first and last values
     always), the longest axes most, about ``points`` points in all (at most twice as many;
     the whole grid if smaller)."""
-    counts = [min(2, a.size) for a in plan.axes]
-    while math.prod(counts) < points:
-        grow = [i for i, a in enumerate(plan.axes) if counts[i] < a.size]
-        if not grow:
-            break
-        i = max(grow, key=lambda j: plan.axes[j].size / counts[j])
-        counts[i] = min(2 * counts[i], plan.axes[i].size)
     axes = []
-    for a, n in zip(plan.axes, counts, strict=True):
+    for a, n in zip(plan.axes, sample_counts(plan, points), strict=True):
         sub = a[np.unique(np.linspace(0, a.size - 1, n).round().astype(np.int64))]
         sub.setflags(write=False)
         axes.append(sub)
@@ -168,15 +164,19 @@ def deflate_seconds_per_byte(values: dict[str, np.ndarray]) -> float:
 
 
 def measured_overhead(plan: RunPlan) -> float:
-    """Seconds a run of ``plan`` spends whatever its size, on this machine now: a run of its
-    first grid point (kernels compiled already) into a temporary directory, removed after;
-    its compute and its finish, as a run counts them. Nothing is written where the survey's
-    output goes."""
-    one = dataclasses.replace(plan, axes=tuple(a[:1] for a in plan.axes))
+    """Seconds a run of ``plan`` spends whatever its size, on this machine now: the median of
+    :data:`OVERHEAD_RUNS` runs of its first grid point (kernels compiled already) into a
+    temporary directory, removed after; their compute and finish, as a run counts them (one
+    run alone took 0.11-0.18 s beside a busy neighbour; the fastest of three, below the runs
+    that followed). Nothing is written where the survey's output goes."""
+    one = SimpleNamespace(plan=dataclasses.replace(plan, axes=tuple(a[:1] for a in plan.axes)))
+    took = []
     with tempfile.TemporaryDirectory(prefix="conesurvey-validate-") as tmp:
-        stats = run_survey(SimpleNamespace(plan=one), Path(tmp) / "overhead.nc",
-                           warn=lambda message: None, check_space=False)  # fmt: skip
-    return stats.compute_seconds + stats.write_seconds
+        for i in range(OVERHEAD_RUNS):
+            stats = run_survey(one, Path(tmp) / f"overhead{i}.nc", warn=lambda message: None,
+                               check_space=False)  # fmt: skip
+            took.append(stats.compute_seconds + stats.write_seconds)
+    return float(np.median(took))
 
 
 def run_seconds(plan: RunPlan) -> tuple[float | None, str]:
