@@ -28,6 +28,7 @@ import readme_block  # noqa: E402
 #: the files it writes into the working directory, where it runs without --out).
 TINY = {
     "bench_effects.py": ([], "generic scalar run kernel / hand-written DP5", ()),
+    "bench_estimate.py": ([], "worst estimate/run either way", ()),
     "bench_exact.py": ([], "load average", ()),
     "bench_exact_surfaces.py": ([], "dop853 (lanes) / exact", ()),
     "bench_fates.py": ([], "2-thread speedup of the fate map", ()),
