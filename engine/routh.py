@@ -114,6 +114,35 @@ def _march(p, mode, lo, hi, in_x, from_left, start, out):
     return end, tail if np.isfinite(tail) else math.inf
 
 
+#: Points of the meridian :func:`may_lift` looks at (a profile's convex stretch is wider).
+LIFT_PROBES = 2048
+
+
+def may_lift(p: np.ndarray, q_a: float, q_b: float) -> bool:
+    """Whether the normal force of an orbit can fall to zero somewhere on the centre's meridian
+    [q_a, q_b] of the surface of ``p``: where it curves away from the ball (kappa < 0) or
+    overhangs (cos b <= 0); elsewhere N >= M g cos b > 0. The funnel is convex everywhere, a
+    power law z = c rho^n where c n (n - 1) < 0; the others are looked at on
+    :data:`LIFT_PROBES` points (an infinite range up to 10^6 times its start)."""
+    kind = p[P_KIND]
+    if kind == FUNNEL:
+        return True
+    if kind == POWER_LAW:
+        return bool(p[P_SHAPE1] * p[P_SHAPE2] * (p[P_SHAPE2] - 1.0) < 0.0)
+    if kind == CYLINDER:
+        return False
+    lo = max(q_a, 0.0) if kind != PROFILE else q_a
+    if math.isfinite(q_b):
+        qs = np.linspace(lo, q_b, LIFT_PROBES)
+    else:
+        qs = lo + np.geomspace(1e-6, 1e6, LIFT_PROBES) * max(abs(lo), float(p[P_RADIUS]))
+    for q in qs:
+        rho, z, cb, sb, kappa = centre(p, float(q))[:5]
+        if kappa < 0.0 or cb <= 0.0:
+            return True
+    return False
+
+
 def build_table(p: np.ndarray, q_max: float = math.inf) -> Table:
     """The fundamental solution of the surface of ``p`` (a parameter array after
     ``surface_starts.set_point``), to q_max where the surface's own range and its coefficients
@@ -125,8 +154,8 @@ def build_table(p: np.ndarray, q_max: float = math.inf) -> Table:
     if kind == CYLINDER:
         rho = centre(p, 0.0)[0]
         meta[[K.MODE, K.N_PANELS, K.N_Q, K.Q_A, K.Q_B, K.INNER, K.RHO_CYL, K.FLAT, K.ERROR,
-              K.Q_REF, K.T_REF]] = (K.MODE_CYLINDER, 0, 0, -math.inf, q_b, K.END_OPEN, rho, 1,
-                                    0.0, 0.0, 0.0)  # fmt: skip
+              K.Q_REF, K.T_REF, K.MAY_LIFT]] = (K.MODE_CYLINDER, 0, 0, -math.inf, q_b, K.END_OPEN,
+                                                rho, 1, 0.0, 0.0, 0.0, 0.0)  # fmt: skip
         meta[K.OUTER] = K.END_RIM if math.isfinite(q_b) else K.END_INFINITY
         return Table(np.zeros(1), np.zeros((0, K.NC, 4)), meta, p)
     mode = K.MODE_LW if kind == BOWL else K.MODE_HAT
@@ -165,6 +194,7 @@ def build_table(p: np.ndarray, q_max: float = math.inf) -> Table:
     meta[[K.MODE, K.N_PANELS, K.N_Q, K.Q_A, K.Q_B, K.INNER, K.OUTER, K.Q_AXIS, K.T_REF,
           K.FLAT, K.ERROR, K.Q_REF]] = (mode, len(panels), n_q, q_a, q_b, inner, outer, q_axis,
                                         t_ref, float(flat), max(e1, e2), q_ref)  # fmt: skip
+    meta[K.MAY_LIFT] = float(may_lift(p, q_a, q_b))
     return Table(edges, np.ascontiguousarray(coef), meta, p)
 
 

@@ -33,6 +33,7 @@ from .variables import (
     SURFACE_AXES,
     SURFACE_CLASS,
     SURFACE_EXACT,
+    SURFACE_FATE,
     SURFACE_KIND,
     TRAJECTORY,
     Variable,
@@ -76,6 +77,7 @@ __all__ = [
     "MAP_KINDS",
     "REPLACED_BY_INTEGRATION",
     "SLIDING_FATE",
+    "SURFACE_FATE",
     "SURFACE_AXES",
     "SURFACE_CLASS",
     "SURFACE_EXACT",
@@ -133,6 +135,8 @@ def variable_attrs(name: str, kind: str | None = None) -> dict[str, Any]:
     var = RESULTS.get(name) or TRAJECTORY[name]
     if name == "fate" and kind == "sliding fate":
         var = SLIDING_FATE
+    if name == "fate" and kind == "surface fate":
+        var = SURFACE_FATE
     if name == "orbit_class" and kind in SURFACE_KIND.values():
         var = SURFACE_CLASS
     attrs = var.attrs()

@@ -5,7 +5,8 @@ the survey sweeps, then the launch: its position (``rho0``, the cylinder's ``z0`
 ``w0``. Every map holds the exact orbit (Routh's reduction, :func:`engine.routh.exact_map`: the
 class, the turning points, the period, the apsidal angle, the precession rate and Routh's two
 integrals); an integrator adds one integrated radial period of each bounded orbit (which
-replaces the period, apsidal angle and precession rate) or follows every launch to its fate
+replaces the period, apsidal angle and precession rate; an orbit that lifts off is integrated
+too, to where it does: status ``lifted_off``) or follows every launch to its fate
 (:mod:`engine.surface_maps`).
 """
 
@@ -16,6 +17,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .kernels.protocol import NOT_BOUNDED
+from .kernels.routh import BOUNDED, LIFTS
 from .routh import exact_map
 from .schema import FATE_KINDS, INTEGRATED, REPLACED_BY_INTEGRATION
 from .surface_maps import surface_fates, surface_params, surface_period, surface_points
@@ -26,8 +29,8 @@ if TYPE_CHECKING:
 
 __all__ = ["surface_block", "launch_columns"]
 
-#: The exact map's class of an orbit that an integrator follows for one period.
-_BOUNDED = 1
+#: The exact map's classes of an orbit that an integrator follows for one period.
+_INTEGRATED = (BOUNDED, LIFTS)
 
 
 def launch_columns(surface: Surface, dims: tuple[str, ...], sub: list[np.ndarray]) -> np.ndarray:
@@ -53,7 +56,7 @@ def surface_block(plan: RunPlan, sub: list[np.ndarray]) -> dict[str, np.ndarray]
     res = exact_map(params, X)
     kind = plan.map_kind
     if kind == "surface one period":
-        bounded = res["orbit_class"] == _BOUNDED
+        bounded = np.isin(res["orbit_class"], _INTEGRATED)
         run = surface_period(np.ascontiguousarray(X[:, bounded]), params, plan.scene,
                              plan.method, plan.rtol, 1_000_000)  # fmt: skip
         for name in REPLACED_BY_INTEGRATION:
@@ -63,7 +66,7 @@ def surface_block(plan: RunPlan, sub: list[np.ndarray]) -> dict[str, np.ndarray]
         for name in INTEGRATED:
             col = np.zeros(X.shape[1], run[name].dtype)
             if name == "status":
-                col[:] = 5  # not bounded (the protocol's NOT_BOUNDED)
+                col[:] = NOT_BOUNDED
             elif run[name].dtype.kind == "f":
                 col[:] = math.nan
             col[bounded] = run[name]

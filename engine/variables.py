@@ -12,6 +12,7 @@ import numpy as np
 
 from .kernels.effects import BY_NAME
 from .kernels.fate import FATE_NAMES
+from .kernels.fate_codes import FATE_LIFTED_OFF
 from .kernels.geometry import CLASS_NAMES
 from .kernels.hybrid import HYBRID_FATE_NAMES
 from .kernels.protocol import EVENT_NAMES, STATUS_FLAGS
@@ -166,6 +167,11 @@ CLOSED_FORM = ("orbit_class", "r_min", "r_max", "r_circ", "period", "apsidal_ang
 _CODES = tuple(i for i, n in enumerate(HYBRID_FATE_NAMES) if n != "slipped")
 SLIDING_FATE = Variable("int8", None, "what happened to the sphere (rolling, sliding, ...)",
                         tuple(HYBRID_FATE_NAMES[i] for i in _CODES), _CODES)  # fmt: skip
+#: The ``fate`` of a fate map on a surface of revolution: the cone's fates, and lifting off.
+SURFACE_FATE = Variable(
+    "int8", None, "what happened to the sphere (integration of the scene)",
+    (*FATE_NAMES, "lifted_off"), (*range(len(FATE_NAMES)), FATE_LIFTED_OFF),
+)  # fmt: skip
 #: The exact variables of a map on a surface of revolution (every such map holds them).
 SURFACE_EXACT = ("orbit_class", "rho_min", "rho_max", "period", "apsidal_angle",
                  "precession_rate", "routh_L", "routh_w")  # fmt: skip

@@ -202,6 +202,15 @@ def slip_margin(y, p, effects):
     return p[P_KK] * p[P_M] * (p[P_G] * sb + sb / y[0] * y[3] * y[4]) - p[P_MU] * N
 
 
+LEAVES = False  # the paraboloid curves towards the ball: N >= M g cos b > 0
+
+
+@kernel
+def lift_margin(y, p):
+    cb, sb, kappa, sigma = _geometry(y[0], p)
+    return -p[P_M] * (p[P_G] * cb + sb / y[0] * y[3] ** 2 + kappa * y[2] ** 2)
+
+
 @kernel
 def domain_floor(p):
     return 0.0

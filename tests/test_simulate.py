@@ -43,7 +43,7 @@ def test_dataset_contract(ds3):
     kind = ds.event_kind
     assert kind.dtype == np.int8 and kind.attrs["flag_values"].dtype == np.int8
     assert kind.attrs["flag_meanings"] == (
-        "pericentre apocentre spill slip rest vertex horizon failed"
+        "pericentre apocentre spill slip rest vertex horizon failed liftoff"
     )
     s, c = math.sin(A3), math.cos(A3)
     np.testing.assert_allclose(ds.x, ds.r * s * np.cos(ds.theta), rtol=1e-15)

@@ -70,3 +70,24 @@ def test_a_funnel_trajectory_ends_in_the_hole():
 def test_bad_surface_trajectories_are_refused(kwargs, words):
     with pytest.raises(ValueError, match=words):
         engine.simulate(scene=SCENE, t_end=1.0, **kwargs)
+
+
+def test_a_trajectory_that_lifts_off_the_funnel_ends_there():
+    """A nearly radial fall into a funnel: the run ends with the event ``liftoff`` and the
+    status ``lifted_off`` where the normal force reaches zero, at the time the independent
+    rigid-body model (tests/surface_oracle.py) finds (within 1e-8 relative at rtol 1e-11)."""
+    from dataclasses import replace
+
+    from surface_cases import BY_ID
+
+    case = replace(BY_ID["funnel-1"], rho0=0.3, v0=0.05, w0=0.0)
+    o = case.oracle()
+    ref = o.run(o.launch(0.3, 0.05, 0.0), 10.0)
+    assert ref.fate == "left_surface"
+    scene = engine.Scene(M=case.M, g=case.g, a=case.a, k=case.k)
+    d = engine.simulate(surface=Funnel(0.05, 0.02), rho0=0.3, v0=0.05, w0=0.0, scene=scene,
+                        method="dop853", rtol=1e-11, t_end=10.0)  # fmt: skip
+    assert EVENT_NAMES[int(d.event_kind.values[-1])] == "liftoff"
+    assert d.attrs["status_message"].startswith("lifted off")
+    assert float(d.event_time.values[-1]) == pytest.approx(ref.fate_time, rel=1e-8)
+    assert float(d.time.values[-1]) == pytest.approx(ref.fate_time, rel=1e-8)

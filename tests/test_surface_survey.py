@@ -5,12 +5,17 @@ integrated maps against each other, the fate maps against the 40-digit fates, an
 file's refusals."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from surface_cases import BY_ID, stored
 
 import engine
+from engine.kernels.routh import MAY_LIFT
+from engine.kernels.surface_starts import set_point
+from engine.routh import surface_table
+from engine.surface_maps import surface_params, surface_points
 from engine.surfaces import Bowl, Cone, Funnel, Paraboloid, PowerLaw, Profile
 from engine.surveyfile import SurveyError, parse_survey
 
@@ -200,3 +205,68 @@ def test_a_profile_trough_too_sharp_for_the_ball_is_refused():
     with pytest.raises(ValueError, match=r"does not fit in the profile's trough at rho = 0\.29"):
         engine.launch_survey(surface=gutter, rho0=0.32, v0=0.2, w0=0.0, scene=engine.Scene(a=0.01))
     assert gutter.trough(0.002) is None
+
+
+#: Launches on the funnel from a turning point: nearly radial ones (v0 0.05 m/s) fall in fast
+#: enough that the convex meridian (kappa < 0) takes their normal force to zero; the others roll.
+LIFT_RHO0 = (0.1, 0.3, 1.0)
+LIFT_V0 = (0.05, 0.5)
+
+
+def test_a_ball_that_leaves_the_funnel_is_lifted_off_where_the_rigid_body_model_says():
+    """The fate map ends a run where the normal force falls to zero (``lifted_off``), at the
+    time and azimuth where the independent rigid-body model (tests/surface_oracle.py: Newton
+    and Euler in Cartesian form, N = M (g n_z - dn/dt . V), scipy at rtol 1e-12) has N reach
+    zero, within 1e-8 relative (dop853 at rtol 1e-11, as the other fates); the launches the
+    model keeps on the surface roll to the horizon, and the exact map calls exactly the
+    lifted ones ``lifts_off``."""
+    case = BY_ID["funnel-1"]  # M, g, a, k of the funnel cases
+    kw = dict(surface=ENGINE["funnel"], rho0=list(LIFT_RHO0), v0=list(LIFT_V0), w0=0.0)
+    ds = engine.launch_survey(**kw, scene=_scene(case, rim=3.0), method="dop853", rtol=RTOL,
+                              horizon_time=10.0)  # fmt: skip
+    exact = engine.launch_survey(**kw, scene=_scene(case, rim=3.0))
+    fates = ds.cone.names("fate").values.reshape(len(LIFT_RHO0), len(LIFT_V0))
+    classes = exact.cone.names("orbit_class").values.reshape(fates.shape)
+    lifted = 0
+    for i, rho0 in enumerate(LIFT_RHO0):
+        for j, v0 in enumerate(LIFT_V0):
+            o = replace(case, rho0=rho0, v0=v0, w0=0.0).oracle()
+            r = o.run(o.launch(rho0, v0, 0.0), 10.0)
+            point = dict(rho0=rho0, v0=v0)
+            if r.fate == "left_surface":
+                lifted += 1
+                assert fates[i, j] == "lifted_off" and classes[i, j] == "lifts_off", point
+                at = ds.sel(**point, w0=0.0)
+                assert float(at.fate_time) == pytest.approx(r.fate_time, rel=1e-8)
+                assert abs(float(at.fate_theta)) == pytest.approx(abs(r.fate_state[9]), rel=1e-8)
+                assert float(at.invariant_drift) < 1e-8
+            else:
+                assert (r.fate, fates[i, j], classes[i, j]) == ("rolling", "rolling", "bounded")
+    assert lifted == len(LIFT_RHO0)  # every nearly radial launch
+
+
+def test_a_one_period_map_says_where_the_ball_lifts_off():
+    """Without a scene's end (a one-period map) a launch that lifts off has the status
+    ``lifted_off`` and no period, not the period of an orbit it cannot roll."""
+    ds = engine.launch_survey(surface=ENGINE["funnel"], rho0=0.3, v0=[0.05, 0.5], w0=0.0,
+                              method="rk45", rtol=1e-10)  # fmt: skip
+    status = ds.cone.names("status").values.reshape(-1)
+    assert list(status) == ["lifted_off", "ok"]
+    period = ds.period.values.reshape(-1)
+    assert np.isnan(period[0]) and np.isfinite(period[1])
+
+
+def test_only_a_meridian_that_curves_away_or_overhangs_is_scanned_for_lift_off():
+    """The exact map looks for lift-off where the surface allows it (kappa < 0 or cos b <= 0
+    somewhere): funnel, a power law with 0 < n < 1, a profile with a convex stretch (the
+    log well z = 0.1 log(1 + (rho/0.3)^2), convex beyond rho = 0.3); not on a bowl, paraboloid,
+    power law with n > 1, cylinder or cone (there N >= M g cos b > 0)."""
+    rho = np.linspace(0.0, 1.0, 80)
+    well = Profile(tuple(rho), tuple(0.1 * np.log1p((rho / 0.3) ** 2)))
+    cases = {Funnel(0.05, 0.02): 1, PowerLaw(0.5, 0.5): 1, well: 1, Bowl(1.0): 0,
+             Paraboloid(0.5): 0, PowerLaw(0.5, 3.0): 0, Cone(0.6): 0}  # fmt: skip
+    for surface, expected in cases.items():
+        p = surface_params(engine.Scene(), surface)
+        s1, s2 = surface.shape
+        set_point(p, surface_points(*(np.array([x]) for x in (s1, s2, 0.3, 1.0, 0.0))), 0)
+        assert surface_table(p).meta[MAY_LIFT] == expected, surface

@@ -148,6 +148,17 @@ def normal_force(r, v, p):
     return p[P_M] * (p[P_G] * p[P_SIN] + v * v * p[P_COT] / r)
 
 
+#: Inside a cone N = M (g sin(alpha) + kappa v^2) > 0 (:func:`normal_force`): the sphere never
+#: leaves it (the lift-off event is not compiled into its runs).
+LEAVES = False
+
+
+@kernel
+def lift_margin(y, p):
+    """Event function of lift-off: -N [N] (>= 0: the sphere leaves the surface; never here)."""
+    return -normal_force(y[0], y[3], p)
+
+
 @kernel
 def invariants(y, p):
     """(E [J], L_z [kg m^2/s], h [m/s]) of the state y (:func:`invariants_of`)."""

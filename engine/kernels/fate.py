@@ -28,6 +28,7 @@ from .cone_starts import holds_at_rest as holds_at_rest  # the hybrid stories' (
 from .effects import DISSIPATIVE
 from .fate_codes import (
     FAILED,
+    FATE_LIFTED_OFF,
     FATE_NAMES,
     FATE_REST,
     FATE_ROWS,
@@ -56,6 +57,7 @@ from .orbit import run
 from .protocol import (
     APOCENTRE,
     AT_VERTEX,
+    LIFTED_OFF,
     MAX_STEPS,
     OK,
     RECORD_NONE,
@@ -88,6 +90,8 @@ def fate_of_status(status):
         return FATE_VERTEX
     if status == RESTED:
         return FATE_REST
+    if status == LIFTED_OFF:
+        return FATE_LIFTED_OFF
     return FAILED
 
 

@@ -13,6 +13,10 @@ FATE_REST = 4
 FATE_VERTEX = 5
 FAILED = 6
 FATE_NAMES = ("no_orbit", "rolling", "spilled", "slipped", "rest", "vertex", "failed")
+#: The sphere left the surface (its normal force fell to zero: a surface's fate, never the
+#: cone's); after the sliding model's codes 7 and 8 (``.story_parts``), so that one code means
+#: one fate in every file.
+FATE_LIFTED_OFF = 9
 #: A model's start that runs (not a fate: the run goes on from the start).
 RUNS = -1
 #: Rows of the float output of :func:`.fate.fate_points`.

@@ -47,9 +47,9 @@ from .protocol import (
     NOT_BOUNDED,
     OK,
     RECORD_NONE,
-    TERMINAL_EFFECTS,
     start_protocol,
     terminal_between,
+    terminal_events,
 )
 from .rates import rhs
 from .rk import ERR_FLOOR, initial_step, step_allowed
@@ -289,7 +289,7 @@ def _lane_flagged(method, effects, l, max_steps, W, I, LEV, LEVK, p, K, K2, ys, 
         n_steps = W[ly.N_ACC * L + l] + W[ly.N_REJ * L + l]
         return True, step_allowed(n_steps, max_steps, W[ly.H * L + l], W[ly.T * L + l])
     term = False
-    if effects & TERMINAL_EFFECTS:
+    if terminal_events(effects):
         lane_params(method, effects, l, W, p)
         for j in range(ly.n):
             ys[j] = W[(ly.Y + j) * L + l]

@@ -46,7 +46,7 @@ from .lanes_step import (
     lanes_layout,
 )
 from .model import N_PARAMS, fate_start, set_point
-from .protocol import BUFFER_FULL, OK, TERMINAL_EFFECTS, terminal_between
+from .protocol import BUFFER_FULL, OK, terminal_between, terminal_events
 from .rk import clip_step, step_allowed
 from .rk_events import rk_dense, step_events
 
@@ -182,7 +182,7 @@ def _lane_flagged(method, effects, l, max_steps, W, p, K, K2, ys, yn, y, buf, br
     if W[ly.FLAG * L + l] != 2.0:
         lane_params(method, effects, l, W, p)
         h = lane_load_step(method, effects, l, W, p, K, ys, yn, buf)
-        if effects & TERMINAL_EFFECTS and terminal_between(effects, ys, yn, p):
+        if terminal_events(effects) and terminal_between(effects, ys, yn, p):
             ok, th_stop, stop_status, g_aps, n_aps, n_ev, i_aps, th_aps = step_events(
                 method, effects, ys, yn, K, h, t, p, buf, brent, K2, 1.0, 0, -1, ev_t, ev_kind,
                 ev_y, 0, True, False)  # fmt: skip

@@ -35,7 +35,7 @@ from .._jit import kernel
 from .branchless import keep, pick
 from .layouts import state_size_of
 from .model import MODEL_ROWS, N_PARAMS, model_of_key
-from .protocol import OK, TERMINAL_EFFECTS, terminal_between
+from .protocol import OK, terminal_between, terminal_events
 from .rates import rates5, rates6, rates9, rates10
 from .rk import clip_step, step_allowed, step_decide, step_error
 from .rk_codegen import GEN_OPTS, literal_int, rk_method_id, unrolled_step_lines
@@ -228,7 +228,7 @@ def _compiled(kind: str, method: int, n: int, terminal: bool, floor: int | None 
 
 def _effects(effects) -> tuple[int, bool]:
     e = literal_int(effects, "effects")
-    return state_size_of(e), bool(e & TERMINAL_EFFECTS)
+    return state_size_of(e), terminal_events(e)
 
 
 def _floor(effects) -> int | None:

@@ -253,6 +253,12 @@ def slip_margin(y, p, effects):
     raise NotImplementedError(_JIT_ONLY)
 
 
+def lift_margin(y, p, effects):
+    """Event function of lift-off: -N [N] (>= 0: the normal force is gone, the sphere leaves
+    the surface). Jit-only."""
+    raise NotImplementedError(_JIT_ONLY)
+
+
 def set_point(p, X, i, effects):
     """Point i's geometry (the columns of the points array X the model reads) into p. Jit-only."""
     raise NotImplementedError(_JIT_ONLY)
@@ -287,6 +293,7 @@ _interface(dissipated_power, "physics")
 _interface(omega_fixed, "physics", takes_effects=False)
 _interface(invariants, "physics", takes_effects=False)
 _interface(slip_margin, "physics")
+_interface(lift_margin, "physics", takes_effects=False)
 _interface(domain_floor, "physics", takes_effects=False)
 _interface(set_point, "starts", takes_effects=False)
 _interface(period_start, "starts")
@@ -300,7 +307,15 @@ INTERFACE = tuple(
     for part, fns in (
         (
             "physics",
-            (motion_rates, dissipated_power, omega_fixed, invariants, slip_margin, domain_floor),
+            (
+                motion_rates,
+                dissipated_power,
+                omega_fixed,
+                invariants,
+                slip_margin,
+                lift_margin,
+                domain_floor,
+            ),
         ),
         ("starts", (set_point, period_start, fate_start, holds_at_rest, starts_inner)),
     )
@@ -314,7 +329,7 @@ def check_interface(models: tuple[Model, ...]) -> None:
     for m in models:
         missing = [f"{part}.{name}" for part, name in INTERFACE
                    if not hasattr(getattr(m, part), name)]  # fmt: skip
-        for name in ("SLOTS", "DOMAIN_FLOOR_SLOT"):
+        for name in ("SLOTS", "DOMAIN_FLOOR_SLOT", "LEAVES"):
             if not hasattr(m.physics, name):
                 missing.append(f"physics.{name}")
         if missing:
@@ -322,6 +337,19 @@ def check_interface(models: tuple[Model, ...]) -> None:
 
 
 check_interface(MODELS)
+
+
+def leaves(effects) -> bool:
+    """Whether the model of ``effects`` (an ``effects`` literal in a kernel, or an int) can
+    lose its contact: its physics' ``LEAVES``; runs of such a model watch for lift-off.
+    Folds to a constant in a kernel."""
+    return bool(MODEL_ROWS[model_of_key(effects)].physics.LEAVES)
+
+
+@overload(leaves, jit_options=_OPTS)
+def _leaves(effects):
+    value = bool(_model(effects).physics.LEAVES)
+    return lambda effects: value
 
 
 # ----------------------------------------------------------- what every model shares

@@ -18,11 +18,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba.core import errors, types
+from numba.extending import overload
 
 from .._jit import kernel
 from .effects import EFFECTS, REVOLUTIONS, bringing
 from .layouts import P_R_VERTEX, P_THETA_MAX, P_V_REST
-from .model import rim_margin, slip_margin
+from .model import leaves, lift_margin, rim_margin, slip_margin
 
 EPS = 2.220446049250313e-16
 SQRT_EPS = 1.4901161193847656e-08
@@ -46,6 +48,7 @@ STATUSES = (
     (8, "buffer_full", "output buffer full (internal: the caller retries with more room)"),
     (9, "rest", "came to rest: rolling resistance stopped the sphere"),
     (10, "vertex", "reached the vertex region, where the single-contact model ends"),
+    (11, "lifted_off", "lifted off: the normal force fell to zero and the sphere left the surface"),
 )
 OK = 0
 SPILLED = 1
@@ -58,9 +61,10 @@ UNSUPPORTED = 7
 BUFFER_FULL = 8
 RESTED = 9
 AT_VERTEX = 10
+LIFTED_OFF = 11
 STATUS_FLAGS = tuple(row[1] for row in STATUSES)
 #: Statuses of a run that ended as the physics says (the others are failures).
-NORMAL_ENDS = (OK, SPILLED, SLIPPED, RESTED, AT_VERTEX)
+NORMAL_ENDS = (OK, SPILLED, SLIPPED, RESTED, AT_VERTEX, LIFTED_OFF)
 STATUS_MESSAGES = tuple(row[2] for row in STATUSES)
 
 # ------------------------------------------------------------------------ event kinds (int8)
@@ -72,10 +76,13 @@ REST = 4
 VERTEX = 5
 HORIZON = 6
 FAILURE = 7  # where a run failed (recorded by engine.simulate, never by a kernel)
-EVENT_NAMES = ("pericentre", "apocentre", "spill", "slip", "rest", "vertex", "horizon", "failed")
-#: The terminal event kinds, in the order they are checked (an apsis is not terminal).
+LIFTOFF = 8  # the normal force fell to zero: brought by the model (``.model.leaves``)
+EVENT_NAMES = ("pericentre", "apocentre", "spill", "slip", "rest", "vertex", "horizon", "failed",
+               "liftoff")  # fmt: skip
+#: The terminal event kinds, in the order they are checked (an apsis is not terminal; FAILURE,
+#: between them, is never enabled).
 FIRST_TERMINAL = SPILL
-LAST_TERMINAL = HORIZON
+LAST_TERMINAL = LIFTOFF
 #: The effects that bring each terminal event (the effects table's ``events``); the horizon is
 #: brought by the run option REVOLUTIONS.
 SPILL_EFFECTS = bringing("spill")
@@ -97,7 +104,7 @@ RUN_RESULT = ("status", "n_accepted", "n_rejected", "t", "y", "n_events", "n_rec
 def _check_tables() -> None:
     for code, (c, _, _) in enumerate(STATUSES):
         assert c == code, "STATUSES must be listed in code order"
-    terminal = EVENT_NAMES[FIRST_TERMINAL:LAST_TERMINAL]
+    terminal = EVENT_NAMES[FIRST_TERMINAL:HORIZON]
     for e in EFFECTS:
         assert set(e.events) <= set(terminal), f"{e.name}: events {e.events} not in {terminal}"
 
@@ -176,7 +183,23 @@ def kind_enabled(effects, kind):
         return effects & VERTEX_EFFECTS != 0
     if kind == HORIZON:
         return effects & REVOLUTIONS != 0
+    if kind == LIFTOFF:
+        return leaves(effects)
     return False
+
+
+def terminal_events(effects) -> bool:
+    """Whether runs of ``effects`` (an int, or a literal in a kernel, where it folds to a
+    constant) watch for terminal events: an effect's, the horizon's, or the model's lift-off."""
+    return bool(int(effects) & TERMINAL_EFFECTS) or leaves(int(effects))
+
+
+@overload(terminal_events, jit_options={"nogil": True})
+def _terminal_events(effects):
+    if not isinstance(effects, types.IntegerLiteral):
+        raise errors.TypingError("effects must be a numba literal here")
+    value = terminal_events(effects.literal_value)
+    return lambda effects: value
 
 
 @kernel
@@ -193,6 +216,8 @@ def event_value(kind, y, p, effects):
         return p[P_R_VERTEX] - y[0]
     if kind == HORIZON:
         return abs(y[1]) - p[P_THETA_MAX]
+    if kind == LIFTOFF:
+        return lift_margin(y, p, effects)
     return y[2]
 
 
@@ -253,6 +278,8 @@ def status_of(kind):
         return RESTED
     if kind == VERTEX:
         return AT_VERTEX
+    if kind == LIFTOFF:
+        return LIFTED_OFF
     return OK
 
 

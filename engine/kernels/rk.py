@@ -42,12 +42,12 @@ from .protocol import (
     RECORD_EVERY_DT,
     RECORD_STEPS,
     STEP_TOO_SMALL,
-    TERMINAL_EFFECTS,
     copy_into,
     copy_row,
     push_state,
     start_protocol,
     terminal_between,
+    terminal_events,
 )
 from .rates import rhs
 from .rk_codegen import controller, rk_attempt, rk_dense_stages, tableau
@@ -294,7 +294,7 @@ def rk_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_step
         n_acc += 1
         aps_cross = n_apsides >= 0 and apsis_crossed(g_aps, ynew[2])
         term_cross = False
-        if effects & TERMINAL_EFFECTS:
+        if terminal_events(effects):
             term_cross = terminal_between(effects, y, ynew, p)
         sample = record == RECORD_EVERY_DT and next_out <= t + h and next_out < t_end
         if S > ns + 1 and (aps_cross or term_cross or sample):

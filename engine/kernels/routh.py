@@ -48,9 +48,9 @@ from .layouts import P_G, P_INV_M1K, P_K, P_KK, P_M
 from .meridian import centre
 
 #: Orbit classes (int8); bounded .. spills have the cone's codes (``.geometry``).
-NO_ORBIT, BOUNDED, CIRCULAR, HYPERBOLIC, RADIAL, SPILLS, HOLE, UNFIT, UNSTABLE = range(9)
+NO_ORBIT, BOUNDED, CIRCULAR, HYPERBOLIC, RADIAL, SPILLS, HOLE, UNFIT, UNSTABLE, LIFTS = range(10)
 CLASS_NAMES = ("no_orbit", "bounded", "circular", "hyperbolic", "radial", "spills", "hole",
-               "unfit", "unstable_circular")  # fmt: skip
+               "unfit", "unstable_circular", "lifts_off")  # fmt: skip
 #: Not a class: the orbit leaves a table built to a finite q (``engine.routh`` extends it).
 EXTEND = -1
 #: Rows of the float output of :func:`.routh_orbit.orbit_points`.
@@ -64,11 +64,12 @@ MODE_HAT, MODE_LW, MODE_CYLINDER = 0, 1, 2
 END_AXIS, END_HOLE, END_UNFIT, END_OPEN, END_RIM, END_INFINITY, END_TABLE = range(7)
 #: The table's meta slots: mode, panels (all, in q), the ends (q, kind), the log substitution's
 #: origin (NaN: none), the limit of tan(b)/rho at q_ref (mode (L, w)), the cylinder's rho,
-#: 1 where kappa = 0 everywhere (Phi = I), the build's error estimate, q_ref.
+#: 1 where kappa = 0 everywhere (Phi = I), the build's error estimate, q_ref, 1 where the
+#: normal force can fall to zero somewhere (kappa < 0 or cos b <= 0 on the meridian's range).
 META = ("mode", "n_panels", "n_q", "q_a", "q_b", "inner", "outer", "q_axis", "t_ref", "rho_cyl",
-        "flat", "error", "q_ref")  # fmt: skip
+        "flat", "error", "q_ref", "may_lift")  # fmt: skip
 (MODE, N_PANELS, N_Q, Q_A, Q_B, INNER, OUTER, Q_AXIS, T_REF, RHO_CYL, FLAT, ERROR,
- Q_REF) = range(len(META))  # fmt: skip
+ Q_REF, MAY_LIFT) = range(len(META))  # fmt: skip
 #: Where the geometry of q = inf is evaluated (the infinite tail's end).
 Q_FAR = 1e150
 #: A launch with u0 = 0 whose meridian force vanishes to this fraction of its terms is circular.

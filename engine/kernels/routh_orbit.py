@@ -19,6 +19,9 @@ period and apsidal angle (:mod:`.routh_quad`); the parallel batch over points.
 - **Radial** orbits (L = 0 along the whole meridian: on the cone L = 0; elsewhere also w = 0)
   pass through the axis: T from the axis to the apocentre and back (pericentre to pericentre,
   the cone's convention: half the swing from one side to the other and back), psi NaN.
+- **Lift-off**: an orbit (of any class) whose normal force falls to zero where it goes, on a
+  meridian that can lose the contact, is ``lifts_off`` instead (:mod:`.routh_contact`): the
+  reduction's orbit assumes the contact it would lose.
 """
 
 from __future__ import annotations
@@ -46,6 +49,7 @@ from .routh import (
     HOLE,
     HYPERBOLIC,
     INNER,
+    LIFTS,
     MODE,
     MODE_CYLINDER,
     NO_ORBIT,
@@ -65,6 +69,7 @@ from .routh import (
     potential_ss,
     radial_f,
 )
+from .routh_contact import lifts_between, normal_per_mass
 from .routh_quad import quadrature, radial_period
 from .routh_well import NARROWER, circular_q, value, well, well_root
 from .surface_starts import X_POS, X_U, X_V, X_W, launch_q
@@ -206,6 +211,8 @@ def orbit(p, edges, coef, meta, q0, u0, v0, w0):
     pos0 = z0 if cyl else rho0
     if u0 == 0.0 and abs(Us0) <= CIRCULAR_TOL * sc0 and not radial:
         Uss = potential_ss(p, rho0, sb0, cb0, kap0, L0, c2 + dw0)
+        if normal_per_mass(p, edges, coef, meta, c1, c2, e0, q0) <= 0.0:
+            return LIFTS, pos0, pos0, nan, nan, nan, IL, Iw
         if not Uss > 0.0:
             return UNSTABLE, pos0, pos0, nan, nan, nan, IL, Iw
         om = math.sqrt(0.5 * Uss)
@@ -225,6 +232,9 @@ def orbit(p, edges, coef, meta, q0, u0, v0, w0):
             ok, rmin, rmax, T, psi = _in_well(p, edges, coef, meta, c1, c2, e0, q0, 0.0, qc, hw,
                                               min(x0, -x0), max(x0, -x0))  # fmt: skip
             if ok:
+                if lifts_between(p, edges, coef, meta, c1, c2, e0, min(q0, 2.0 * qc - q0),
+                                 max(q0, 2.0 * qc - q0)):  # fmt: skip
+                    return LIFTS, rmin, rmax, nan, nan, nan, IL, Iw
                 return BOUNDED, rmin, rmax, T, psi, (2.0 * psi - 2.0 * math.pi) / T, IL, Iw
     inner = meta[INNER]
     lo_end = -math.inf if inner == END_OPEN else meta[Q_A]
@@ -246,12 +256,20 @@ def orbit(p, edges, coef, meta, q0, u0, v0, w0):
     cls_out = SPILLS if outer == END_RIM else HYPERBOLIC if outer == END_INFINITY else EXTEND
     cls_in = (RADIAL if axis else HOLE if inner == END_HOLE else UNFIT if inner == END_UNFIT
               else HYPERBOLIC)  # fmt: skip
-    if not found2 and (found1 or u0 > 0.0):
+    if not found2 and (found1 or u0 > 0.0):  # out: from the launch or its inner turning point
+        qa = q0 if u0 > 0.0 else q1
+        if lifts_between(p, edges, coef, meta, c1, c2, e0, qa, meta[Q_B]):
+            return LIFTS, rmin, rmax, nan, nan, nan, IL, Iw
         return cls_out, rmin, rmax, nan, nan, nan, IL, Iw
-    if not found1 and not (radial and axis):
+    if not found1 and not (radial and axis):  # in: from the launch or its outer turning point
+        qb = q2 if found2 else q0
+        if lifts_between(p, edges, coef, meta, c1, c2, e0, lo_end, qb):
+            return LIFTS, rmin, rmax, nan, nan, nan, IL, Iw
         return cls_in, rmin, rmax, nan, nan, nan, IL, Iw
     if not found2:
         return cls_out, rmin, rmax, nan, nan, nan, IL, Iw
+    if lifts_between(p, edges, coef, meta, c1, c2, e0, q1, q2):  # the whole orbit
+        return LIFTS, rmin, rmax, nan, nan, nan, IL, Iw
     none = np.empty(0)
     wm = (none, none, none, none, 0.0, 1.0, 0.0)
     if radial and axis:

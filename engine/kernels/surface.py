@@ -61,6 +61,25 @@ def pull(q, u, v, w, p):
     return udot, vdot, wdot, N, sigma, irho
 
 
+#: The normal force can fall to zero where the meridian curves away from the ball (a funnel, a
+#: profile's convex stretch: kappa u^2 < 0) or over the bowl's equator (cos b < 0): the
+#: sphere leaves the surface there, an event that ends the run (``lifted_off``).
+LEAVES = True
+
+
+@kernel
+def normal_force(q, u, v, p):
+    """N [N] = M (g cos b + sin(b)/rho v^2 + kappa u^2) (module docstring)."""
+    rho, z, cb, sb, kappa, sigma, fit = centre(p, q)
+    return p[P_M] * (p[P_G] * cb + sb / rho * v * v + kappa * u * u)
+
+
+@kernel
+def lift_margin(y, p):
+    """Event function of lift-off: -N [N] (>= 0: the sphere leaves the surface)."""
+    return -normal_force(y[0], y[2], y[3], p)
+
+
 @kernel
 def motion_rates(q, u, v, w, p, effects):
     """(dq/dt, dtheta/dt, du/dt, dv/dt, dw/dt) (module docstring)."""

@@ -279,8 +279,9 @@ def test_summary_counts_classes_and_finite_ranges():
             "n_steps": np.ones(1, np.int64),
         }
     )
-    np.testing.assert_array_equal(s.counts, [1, 2, 1, 0, 0, 1, 0, 0, 0])
+    np.testing.assert_array_equal(s.counts, [1, 2, 1, 0, 0, 1, 0, 0, 0, 0])
     assert s.ranges == {"r_min": (0.5, 3.0, "m")}
     s.add({"fate": np.array([1, 2, 2], np.int8)})  # every flag variable is counted
-    # one slot per fate code of any map kind: 0..6, 7 sliding and 8 spinning (sliding fate maps)
-    np.testing.assert_array_equal(s.flags["fate"], [0, 1, 2, 0, 0, 0, 0, 0, 0])
+    # one slot per fate code of any map kind: 0..6, 7 sliding and 8 spinning (sliding fate maps),
+    # 9 lifted_off (surface fate maps)
+    np.testing.assert_array_equal(s.flags["fate"], [0, 1, 2, 0, 0, 0, 0, 0, 0, 0])
