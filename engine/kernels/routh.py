@@ -198,8 +198,15 @@ def integrals(p, edges, coef, meta, q0, v0, w0):
 
 @kernel
 def radial_f(p, edges, coef, meta, c1, c2, e0, q):
-    """(F = u^2, dF/dq, sigma, L/rho^2, rho, z) of the orbit at q."""
+    """(F = u^2, dF/dq, sigma, L/rho^2, rho, z, N/M, the size of N/M's terms) of the orbit at q:
+    the normal force per mass N/M = g cos b + sin(b) v^2/rho + kappa u^2 [m/s^2] (:mod:`.surface`)
+    with v = L/rho, u^2 = F (0 where rounding makes F < 0), and |g cos b| + |sin(b) v^2/rho| +
+    |kappa u^2| (:mod:`.routh_contact`)."""
     rho, z, sb, cb, kap, sig, L, dw = along(p, edges, coef, meta, c1, c2, q)
     U, Us, sc = potential(p, rho, z, sb, cb, L, dw, c2)
     lr2 = L / (rho * rho) if L != 0.0 else 0.0
-    return e0 - U, -sig * Us, sig, lr2, rho, z
+    F = e0 - U
+    t1 = p[P_G] * cb
+    t2 = sb * lr2 * L / rho if L != 0.0 else 0.0
+    t3 = kap * max(F, 0.0)
+    return F, -sig * Us, sig, lr2, rho, z, t1 + t2 + t3, abs(t1) + abs(t2) + abs(t3)

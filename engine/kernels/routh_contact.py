@@ -11,7 +11,12 @@ and its orbit of the reduction, which assumes the contact, is not what happens: 
 calls it ``lifts_off``, as the integrators end such a run ``lifted_off``. Only a table whose
 meridian can lose the contact (``MAY_LIFT``) is scanned: elsewhere N >= M g cos(b) > 0.
 
-The scan samples N/M over the q the orbit visits, at :data:`SAMPLES` Chebyshev-Lobatto points
+A bounded orbit's quadrature (:mod:`.routh_quad`) has N/M at its nodes already (dense where F
+is resolved to 1e-7, and N is made of the same smooth functions): only where the smallest of
+them is within :data:`NEAR` of the size of its terms (they nearly cancel) is the orbit scanned
+(:func:`lifts_at_nodes`); a narrow orbit is looked at in the middle of its well and at its turning
+points first (:func:`lifts_in_well`). The scan (:func:`lifts_between`, also every orbit that
+escapes) samples N/M over the q the orbit visits, at :data:`SAMPLES` Chebyshev-Lobatto points
 (clustered at the ends: the turning points, where F = 0 and the curvature term vanishes), then
 narrows the smallest sample by golden section between its neighbours: N along an orbit is
 smooth, its minimum where the two terms balance.
@@ -22,9 +27,11 @@ from __future__ import annotations
 import math
 
 from .._jit import kernel
-from .layouts import P_G, P_RADIUS
-from .routh import MAY_LIFT, along, potential
+from .layouts import P_RADIUS
+from .routh import MAY_LIFT, radial_f
 
+#: Where the smallest N/M seen is within this share of its terms' size, the orbit is scanned.
+NEAR = 0.1
 #: Samples of N over the orbit's range of q.
 SAMPLES = 33
 #: Golden-section steps that narrow the smallest sample (0.618^24 of two sample spacings).
@@ -35,10 +42,7 @@ _GOLD = 0.6180339887498949
 @kernel
 def normal_per_mass(p, edges, coef, meta, c1, c2, e0, q):
     """N / M [m/s^2] of the orbit (constants c1, c2, energy e0) at q (module docstring)."""
-    rho, z, sb, cb, kap, sig, L, dw = along(p, edges, coef, meta, c1, c2, q)
-    U, Us, sc = potential(p, rho, z, sb, cb, L, dw, c2)
-    v = L / rho if L != 0.0 else 0.0
-    return p[P_G] * cb + sb * v * v / rho + kap * max(e0 - U, 0.0)
+    return radial_f(p, edges, coef, meta, c1, c2, e0, q)[6]
 
 
 @kernel
@@ -86,3 +90,31 @@ def lifts_between(p, edges, coef, meta, c1, c2, e0, qa, qb):
             x2 = lo + _GOLD * (hi - lo)
             f2 = normal_per_mass(p, edges, coef, meta, c1, c2, e0, _at(qa, qb, scale, x2))
     return min(f1, f2) <= 0.0
+
+
+@kernel
+def lifts_at_nodes(p, edges, coef, meta, c1, c2, e0, q1, q2, n_min, n_size):
+    """Whether the bounded orbit between q1 and q2 loses its contact, from the smallest N/M at
+    its quadrature's nodes (``n_min``, its terms' size ``n_size``): at once where it is <= 0,
+    by :func:`lifts_between` where it is within :data:`NEAR` of its terms' size."""
+    if meta[MAY_LIFT] == 0.0:
+        return False
+    if n_min <= 0.0:
+        return True
+    return n_min <= NEAR * n_size and lifts_between(p, edges, coef, meta, c1, c2, e0, q1, q2)
+
+
+@kernel
+def lifts_in_well(p, edges, coef, meta, c1, c2, e0, q1, qc, q2):
+    """Whether a narrow orbit (turning points q1, q2, the well's centre qc) loses its contact:
+    N/M at the three, and :func:`lifts_between` where the smallest is near zero (:data:`NEAR`)."""
+    if meta[MAY_LIFT] == 0.0:
+        return False
+    n_min, n_size = math.inf, 0.0
+    for q in (q1, qc, q2):
+        r = radial_f(p, edges, coef, meta, c1, c2, e0, q)
+        if r[6] < n_min:
+            n_min, n_size = r[6], r[7]
+    if n_min <= 0.0:
+        return True
+    return n_min <= NEAR * n_size and lifts_between(p, edges, coef, meta, c1, c2, e0, q1, q2)

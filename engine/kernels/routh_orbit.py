@@ -69,7 +69,7 @@ from .routh import (
     potential_ss,
     radial_f,
 )
-from .routh_contact import lifts_between, normal_per_mass
+from .routh_contact import lifts_at_nodes, lifts_between, lifts_in_well, normal_per_mass
 from .routh_quad import quadrature, radial_period
 from .routh_well import NARROWER, circular_q, value, well, well_root
 from .surface_starts import X_POS, X_U, X_V, X_W, launch_q
@@ -97,7 +97,7 @@ def _root(p, edges, coef, meta, c1, c2, e0, qa, fa, qb, fb, guess):
         if not (fa > 0.0 and min(qa, qb) < q < max(qa, qb)):
             q = 0.5 * (qa + qb)
     for _ in range(100):
-        F, Fq, sig, lr2, rho, z = radial_f(p, edges, coef, meta, c1, c2, e0, q)
+        F, Fq, sig, lr2, rho, z, nm, ns = radial_f(p, edges, coef, meta, c1, c2, e0, q)
         if F == 0.0:
             return q
         if F > 0.0:
@@ -190,7 +190,7 @@ def _in_well(p, edges, coef, meta, c1, c2, e0, q0, u0, qc, hw, x1, x2):
     x2 = well_root(H, g, S, hw, delta, x2)
     if not (-0.98 < x1 < x2 < 0.98):
         return False, nan, nan, nan, nan
-    T, psi, nodes = quadrature(p, edges, coef, meta, c1, c2, e0, x1, x2, 0,
+    T, psi, nodes, n_min, n_size = quadrature(p, edges, coef, meta, c1, c2, e0, x1, x2, 0,
                                (H, g, S, R, qc, hw, delta))  # fmt: skip
     return True, _position(p, meta, qc + hw * x1), _position(p, meta, qc + hw * x2), T, psi
 
@@ -232,7 +232,7 @@ def orbit(p, edges, coef, meta, q0, u0, v0, w0):
             ok, rmin, rmax, T, psi = _in_well(p, edges, coef, meta, c1, c2, e0, q0, 0.0, qc, hw,
                                               min(x0, -x0), max(x0, -x0))  # fmt: skip
             if ok:
-                if lifts_between(p, edges, coef, meta, c1, c2, e0, min(q0, 2.0 * qc - q0),
+                if lifts_in_well(p, edges, coef, meta, c1, c2, e0, min(q0, 2.0 * qc - q0), qc,
                                  max(q0, 2.0 * qc - q0)):  # fmt: skip
                     return LIFTS, rmin, rmax, nan, nan, nan, IL, Iw
                 return BOUNDED, rmin, rmax, T, psi, (2.0 * psi - 2.0 * math.pi) / T, IL, Iw
@@ -268,11 +268,11 @@ def orbit(p, edges, coef, meta, q0, u0, v0, w0):
         return cls_in, rmin, rmax, nan, nan, nan, IL, Iw
     if not found2:
         return cls_out, rmin, rmax, nan, nan, nan, IL, Iw
-    if lifts_between(p, edges, coef, meta, c1, c2, e0, q1, q2):  # the whole orbit
-        return LIFTS, rmin, rmax, nan, nan, nan, IL, Iw
     none = np.empty(0)
     wm = (none, none, none, none, 0.0, 1.0, 0.0)
     if radial and axis:
+        if lifts_between(p, edges, coef, meta, c1, c2, e0, q1, q2):
+            return LIFTS, 0.0, rmax, nan, nan, nan, IL, Iw
         T = radial_period(p, edges, coef, meta, c2, e0, q1, q2)
         return RADIAL, 0.0, rmax, T, nan, nan, IL, Iw
     if (q2 - q1) * sig0 <= NARROW * rho0:  # a narrow orbit: its well (.routh_well)
@@ -281,10 +281,14 @@ def orbit(p, edges, coef, meta, q0, u0, v0, w0):
         ok, rmin2, rmax2, T, psi = _in_well(p, edges, coef, meta, c1, c2, e0, q0, u0, qc, hw,
                                             (q1 - qc) / hw, (q2 - qc) / hw)  # fmt: skip
         if ok:
+            if lifts_in_well(p, edges, coef, meta, c1, c2, e0, q1, qc, q2):
+                return LIFTS, rmin2, rmax2, nan, nan, nan, IL, Iw
             return BOUNDED, rmin2, rmax2, T, psi, (2.0 * psi - 2.0 * math.pi) / T, IL, Iw
     qx = meta[Q_AXIS]
     sub = 1 if (q1 > qx and q2 - qx > ECCENTRIC * (q1 - qx)) else 0  # NaN q_axis: 0
-    T, psi, nodes = quadrature(p, edges, coef, meta, c1, c2, e0, q1, q2, sub, wm)
+    T, psi, nodes, n_min, n_size = quadrature(p, edges, coef, meta, c1, c2, e0, q1, q2, sub, wm)
+    if lifts_at_nodes(p, edges, coef, meta, c1, c2, e0, q1, q2, n_min, n_size):
+        return LIFTS, rmin, rmax, nan, nan, nan, IL, Iw
     return BOUNDED, rmin, rmax, T, psi, (2.0 * psi - 2.0 * math.pi) / T, IL, Iw
 
 

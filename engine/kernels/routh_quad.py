@@ -39,37 +39,40 @@ for _m in range(3):
 
 @kernel
 def _at(p, edges, coef, meta, c1, c2, e0, q, wm):
-    """(F, dF/dq, ds/dq, L/rho^2) at q; where ``wm`` holds a well (:mod:`.routh_well`) q is
-    its variable x = (q - q_c)/hw (the orbit's nodes keep every digit of its width, which q
-    itself, rounded to eps q, would not) and F comes from the well's series."""
+    """(F, dF/dq, ds/dq, L/rho^2, N/M, its terms' size) at q; where ``wm`` holds a well
+    (:mod:`.routh_well`) q is its variable x = (q - q_c)/hw (the orbit's nodes keep every digit
+    of its width, which q itself, rounded to eps q, would not) and F comes from the well's
+    series (N/M not computed: inf)."""
     H, g, S, R, qc, hw, delta = wm
     if H.shape[0] > 0:
         sig = hw * value(S, q)
-        return delta - value(H, q), -sig * value(g, q), sig, value(R, q)
-    F, Fq, sig, lr2, rho, z = radial_f(p, edges, coef, meta, c1, c2, e0, q)
-    return F, Fq, sig, lr2
+        return delta - value(H, q), -sig * value(g, q), sig, value(R, q), math.inf, 0.0
+    F, Fq, sig, lr2, rho, z, nm, ns = radial_f(p, edges, coef, meta, c1, c2, e0, q)
+    return F, Fq, sig, lr2, nm, ns
 
 
 @kernel
 def _node(p, edges, coef, meta, c1, c2, e0, q, jac, fa, fb, q1, q2, wm):
-    """(sigma J/sqrt(F), its L/rho^2 multiple) at q; where rounding makes F <= 0 beside an end,
-    F's linear growth from the nearer end (slopes fa, fb) stands in."""
-    F, Fq, sig, lr2 = _at(p, edges, coef, meta, c1, c2, e0, q, wm)
+    """(sigma J/sqrt(F), its L/rho^2 multiple, N/M, its terms' size) at q; where rounding makes
+    F <= 0 beside an end, F's linear growth from the nearer end (slopes fa, fb) stands in."""
+    F, Fq, sig, lr2, nm, ns = _at(p, edges, coef, meta, c1, c2, e0, q, wm)
     if not F > 0.0:
         F = min(abs(fa) * (q - q1), abs(fb) * (q2 - q))
         if not F > 0.0:
-            return 0.0, 0.0
+            return 0.0, 0.0, nm, ns
     f = sig * jac / math.sqrt(F)
-    return f, f * lr2
+    return f, f * lr2, nm, ns
 
 
 @kernel
 def quadrature(p, edges, coef, meta, c1, c2, e0, q1, q2, sub, wm):
-    """(T, psi, nodes) of the orbit between its turning points q1 < q2 (module docstring); sub:
-    0 q = m - h cos t, 1 log(q - q_axis) = m - h cos t; ``wm`` the well (:func:`_at`: then
-    q1, q2 are in its variable x)."""
-    F1, fq1, s1, l1 = _at(p, edges, coef, meta, c1, c2, e0, q1, wm)
-    F2, fq2, s2, l2 = _at(p, edges, coef, meta, c1, c2, e0, q2, wm)
+    """(T, psi, nodes, the smallest N/M at the nodes and its terms' size there) of the orbit
+    between its turning points q1 < q2 (module docstring); sub: 0 q = m - h cos t, 1
+    log(q - q_axis) = m - h cos t; ``wm`` the well (:func:`_at`: then q1, q2 are in its
+    variable x, and N/M is not computed: inf)."""
+    F1, fq1, s1, l1, n1, z1 = _at(p, edges, coef, meta, c1, c2, e0, q1, wm)
+    F2, fq2, s2, l2, n2, z2 = _at(p, edges, coef, meta, c1, c2, e0, q2, wm)
+    n_min, n_size = (n1, z1) if n1 <= n2 else (n2, z2)
     m = 0.5 * (q1 + q2)
     h = 0.5 * (q2 - q1)
     qx = meta[Q_AXIS]
@@ -101,7 +104,9 @@ def quadrature(p, edges, coef, meta, c1, c2, e0, q1, q2, sub, wm):
             else:
                 e = math.exp(ym - yh * ct)
                 q, jac = qx + e, e * yh
-            f, g = _node(p, edges, coef, meta, c1, c2, e0, q, jac, fq1, fq2, q1, q2, wm)
+            f, g, nm, ns = _node(p, edges, coef, meta, c1, c2, e0, q, jac, fq1, fq2, q1, q2, wm)
+            if nm < n_min:
+                n_min, n_size = nm, ns
             sT += f * st
             sP += g * st
             sA += abs(g) * st
@@ -109,9 +114,9 @@ def quadrature(p, edges, coef, meta, c1, c2, e0, q1, q2, sub, wm):
         IP2 = sP * math.pi / n
         if n >= 8 and abs(IT2 - IT) <= QUAD_TOL * IT2:
             if abs(IP2 - IP) <= QUAD_TOL * sA * math.pi / n:
-                return 2.0 * IT2, abs(IP2), n + 1
+                return 2.0 * IT2, abs(IP2), n + 1, n_min, n_size
         IT, IP = IT2, IP2
-    return 2.0 * IT, abs(IP), n + 1
+    return 2.0 * IT, abs(IP), n + 1, n_min, n_size
 
 
 @kernel
@@ -126,7 +131,8 @@ def radial_period(p, edges, coef, meta, c2, e0, qa, q2):
         s = 0.0
         for i in range(N_GL * 2**m):
             v = _GL_X[m, i]
-            F, Fq, sig, lr2, rho, z = radial_f(p, edges, coef, meta, 0.0, c2, e0, q2 - D * v * v)
+            F, Fq, sig, lr2, rho, z, nm, ns = radial_f(p, edges, coef, meta, 0.0, c2, e0,
+                                                       q2 - D * v * v)  # fmt: skip
             s += _GL_W[m, i] * sig * 2.0 * D * v / math.sqrt(F)
         if abs(s - last) <= QUAD_TOL * s:
             break

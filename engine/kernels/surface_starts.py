@@ -47,6 +47,8 @@ from .meridian import (
     P_Q_LO,
     P_SHAPE1,
     P_SHAPE2,
+    PARABOLOID,
+    POWER_LAW,
     PROFILE,
     centre,
 )
@@ -160,6 +162,12 @@ def launch_q(p, pos):
     if not (centre(p, lo)[0] <= pos <= centre(p, hi)[0]):
         return math.nan
     q = 0.5 * (lo + hi)
+    kind = p[P_KIND]
+    if kind == PARABOLOID or kind == FUNNEL or kind == POWER_LAW or kind == PROFILE:
+        # q is the contact's distance from the axis, rho + a sin b: one slope away from pos
+        guess = pos + p[P_RADIUS] * centre(p, max(pos, lo))[3]
+        if lo < guess < hi:
+            q = guess
     for _ in range(200):
         rho, z, cb, sb, kappa, sigma, fit = centre(p, q)
         f = rho - pos
