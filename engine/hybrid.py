@@ -22,15 +22,13 @@ from .kernels.hybrid import (
 )
 from .kernels.lanes_hybrid import hybrid_fate_points_lanes
 from .kernels.layouts import P_THETA_MAX
+from .kernels.sliding import HYBRID_STATE  # the components of an event's ``state``
 from .scene import Scene
 
 __all__ = ["HYBRID_VARIABLES", "HYBRID_STATE", "hybrid_fates", "hybrid_setup"]
 
 #: Variables a fate map of a sliding scene adds to today's fate variables.
 HYBRID_VARIABLES = HYBRID_ROWS[6:]
-#: Components of the hybrid state (an event's ``state``).
-HYBRID_STATE = ("r", "theta", "u", "v", "p1", "p2", "w", "W_rolling_resistance",
-                "W_sliding_friction", "W_spin_friction")  # fmt: skip
 #: Step budget of one launch (accepted + rejected steps, both modes).
 MAX_STEPS = 10_000_000
 

@@ -119,11 +119,12 @@ LIFT_PROBES = 2048
 
 
 def may_lift(p: np.ndarray, q_a: float, q_b: float) -> bool:
-    """Whether the normal force of an orbit can fall to zero somewhere on the centre's meridian
-    [q_a, q_b] of the surface of ``p``: where it curves away from the ball (kappa < 0) or
-    overhangs (cos b <= 0); elsewhere N >= M g cos b > 0. The funnel is convex everywhere, a
-    power law z = c rho^n where c n (n - 1) < 0; the others are looked at on
-    :data:`LIFT_PROBES` points (an infinite range up to 10^6 times its start)."""
+    """Whether the normal force of an orbit can fall below zero somewhere on the centre's
+    meridian [q_a, q_b] of the surface of ``p``: where it curves away from the ball (kappa < 0),
+    falls away outward (sin b < 0: the parallel's term is negative) or overhangs (cos b <= 0);
+    elsewhere every term of N is >= 0. The funnel is convex everywhere, a power law z = c rho^n
+    where c n (n - 1) < 0 (its slope never falls outward for c, n > 0); the others are looked
+    at on :data:`LIFT_PROBES` points (an infinite range up to 10^6 times its start)."""
     kind = p[P_KIND]
     if kind == FUNNEL:
         return True
@@ -138,7 +139,7 @@ def may_lift(p: np.ndarray, q_a: float, q_b: float) -> bool:
         qs = lo + np.geomspace(1e-6, 1e6, LIFT_PROBES) * max(abs(lo), float(p[P_RADIUS]))
     for q in qs:
         rho, z, cb, sb, kappa = centre(p, float(q))[:5]
-        if kappa < 0.0 or cb <= 0.0:
+        if kappa < 0.0 or cb <= 0.0 or sb < 0.0:
             return True
     return False
 

@@ -6,7 +6,8 @@ the survey sweeps, then the launch: its position (``rho0``, the cylinder's ``z0`
 class, the turning points, the period, the apsidal angle, the precession rate and Routh's two
 integrals); an integrator adds one integrated radial period of each bounded orbit (which
 replaces the period, apsidal angle and precession rate; an orbit that lifts off is integrated
-too, to where it does: status ``lifted_off``) or follows every launch to its fate
+too, from its launch to where it does: status ``lifted_off``; a launch with no speed along the
+parallel is not integrated, as on any map) or follows every launch to its fate
 (:mod:`engine.surface_maps`).
 """
 

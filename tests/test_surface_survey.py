@@ -12,7 +12,7 @@ import pytest
 from surface_cases import BY_ID, stored
 
 import engine
-from engine.kernels.routh import MAY_LIFT
+from engine.kernels.routh import CLASS_NAMES, MAY_LIFT
 from engine.kernels.surface_starts import set_point
 from engine.routh import surface_table
 from engine.surface_maps import surface_params, surface_points
@@ -270,3 +270,61 @@ def test_only_a_meridian_that_curves_away_or_overhangs_is_scanned_for_lift_off()
         s1, s2 = surface.shape
         set_point(p, surface_points(*(np.array([x]) for x in (s1, s2, 0.3, 1.0, 0.0))), 0)
         assert surface_table(p).meta[MAY_LIFT] == expected, surface
+
+
+def _contact_rho(f1, rho0, a):
+    """The contact point's distance from the axis of a ball whose centre is rho0 from it, on
+    the graph z = f(rho) with slope f1: rho_c - a sin b(rho_c) = rho0 (fixed point)."""
+    rc = rho0
+    for _ in range(60):
+        rc = rho0 + a * f1(rc) / math.sqrt(1 + f1(rc) ** 2)
+    return rc
+
+
+def test_a_ball_fast_along_a_wall_that_falls_outward_lifts_off():
+    """In a ring-shaped gutter z = (rho - 0.5)^2 the wall inside the lowest circle falls away
+    outward (sin b < 0): there N/M = g cos b + (sin b/rho) v^2 at a turning point, negative for a
+    ball fast enough along the parallel (computed here from the graph, independently of the
+    engine). The exact map calls that launch lifts_off, the fate map ends it lifted_off at its
+    start; a slower launch keeps N > 0 there and is neither."""
+    rho = np.linspace(0.05, 1.2, 80)
+    gutter = Profile(tuple(rho), tuple((rho - 0.5) ** 2))
+    scene = engine.Scene(a=0.01, rim=1.1)
+    f1 = lambda r: 2 * (r - 0.5)  # noqa: E731
+    for v0, lifts in ((1.2, True), (0.3, False)):
+        rc = _contact_rho(f1, 0.1, scene.a)
+        cb, sb = 1 / math.sqrt(1 + f1(rc) ** 2), f1(rc) / math.sqrt(1 + f1(rc) ** 2)
+        n = scene.g * cb + sb * v0**2 / 0.1
+        assert (n < 0) == lifts, (v0, n)
+        exact = engine.launch_survey(surface=gutter, rho0=0.1, v0=v0, w0=0.0, scene=scene)
+        fate = engine.launch_survey(surface=gutter, rho0=0.1, v0=v0, w0=0.0, scene=scene,
+                                    method="dop853", rtol=1e-10, horizon_time=1.0)  # fmt: skip
+        cls = exact.cone.names("orbit_class").values.reshape(-1)[0]
+        end = fate.cone.names("fate").values.reshape(-1)[0]
+        if lifts:
+            assert (cls, end, _one(fate, "fate_time")) == ("lifts_off", "lifted_off", 0.0)
+        else:
+            assert cls != "lifts_off" and end != "lifted_off", (cls, end)
+
+
+def test_a_radial_throw_through_the_axis_that_lifts_off_on_its_way_is_lifts_off():
+    """Thrown inward (u0 = -8 m/s, no speed along the parallel) from rho0 = 0.8 m in the log
+    well z = 0.1 log(1 + (rho/0.3)^2): through the axis and out over the rim, but the wall
+    there curves away from the ball (kappa < 0 beyond rho = 0.3), and N/M = g cos b +
+    kappa u^2 < 0 already at the launch (from the graph, independently of the engine). The
+    exact map's through-the-axis escape is scanned too: lifts_off, not spills."""
+    from engine.routh import exact_map
+
+    rho = np.linspace(0.0, 1.0, 80)
+    well = Profile(tuple(rho), tuple(0.1 * np.log1p((rho / 0.3) ** 2)))
+    scene = engine.Scene(a=0.01, rim=0.95)
+    f1 = lambda r: 0.2 * r / (0.09 + r * r)  # noqa: E731
+    f2 = lambda r: 0.2 * (0.09 - r * r) / (0.09 + r * r) ** 2  # noqa: E731
+    rc = _contact_rho(f1, 0.8, scene.a)
+    kc = f2(rc) / (1 + f1(rc) ** 2) ** 1.5
+    kappa = kc / (1 - scene.a * kc)  # the centre's meridian, a parallel curve
+    assert scene.g / math.sqrt(1 + f1(rc) ** 2) + kappa * 8.0**2 < 0
+    p = surface_params(scene, well)
+    s1, s2 = well.shape
+    X = surface_points(*(np.array([x]) for x in (s1, s2, 0.8, 0.0, 0.0)), u0=np.array([-8.0]))
+    assert int(exact_map(p, X)["orbit_class"][0]) == CLASS_NAMES.index("lifts_off")

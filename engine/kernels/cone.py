@@ -37,6 +37,12 @@ from .layouts import (
     P_RADIUS,
     P_RIM,
     P_RIM_SLANT,
+    Y_QUAT,
+    Y_R,
+    Y_THETA,
+    Y_U,
+    Y_V,
+    Y_W,
     model_slots,
 )
 
@@ -156,13 +162,13 @@ LEAVES = False
 @kernel
 def lift_margin(y, p):
     """Event function of lift-off: -N [N] (>= 0: the sphere leaves the surface; never here)."""
-    return -normal_force(y[0], y[3], p)
+    return -normal_force(y[Y_R], y[Y_V], p)
 
 
 @kernel
 def invariants(y, p):
     """(E [J], L_z [kg m^2/s], h [m/s]) of the state y (:func:`invariants_of`)."""
-    return invariants_of(y[0], y[2], y[3], y[4], p[P_SIN], p[P_COS], p[P_M], p[P_G], p[P_K])
+    return invariants_of(y[Y_R], y[Y_U], y[Y_V], y[Y_W], p[P_SIN], p[P_COS], p[P_M], p[P_G], p[P_K])
 
 
 @kernel
@@ -171,7 +177,7 @@ def rolling_friction(y, p, effects):
     conservative part F e1 (:func:`contact_forces_of`) and the part the effects' forces and
     couples need, ((t2 - k f1), (-t1 - k f2)) / (1 + k) (docs/physics.md "Effects as forces and
     couples")."""
-    r, u, v, w = y[0], y[2], y[3], y[4]
+    r, u, v, w = y[Y_R], y[Y_U], y[Y_V], y[Y_W]
     F, N = contact_forces_of(r, v, w, p[P_SIN], p[P_COS], p[P_COT], p[P_M], p[P_G], p[P_KK])
     F1 = F
     F2 = 0.0
@@ -262,16 +268,16 @@ def contact_velocity(y, ydot, p):
     s = p[P_SIN]
     c = p[P_COS]
     a = p[P_RADIUS]
-    r = y[0]
-    cth = math.cos(y[1])
-    sth = math.sin(y[1])
+    r = y[Y_R]
+    cth = math.cos(y[Y_THETA])
+    sth = math.sin(y[Y_THETA])
     rd = ydot[0]
     vt = r * s * ydot[1]
     # R_dot = rdot e1 + r s thetadot e2
     Rx = rd * s * cth - vt * sth
     Ry = rd * s * sth + vt * cth
     Rz = rd * c
-    q0, q1, q2, q3 = y[5], y[6], y[7], y[8]
+    q0, q1, q2, q3 = y[Y_QUAT], y[Y_QUAT + 1], y[Y_QUAT + 2], y[Y_QUAT + 3]
     d0, d1, d2, d3 = ydot[5], ydot[6], ydot[7], ydot[8]
     n2 = q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3
     # vector part of 2 qdot * conj(q)

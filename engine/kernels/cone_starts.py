@@ -43,6 +43,12 @@ from .layouts import (
     P_R_VERTEX,
     P_RIM,
     P_V_REST,
+    Y_QUAT,
+    Y_R,
+    Y_THETA,
+    Y_U,
+    Y_V,
+    Y_W,
     state_size,
 )
 from .roots import circular_radius, turning_points
@@ -85,13 +91,13 @@ def initial_state(p, effects, r0, energy, h, Lz):
     M = p[P_M]
     A, B, C = coefficients(p[P_ALPHA], h, Lz, M, p[P_G], p[P_K])
     ke = energy - (A / (r0 * r0) + B / r0 + C * r0)
-    y[0] = r0
-    y[1] = 0.0
-    y[2] = math.sqrt(2.0 * ke / M) if ke > 0.0 else 0.0
-    y[3] = Lz / (M * r0 * s)
-    y[4] = h + Lz * c / (M * r0 * s * s)
+    y[Y_R] = r0
+    y[Y_THETA] = 0.0
+    y[Y_U] = math.sqrt(2.0 * ke / M) if ke > 0.0 else 0.0
+    y[Y_V] = Lz / (M * r0 * s)
+    y[Y_W] = h + Lz * c / (M * r0 * s * s)
     if effects & ATTITUDE:
-        y[5] = 1.0
+        y[Y_QUAT] = 1.0
     return y
 
 
@@ -111,7 +117,7 @@ def tolerance_scales(p, effects, y0, energy, h, Lz, r1, r2, rc):
     s = p[P_SIN]
     c = p[P_COS]
     A, B, C = coefficients(p[P_ALPHA], h, Lz, M, p[P_G], p[P_K])
-    speed = math.sqrt(y0[2] ** 2 + y0[3] ** 2 + y0[4] ** 2)
+    speed = math.sqrt(y0[Y_U] ** 2 + y0[Y_V] ** 2 + y0[Y_W] ** 2)
     if math.isfinite(rc) and rc > 0.0:
         du = energy - (A / (rc * rc) + B / rc + C * rc)
         umax = math.sqrt(2.0 * du / M) if du > 0.0 else 0.0
@@ -119,15 +125,15 @@ def tolerance_scales(p, effects, y0, energy, h, Lz, r1, r2, rc):
         umax = max(speed, math.sqrt(2.0 * abs(energy) / M))
     vel = max(speed, umax)
     floor = SQRT_EPS * vel
-    sc[0] = y0[0]
-    sc[1] = 1.0
-    sc[2] = max(umax, floor)
+    sc[Y_R] = y0[Y_R]
+    sc[Y_THETA] = 1.0
+    sc[Y_U] = max(umax, floor)
     # v = L_z/(M r sin a) carries L_z: keep it relatively accurate where it is smallest (r2).
     r_far = r2 if math.isfinite(r2) else r1
-    sc[3] = max(abs(Lz / (M * r_far * s)), floor)
+    sc[Y_V] = max(abs(Lz / (M * r_far * s)), floor)
     w1 = abs(h + Lz * c / (M * r1 * s * s))
     w2 = abs(h + Lz * c / (M * r2 * s * s)) if math.isfinite(r2) else abs(h)
-    sc[4] = max(max(w1, w2), floor)
+    sc[Y_W] = max(max(w1, w2), floor)
     if effects & DISSIPATIVE:  # the work of the dissipative forces: the orbit's energy scale
         sc[n - 1] = max(abs(energy), 0.5 * M * vel * vel)
     return sc
@@ -143,7 +149,7 @@ def period_start(effects, p, X, i, rtol):
     if not ok:
         return False, np.empty(0), np.empty(0), (energy, h, Lz)
     y0 = initial_state(p, effects, r1, energy, h, Lz)
-    y0[2] = 0.0  # exactly at the turning point
+    y0[Y_U] = 0.0  # exactly at the turning point
     atol = tolerance_scales(p, effects, y0, energy, h, Lz, r1, r2, rc)
     atol *= rtol
     return True, y0, atol, (energy, h, Lz)
@@ -175,15 +181,15 @@ def fate_start(effects, p, X, i, rtol):
         y0, t0, work0 = leave_vertex(p, effects, energy, h)
         if t0 < 0.0:
             return FATE_VERTEX, 0.0, none, 0.0, 0.0, none, orbit
-        r1 = y0[0]
+        r1 = y0[Y_R]
     else:
         y0 = initial_state(p, effects, r_start, energy, h, Lz)
-        y0[2] = 0.0  # a turning point: the start of a map's orbit, or a launch with u0 = 0
+        y0[Y_U] = 0.0  # a turning point: the start of a map's orbit, or a launch with u0 = 0
         if r_start <= p[P_R_VERTEX]:  # inside the vertex region: at its r_min it leaves
-            if motion_rates(y0[0], 0.0, y0[3], y0[4], p, effects)[2] <= 0.0:
+            if motion_rates(y0[Y_R], 0.0, y0[Y_V], y0[Y_W], p, effects)[2] <= 0.0:
                 return FATE_VERTEX, r_start, none, 0.0, 0.0, none, orbit
-    sc = tolerance_scales(p, effects, y0, energy, h, Lz, min(r1, y0[0]), r2, rc)
-    p[P_V_REST] = REST_SPEED * rtol * max(sc[2], abs(y0[3]))
+    sc = tolerance_scales(p, effects, y0, energy, h, Lz, min(r1, y0[Y_R]), r2, rc)
+    p[P_V_REST] = REST_SPEED * rtol * max(sc[Y_U], abs(y0[Y_V]))
     atol = sc * rtol
     return RUNS, math.nan, y0, t0, work0, atol, orbit
 
@@ -207,8 +213,8 @@ def leave_vertex(p, effects, energy, h):
     u2 = u0 * u0 - 2.0 * decel * r_v
     if not u2 > 0.0:
         return y, -1.0, 0.0
-    y[2] = math.sqrt(u2)
-    return y, (u0 - y[2]) / decel, work
+    y[Y_U] = math.sqrt(u2)
+    return y, (u0 - y[Y_U]) / decel, work
 
 
 @kernel

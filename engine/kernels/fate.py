@@ -40,7 +40,7 @@ from .fate_codes import (
     ROLLING,
     RUNS,
 )
-from .layouts import state_size
+from .layouts import Y_R, Y_THETA, Y_U, Y_V, Y_W, state_size
 from .model import (
     ROLLING_RESISTANCE,
     SLIP_CHECK,
@@ -105,22 +105,22 @@ def come_to_rest(y, p, effects):
     what happens at rest): RESTED if the sphere stays (the resistance holds it and the
     friction it then needs, the whole slope pull, is within mu N), SLIPPED if friction cannot
     hold it, OK if the resistance cannot (it starts again from rest)."""
-    u = y[2]
-    v = y[3]
+    u = y[Y_U]
+    v = y[Y_V]
     speed = math.sqrt(u * u + v * v)
     dt = 0.0
     if speed > 0.0:
-        rates = motion_rates(y[0], u, v, y[4], p, effects)
+        rates = motion_rates(y[Y_R], u, v, y[Y_W], p, effects)
         decel = -(u * rates[2] + v * rates[3]) / speed
         dt = speed / decel if decel > 0.0 else 0.0
         half = 0.5 * dt
         if effects & DISSIPATIVE:
-            y[state_size(effects) - 1] += dissipated_power(y[0], u, v, y[4], p, effects) * half
-        y[0] += u * half
-        y[1] += rates[1] * half
-        y[4] += rates[4] * half
-        y[2] = 0.0
-        y[3] = 0.0
+            y[state_size(effects) - 1] += dissipated_power(y[Y_R], u, v, y[Y_W], p, effects) * half
+        y[Y_R] += u * half
+        y[Y_THETA] += rates[1] * half
+        y[Y_W] += rates[4] * half
+        y[Y_U] = 0.0
+        y[Y_V] = 0.0
     if not model_holds_at_rest(p, y, effects):
         return dt, OK
     if effects & SLIP_CHECK:
@@ -134,7 +134,7 @@ def starts_at_rest(effects, y, p):
     """Whether a run from y ends before it starts: a sphere at rest where rolling resistance
     holds it (status RESTED) or friction cannot (SLIPPED). Returns (ended, status)."""
     if effects & ROLLING_RESISTANCE:
-        if y[2] == 0.0 and y[3] == 0.0:
+        if y[Y_U] == 0.0 and y[Y_V] == 0.0:
             _, at_rest = come_to_rest(y, p, effects)
             return at_rest != OK, at_rest
     return False, OK
@@ -239,7 +239,16 @@ def fate_result(effects, p, y0, t0, work0, fate, t, y, steps):
     work = y[state_size(effects) - 1] if effects & DISSIPATIVE else 0.0
     scale = max(abs(E0), kinetic_energy(y0, p))
     drift = abs(E1 + work - E0) / scale
-    return fate, t0 + t, y[0], y[1], abs(y[1]) / (2.0 * math.pi), E0 - E1, drift, steps
+    return (
+        fate,
+        t0 + t,
+        y[Y_R],
+        y[Y_THETA],
+        abs(y[Y_THETA]) / (2.0 * math.pi),
+        E0 - E1,
+        drift,
+        steps,
+    )
 
 
 @kernel

@@ -17,7 +17,19 @@ from .layouts import P_CRR, P_V_REST
 from .protocol import EPS
 from .rk import step_decide, step_error
 from .rk_codegen import controller, tableau
-from .sliding import H_C_SPIN, H_MU_K, MODE_SLIDING, hybrid_rhs, slip_speed
+from .sliding import (
+    H_C_SPIN,
+    H_MU_K,
+    MODE_SLIDING,
+    YH_P1,
+    YH_P2,
+    YH_R,
+    YH_U,
+    YH_V,
+    YH_W,
+    hybrid_rhs,
+    slip_speed,
+)
 
 #: Bits of ``armed``: the return to rolling (the slip speed has exceeded twice the threshold
 #: since the last switch), the spin's stop (|w| has, since the last stop or release) and the
@@ -109,18 +121,18 @@ def kink_step(method, y, h, hp, mode, stuck, armed, K):
     A = tableau(method)[0]
     ns = tableau(method)[5]
     v_rest = hp[P_V_REST]
-    s1 = y[2] - y[5]
-    s2 = y[3] + y[4]
+    s1 = y[YH_U] - y[YH_P2]
+    s2 = y[YH_V] + y[YH_P1]
     sl = math.sqrt(s1 * s1 + s2 * s2)
     slip_on = mode == MODE_SLIDING and armed & ARMED_ROLL and sl > v_rest
-    w0 = y[6]
+    w0 = y[YH_W]
     spin_on = not stuck and hp[H_C_SPIN] > 0.0 and armed & ARMED_SPIN and abs(w0) > v_rest
-    q1 = y[4]
-    q2 = y[5]
+    q1 = y[YH_P1]
+    q2 = y[YH_P2]
     ql = math.sqrt(q1 * q1 + q2 * q2)
     rot_on = mode == MODE_SLIDING and armed & ARMED_ROT and ql > v_rest
-    u0 = y[2]
-    v0 = y[3]
+    u0 = y[YH_U]
+    v0 = y[YH_V]
     speed = math.sqrt(u0 * u0 + v0 * v0)
     rest_on = mode != MODE_SLIDING and hp[P_CRR] > 0.0 and speed > v_rest
     if not slip_on and not spin_on and not rot_on and not rest_on:
@@ -153,19 +165,19 @@ def kink_step(method, y, h, hp, mode, stuck, armed, K):
         return h
     h_new = 0.5 * h
     if slip_x:
-        rate = -((K[0, 2] - K[0, 5]) * s1 + (K[0, 3] + K[0, 4]) * s2) / sl
+        rate = -((K[0, YH_U] - K[0, YH_P2]) * s1 + (K[0, YH_V] + K[0, YH_P1]) * s2) / sl
         if rate > 0.0:
             h_new = min(h_new, (sl - 0.5 * v_rest) / rate)
     if spin_x:
-        rate = -math.copysign(1.0, w0) * K[0, 6]
+        rate = -math.copysign(1.0, w0) * K[0, YH_W]
         if rate > 0.0:
             h_new = min(h_new, (abs(w0) - 0.5 * v_rest) / rate)
     if rot_x:
-        rate = -(K[0, 4] * q1 + K[0, 5] * q2) / ql
+        rate = -(K[0, YH_P1] * q1 + K[0, YH_P2] * q2) / ql
         if rate > 0.0:
             h_new = min(h_new, (ql - 0.5 * v_rest) / rate)
     if rest_x:
-        rate = -(K[0, 2] * u0 + K[0, 3] * v0) / speed
+        rate = -(K[0, YH_U] * u0 + K[0, YH_V] * v0) / speed
         if rate > 0.0:
             h_new = min(h_new, (speed - 0.5 * v_rest) / rate)
     return h_new
@@ -196,7 +208,7 @@ def advance(method, y, t, t_end, h, hp, mode, stuck, armed, K, ytmp, ynew, rtol,
             h = h_kink
             rejected = True
             continue
-        accepted, h_used, h_next, err_old, rejected = decide(err, ynew[0], h_try, err_old,
+        accepted, h_used, h_next, err_old, rejected = decide(err, ynew[YH_R], h_try, err_old,
                                                              rejected, ctl)  # fmt: skip
         if accepted:
             return ADV_OK, h_try, h_next, err_old, rejected, steps
@@ -211,10 +223,10 @@ def arm(y, hp, mode, stuck, armed):
     :func:`rot_stops`)."""
     if mode == MODE_SLIDING and slip_speed(y) > 2.0 * hp[P_V_REST]:
         armed |= ARMED_ROLL
-    if not stuck and abs(y[6]) > 2.0 * hp[P_V_REST]:
+    if not stuck and abs(y[YH_W]) > 2.0 * hp[P_V_REST]:
         armed |= ARMED_SPIN
     if mode == MODE_SLIDING and rot_stops(hp):
-        if math.sqrt(y[4] * y[4] + y[5] * y[5]) > 2.0 * hp[P_V_REST]:
+        if math.sqrt(y[YH_P1] * y[YH_P1] + y[YH_P2] * y[YH_P2]) > 2.0 * hp[P_V_REST]:
             armed |= ARMED_ROT
     return armed
 
@@ -234,15 +246,16 @@ def stalled(y, ynew, K, hp):
     its direction at y although friction is slowing it there (its rate along that direction is
     < 0), with the slip within :data:`STALL_BAND` times the stop threshold: the slip is then
     as near zero as the integration resolves it (docs/physics.md "Reaching the switch")."""
-    return _stalled_pair(y[2] - y[5], y[3] + y[4], ynew[2] - ynew[5], ynew[3] + ynew[4],
-                         K[0, 2] - K[0, 5], K[0, 3] + K[0, 4], hp)  # fmt: skip
+    return _stalled_pair(y[YH_U] - y[YH_P2], y[YH_V] + y[YH_P1], ynew[YH_U] - ynew[YH_P2],
+                         ynew[YH_V] + ynew[YH_P1], K[0, YH_U] - K[0, YH_P2],
+                         K[0, YH_V] + K[0, YH_P1], hp)  # fmt: skip
 
 
 @kernel
 def stalled_rot(y, ynew, K, hp):
     """:func:`stalled` for the tangential spin (p1, p2) while sliding, on its way to zero (its
     direction turns ever faster as it shrinks, as the slip's does)."""
-    return _stalled_pair(y[4], y[5], ynew[4], ynew[5], K[0, 4], K[0, 5], hp)
+    return _stalled_pair(y[YH_P1], y[YH_P2], ynew[YH_P1], ynew[YH_P2], K[0, YH_P1], K[0, YH_P2], hp)
 
 
 @kernel

@@ -43,6 +43,13 @@ from .sliding import (
     MODE_ROLLING,
     MODE_SLIDING,
     N_HYBRID,
+    YH_P1,
+    YH_P2,
+    YH_R,
+    YH_THETA,
+    YH_U,
+    YH_V,
+    YH_W,
     hold_margin,
     slip_speed,
     spin_hold_margin,
@@ -103,33 +110,33 @@ def event_value(kind, y, hp, mode, stuck, armed, ref):
     w_sign, sd1, sd2, qd1, qd2, u0, v0 = ref
     off = -math.inf
     if kind == EV_RIM:
-        return y[0] - hp[P_RIM]
+        return y[YH_R] - hp[P_RIM]
     if kind == EV_VERTEX:
-        return hp[P_R_VERTEX] - y[0]
+        return hp[P_R_VERTEX] - y[YH_R]
     if kind == EV_THETA:
-        return abs(y[1]) - hp[P_THETA_MAX]
+        return abs(y[YH_THETA]) - hp[P_THETA_MAX]
     if kind == EV_SLIP:
         return hold_margin(y, hp) if mode == MODE_ROLLING and hp[P_MU] < math.inf else off
     if kind == EV_STICK:
         if mode != MODE_SLIDING or not armed & ARMED_ROLL:
             return off
-        return hp[P_V_REST] - ((y[2] - y[5]) * sd1 + (y[3] + y[4]) * sd2)
+        return hp[P_V_REST] - ((y[YH_U] - y[YH_P2]) * sd1 + (y[YH_V] + y[YH_P1]) * sd2)
     if kind == EV_SPIN_STOP:
         if stuck or hp[H_C_SPIN] == 0.0 or w_sign == 0.0 or not armed & ARMED_SPIN:
             return off
-        return hp[P_V_REST] - w_sign * y[6]
+        return hp[P_V_REST] - w_sign * y[YH_W]
     if kind == EV_SPIN_GO:
         return spin_hold_margin(y, hp) if stuck else off
     if kind == EV_REST:
         if mode != MODE_ROLLING or hp[P_CRR] == 0.0:  # the stop needs rolling resistance
             return off
-        if y[2] * u0 + y[3] * v0 <= 0.0:  # turned back through zero: the stop was on the way
+        if y[YH_U] * u0 + y[YH_V] * v0 <= 0.0:  # turned back through zero: the stop was on the way
             return hp[P_V_REST]  # (as .protocol.rest_value)
-        return hp[P_V_REST] - math.sqrt(y[2] * y[2] + y[3] * y[3])
+        return hp[P_V_REST] - math.sqrt(y[YH_U] * y[YH_U] + y[YH_V] * y[YH_V])
     if kind == EV_ROT_STOP:
         if mode != MODE_SLIDING or not armed & ARMED_ROT:
             return off
-        return hp[P_V_REST] - (y[4] * qd1 + y[5] * qd2)
+        return hp[P_V_REST] - (y[YH_P1] * qd1 + y[YH_P2] * qd2)
     return off
 
 
@@ -182,14 +189,14 @@ def locate(method, kind, y0, h, hp, mode, stuck, armed, ref, K, ytmp, yout, rtol
 def first_event(method, y0, y1, h, hp, mode, stuck, armed, K, ytmp, yout, rtol, atol):
     """The earliest event of the accepted step y0 -> y1 of size h [s]: (kind or -1, theta);
     its state is left in ``yout`` (K[0] = f(y0) is kept)."""
-    w_ref = y0[6] if y0[6] != 0.0 else y1[6]  # a spin leaving zero: the way it went
+    w_ref = y0[YH_W] if y0[YH_W] != 0.0 else y1[YH_W]  # a spin leaving zero: the way it went
     w_sign = 0.0 if w_ref == 0.0 else math.copysign(1.0, w_ref)
     sl = slip_speed(y0)
     isl = 1.0 / sl if sl > 0.0 else 0.0
-    ql = math.sqrt(y0[4] * y0[4] + y0[5] * y0[5])
+    ql = math.sqrt(y0[YH_P1] * y0[YH_P1] + y0[YH_P2] * y0[YH_P2])
     iql = 1.0 / ql if ql > 0.0 else 0.0
-    ref = (w_sign, (y0[2] - y0[5]) * isl, (y0[3] + y0[4]) * isl, y0[4] * iql, y0[5] * iql,
-           y0[2], y0[3])  # fmt: skip
+    ref = (w_sign, (y0[YH_U] - y0[YH_P2]) * isl, (y0[YH_V] + y0[YH_P1]) * isl, y0[YH_P1] * iql,
+           y0[YH_P2] * iql, y0[YH_U], y0[YH_V])  # fmt: skip
     best = -1
     best_th = 2.0
     for kind in range(N_EVENTS):
@@ -271,7 +278,9 @@ def rolling_invariants(y, hp):
     """(calE [J], h [m/s], L_z) of the rolling hybrid state y."""
     M = hp[P_M]
     k = hp[P_K]
-    E, Lz, h = invariants_of(y[0], y[2], y[3], y[6], hp[P_SIN], hp[P_COS], M, hp[P_G], k)
+    E, Lz, h = invariants_of(
+        y[YH_R], y[YH_U], y[YH_V], y[YH_W], hp[P_SIN], hp[P_COS], M, hp[P_G], k
+    )
     return radial_energy(E, h, M, k), h, Lz
 
 
@@ -298,4 +307,4 @@ def push_event(ev_t, ev_kind, ev_y, n_ev, t, kind, y):
 def release_spin(y, hp):
     """The spin leaves the stick: w = 0, not stuck (the couple is then static Coulomb friction
     at w = 0, :func:`.sliding.couples`, and the spin's sign is taken from where it goes)."""
-    y[6] = 0.0
+    y[YH_W] = 0.0

@@ -36,6 +36,7 @@ from .lanes_step import (
     split_owned,
     take_point,
 )
+from .layouts import Y_U
 from .model import N_PARAMS, period_start, set_point
 from .orbit import (
     period_apsides,
@@ -117,7 +118,7 @@ def lane_begin(method, effects, l, y0, atol, p, rtol, max_steps, W, I, LEV, LEVK
         W[(ly.K + j) * L + l] = K[0, j]
     W[ly.H * L + l] = h
     W[ly.ERR_OLD * L + l] = ERR_FLOOR
-    W[ly.G_APS * L + l] = y0[2] if y0[2] != 0.0 else K[0, 2]
+    W[ly.G_APS * L + l] = y0[Y_U] if y0[Y_U] != 0.0 else K[0, Y_U]
     W[ly.ACTIVE * L + l] = 1.0
     return step_allowed(W[ly.N_ACC * L + l] + W[ly.N_REJ * L + l], max_steps, h, 0.0)
 

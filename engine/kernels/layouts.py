@@ -78,6 +78,10 @@ def model_slots(names: tuple[str, ...]) -> dict[str, int]:
 #: parallel, w = a omega_nu [m/s].
 STATE = ("r", "theta", "u", "v", "w")
 N_BASE = len(STATE)
+#: Their places in y (kernels index the state by these names, never by number).
+Y_R, Y_THETA, Y_U, Y_V, Y_W = range(N_BASE)
+#: The place of the attitude quaternion's first (scalar) component, with ``ATTITUDE``.
+Y_QUAT = N_BASE
 #: Then, with the attitude effect, the unit quaternion (scalar first) that rotates body axes to
 #: the fixed frame (identity at t = 0); with a dissipative effect, last, the work the effects
 #: took from the sphere [J].

@@ -45,6 +45,10 @@ from .layouts import (
     P_RIM,
     P_THETA_MAX,
     P_V_REST,
+    Y_R,
+    Y_U,
+    Y_V,
+    Y_W,
 )
 
 # Effect bits (combine with |), from the effects table.
@@ -357,7 +361,7 @@ def _leaves(effects):
 def rim_margin(y, p):
     """Event function of the rim: the meridian coordinate past the rim's (:data:`.layouts.P_RIM`,
     set by the model) [m] (>= 0: the sphere has left the surface)."""
-    return y[0] - p[P_RIM]
+    return y[Y_R] - p[P_RIM]
 
 
 @kernel
@@ -365,9 +369,9 @@ def kinetic_energy(y, p):
     """Kinetic energy [J] of translation and rotation of the rolling sphere."""
     M = p[P_M]
     k = p[P_K]
-    u = y[2]
-    v = y[3]
-    w = y[4]
+    u = y[Y_U]
+    v = y[Y_V]
+    w = y[Y_W]
     return 0.5 * (1.0 + k) * M * (u * u + v * v) + 0.5 * k * M * w * w
 
 

@@ -23,7 +23,7 @@ from numba.extending import overload
 
 from .._jit import kernel
 from .effects import EFFECTS, REVOLUTIONS, bringing
-from .layouts import P_R_VERTEX, P_THETA_MAX, P_V_REST
+from .layouts import P_R_VERTEX, P_THETA_MAX, P_V_REST, Y_R, Y_THETA, Y_U, Y_V
 from .model import leaves, lift_margin, rim_margin, slip_margin
 
 EPS = 2.220446049250313e-16
@@ -211,22 +211,23 @@ def event_value(kind, y, p, effects):
     if kind == SLIP:
         return slip_margin(y, p, effects)
     if kind == REST:
-        return p[P_V_REST] - math.sqrt(y[2] * y[2] + y[3] * y[3])
+        return p[P_V_REST] - math.sqrt(y[Y_U] * y[Y_U] + y[Y_V] * y[Y_V])
     if kind == VERTEX:
-        return p[P_R_VERTEX] - y[0]
+        return p[P_R_VERTEX] - y[Y_R]
     if kind == HORIZON:
-        return abs(y[1]) - p[P_THETA_MAX]
+        return abs(y[Y_THETA]) - p[P_THETA_MAX]
     if kind == LIFTOFF:
         return lift_margin(y, p, effects)
-    return y[2]
+    return y[Y_U]
 
 
 @kernel
 def terminal_fired(kind, g):
     """True where the terminal event function value g means the event has happened (the rim
-    is reached at g = 0, slipping needs g > 0). Without a branch (``|``, ``&``), so that the
-    lanes' step-size control stays vector code (:mod:`.lanes_step`)."""
-    return (g > 0.0) | ((kind != SLIP) & (g == 0.0))
+    is reached at g = 0; slipping needs g > 0, lifting off N < 0: a cylinder's ball with no
+    speed along the wall has N = 0 and rolls down it). Without a branch (``|``, ``&``), so that
+    the lanes' step-size control stays vector code (:mod:`.lanes_step`)."""
+    return (g > 0.0) | ((kind != SLIP) & (kind != LIFTOFF) & (g == 0.0))
 
 
 @kernel

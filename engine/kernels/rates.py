@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from .._jit import kernel
 from .effects import DISSIPATIVE
-from .layouts import ATTITUDE, state_size
+from .layouts import ATTITUDE, Y_QUAT, Y_R, Y_THETA, Y_U, Y_V, Y_W, state_size
 from .model import dissipated_power, motion_rates, omega_fixed
 
 
@@ -56,18 +56,21 @@ def rates10(y0, y1, y2, y3, y4, y5, y6, y7, y8, y9, p, effects):
 @kernel
 def rhs(y, p, effects, out, row):
     """dy/dt of the scene ``effects`` into the row ``row`` of the 2-D array ``out``."""
-    a, b, c, d, e = motion_rates(y[0], y[2], y[3], y[4], p, effects)
-    out[row, 0] = a
-    out[row, 1] = b
-    out[row, 2] = c
-    out[row, 3] = d
-    out[row, 4] = e
+    a, b, c, d, e = motion_rates(y[Y_R], y[Y_U], y[Y_V], y[Y_W], p, effects)
+    out[row, Y_R] = a
+    out[row, Y_THETA] = b
+    out[row, Y_U] = c
+    out[row, Y_V] = d
+    out[row, Y_W] = e
     if effects & ATTITUDE:
-        q0, q1, q2, q3 = quaternion_rate(y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], y[8], p,
-                                         effects)  # fmt: skip
-        out[row, 5] = q0
-        out[row, 6] = q1
-        out[row, 7] = q2
-        out[row, 8] = q3
+        q = Y_QUAT
+        q0, q1, q2, q3 = quaternion_rate(y[Y_R], y[Y_THETA], y[Y_U], y[Y_V], y[Y_W], y[q],
+                                         y[q + 1], y[q + 2], y[q + 3], p, effects)  # fmt: skip
+        out[row, q] = q0
+        out[row, q + 1] = q1
+        out[row, q + 2] = q2
+        out[row, q + 3] = q3
     if effects & DISSIPATIVE:
-        out[row, state_size(effects) - 1] = dissipated_power(y[0], y[2], y[3], y[4], p, effects)
+        out[row, state_size(effects) - 1] = dissipated_power(
+            y[Y_R], y[Y_U], y[Y_V], y[Y_W], p, effects
+        )

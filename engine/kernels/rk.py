@@ -32,7 +32,7 @@ from numba import literally
 
 from .._jit import kernel
 from .branchless import pick, power
-from .layouts import ATTITUDE, state_size
+from .layouts import ATTITUDE, Y_R, Y_U, state_size
 from .model import domain_floor, param_tuple
 from .protocol import (
     BUFFER_FULL,
@@ -275,7 +275,7 @@ def rk_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_step
     n_aps = 0
     next_out = dt_out
     # Sign of the apsis function: at an apsis (u = 0) use the sign of udot.
-    g_aps = y[2] if y[2] != 0.0 else K[0, 2]
+    g_aps = y[Y_U] if y[Y_U] != 0.0 else K[0, Y_U]
     h = initial_step(method, effects, y, K, p, rtol, atol, buf)
     pt = param_tuple(p)
     err_old = ERR_FLOOR
@@ -286,13 +286,13 @@ def rk_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_step
             break
         h, last = clip_step(t, h, t_end)
         err = rk_attempt(method, effects, y, h, pt, K, ynew, rtol, atol)
-        e = step_error(err, ynew[0] - domain_floor(pt, effects), ctl)
+        e = step_error(err, ynew[Y_R] - domain_floor(pt, effects), ctl)
         accepted, h, h_next, err_old, rejected = step_decide(e, h, err_old, rejected, ctl)
         if not accepted:
             n_rej += 1
             continue
         n_acc += 1
-        aps_cross = n_apsides >= 0 and apsis_crossed(g_aps, ynew[2])
+        aps_cross = n_apsides >= 0 and apsis_crossed(g_aps, ynew[Y_U])
         term_cross = False
         if terminal_events(effects):
             term_cross = terminal_between(effects, y, ynew, p)

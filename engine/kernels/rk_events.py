@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._jit import kernel
-from .layouts import P_RIM
+from .layouts import P_RIM, Y_U
 from .protocol import (
     EPS,
     FIRST_TERMINAL,
@@ -119,7 +119,7 @@ def apsis_newton(out, f, h, t_hs):
     """One Newton correction of the time of an apsis whose state ``out`` at time t_hs [s] has
     the rates f: dt = -u/udot, out += dt f. Returns (applied, time [s]); not applied where
     |dt| > |h| (h [s] the step it lies in) or dt is not finite."""
-    dt = -out[2] / f[2]
+    dt = -out[Y_U] / f[2]
     if not abs(dt) <= abs(h):
         return False, t_hs
     for j in range(out.shape[0]):
@@ -173,9 +173,9 @@ def step_events(method, effects, y, ynew, K, h, t, p, buf, st, K2, g_aps, n_aps,
                     th_stop = th
                     stop_kind = kind
                     stop_status = status_of(kind)
-    g_new = ynew[2]
+    g_new = ynew[Y_U]
     if n_apsides >= 0 and apsis_crossed(g_aps, g_new):
-        th = rk_locate(method, effects, np.int64(PERICENTRE), y, K, h, p, y[2], g_new, buf,
+        th = rk_locate(method, effects, np.int64(PERICENTRE), y, K, h, p, y[Y_U], g_new, buf,
                        st)  # fmt: skip
         if th <= th_stop:
             if polish:

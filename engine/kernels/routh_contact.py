@@ -56,7 +56,7 @@ def _at(qa, qb, scale, x):
 
 @kernel
 def lifts_between(p, edges, coef, meta, c1, c2, e0, qa, qb):
-    """Whether the normal force of the orbit falls to zero or below anywhere on [qa, qb] (qb
+    """Whether the normal force of the orbit falls below zero anywhere on [qa, qb] (qb
     may be inf: the far field, where N -> M g cos(b), is not sampled). False at once where the
     table's surface cannot lose the contact."""
     if meta[MAY_LIFT] == 0.0 or not (qa <= qb) or not math.isfinite(qa):
@@ -67,7 +67,7 @@ def lifts_between(p, edges, coef, meta, c1, c2, e0, qa, qb):
     n_min = math.inf
     for j in range(last + 1):
         n = normal_per_mass(p, edges, coef, meta, c1, c2, e0, _at(qa, qb, scale, j / (SAMPLES - 1)))
-        if n <= 0.0:
+        if n < 0.0:
             return True
         if n < n_min:
             n_min = n
@@ -79,7 +79,7 @@ def lifts_between(p, edges, coef, meta, c1, c2, e0, qa, qb):
     f1 = normal_per_mass(p, edges, coef, meta, c1, c2, e0, _at(qa, qb, scale, x1))
     f2 = normal_per_mass(p, edges, coef, meta, c1, c2, e0, _at(qa, qb, scale, x2))
     for _ in range(NARROWING):
-        if min(f1, f2) <= 0.0:
+        if min(f1, f2) < 0.0:
             return True
         if f1 < f2:
             hi, x2, f2 = x2, x1, f1
@@ -89,17 +89,17 @@ def lifts_between(p, edges, coef, meta, c1, c2, e0, qa, qb):
             lo, x1, f1 = x1, x2, f2
             x2 = lo + _GOLD * (hi - lo)
             f2 = normal_per_mass(p, edges, coef, meta, c1, c2, e0, _at(qa, qb, scale, x2))
-    return min(f1, f2) <= 0.0
+    return min(f1, f2) < 0.0
 
 
 @kernel
 def lifts_at_nodes(p, edges, coef, meta, c1, c2, e0, q1, q2, n_min, n_size):
     """Whether the bounded orbit between q1 and q2 loses its contact, from the smallest N/M at
-    its quadrature's nodes (``n_min``, its terms' size ``n_size``): at once where it is <= 0,
+    its quadrature's nodes (``n_min``, its terms' size ``n_size``): at once where it is < 0,
     by :func:`lifts_between` where it is within :data:`NEAR` of its terms' size."""
     if meta[MAY_LIFT] == 0.0:
         return False
-    if n_min <= 0.0:
+    if n_min < 0.0:
         return True
     return n_min <= NEAR * n_size and lifts_between(p, edges, coef, meta, c1, c2, e0, q1, q2)
 
@@ -115,6 +115,6 @@ def lifts_in_well(p, edges, coef, meta, c1, c2, e0, q1, qc, q2):
         r = radial_f(p, edges, coef, meta, c1, c2, e0, q)
         if r[6] < n_min:
             n_min, n_size = r[6], r[7]
-    if n_min <= 0.0:
+    if n_min < 0.0:
         return True
     return n_min <= NEAR * n_size and lifts_between(p, edges, coef, meta, c1, c2, e0, q1, q2)

@@ -174,9 +174,9 @@ def _position(p, meta, q):
 
 @kernel
 def _in_well(p, edges, coef, meta, c1, c2, e0, q0, u0, qc, hw, x1, x2):
-    """(ok, rho_min, rho_max, T, psi) of the orbit in its well around q_c (half-width hw; its
-    turning points near x1, x2 in x = (q - q_c)/hw); ok False where the well's series do not
-    converge or its turning points are not inside it."""
+    """(ok, rho_min, rho_max, T, psi, q1, q2) of the orbit in its well around q_c (half-width hw;
+    its turning points near x1, x2 in x = (q - q_c)/hw, found at q1, q2); ok False where the
+    well's series do not converge or its turning points are not inside it."""
     nan = math.nan
     rho, z, cb, sb, kap, sig, fit = centre(p, qc)
     narrow = hw * sig <= NARROWER * rho
@@ -184,15 +184,17 @@ def _in_well(p, edges, coef, meta, c1, c2, e0, q0, u0, qc, hw, x1, x2):
     if narrow and not tail <= WELL_TOL:  # the wider rule
         H, g, S, R, tail = well(p, edges, coef, meta, c1, c2, qc, hw, False)
     if not tail <= WELL_TOL:
-        return False, nan, nan, nan, nan
+        return False, nan, nan, nan, nan, nan, nan
     delta = u0 * u0 + value(H, (q0 - qc) / hw)
     x1 = well_root(H, g, S, hw, delta, x1)
     x2 = well_root(H, g, S, hw, delta, x2)
     if not (-0.98 < x1 < x2 < 0.98):
-        return False, nan, nan, nan, nan
+        return False, nan, nan, nan, nan, nan, nan
     T, psi, nodes, n_min, n_size = quadrature(p, edges, coef, meta, c1, c2, e0, x1, x2, 0,
                                (H, g, S, R, qc, hw, delta))  # fmt: skip
-    return True, _position(p, meta, qc + hw * x1), _position(p, meta, qc + hw * x2), T, psi
+    q1 = qc + hw * x1
+    q2 = qc + hw * x2
+    return True, _position(p, meta, q1), _position(p, meta, q2), T, psi, q1, q2
 
 
 @kernel
@@ -211,7 +213,7 @@ def orbit(p, edges, coef, meta, q0, u0, v0, w0):
     pos0 = z0 if cyl else rho0
     if u0 == 0.0 and abs(Us0) <= CIRCULAR_TOL * sc0 and not radial:
         Uss = potential_ss(p, rho0, sb0, cb0, kap0, L0, c2 + dw0)
-        if normal_per_mass(p, edges, coef, meta, c1, c2, e0, q0) <= 0.0:
+        if normal_per_mass(p, edges, coef, meta, c1, c2, e0, q0) < 0.0:
             return LIFTS, pos0, pos0, nan, nan, nan, IL, Iw
         if not Uss > 0.0:
             return UNSTABLE, pos0, pos0, nan, nan, nan, IL, Iw
@@ -229,11 +231,11 @@ def orbit(p, edges, coef, meta, q0, u0, v0, w0):
                             max(q0, q0 + 2.0 * dq))  # fmt: skip
             hw = 1.3 * abs(q0 - qc)
             x0 = (q0 - qc) / hw
-            ok, rmin, rmax, T, psi = _in_well(p, edges, coef, meta, c1, c2, e0, q0, 0.0, qc, hw,
-                                              min(x0, -x0), max(x0, -x0))  # fmt: skip
+            w = _in_well(p, edges, coef, meta, c1, c2, e0, q0, 0.0, qc, hw, min(x0, -x0),
+                         max(x0, -x0))  # fmt: skip
+            ok, rmin, rmax, T, psi, qw1, qw2 = w
             if ok:
-                if lifts_in_well(p, edges, coef, meta, c1, c2, e0, min(q0, 2.0 * qc - q0), qc,
-                                 max(q0, 2.0 * qc - q0)):  # fmt: skip
+                if lifts_in_well(p, edges, coef, meta, c1, c2, e0, qw1, qc, qw2):
                     return LIFTS, rmin, rmax, nan, nan, nan, IL, Iw
                 return BOUNDED, rmin, rmax, T, psi, (2.0 * psi - 2.0 * math.pi) / T, IL, Iw
     inner = meta[INNER]
@@ -262,11 +264,13 @@ def orbit(p, edges, coef, meta, q0, u0, v0, w0):
             return LIFTS, rmin, rmax, nan, nan, nan, IL, Iw
         return cls_out, rmin, rmax, nan, nan, nan, IL, Iw
     if not found1 and not (radial and axis):  # in: from the launch or its outer turning point
-        qb = q2 if found2 else q0
+        qb = q2 if found2 and u0 >= 0.0 else q0
         if lifts_between(p, edges, coef, meta, c1, c2, e0, lo_end, qb):
             return LIFTS, rmin, rmax, nan, nan, nan, IL, Iw
         return cls_in, rmin, rmax, nan, nan, nan, IL, Iw
-    if not found2:
+    if not found2:  # through the axis and out
+        if lifts_between(p, edges, coef, meta, c1, c2, e0, lo_end, meta[Q_B]):
+            return LIFTS, rmin, rmax, nan, nan, nan, IL, Iw
         return cls_out, rmin, rmax, nan, nan, nan, IL, Iw
     none = np.empty(0)
     wm = (none, none, none, none, 0.0, 1.0, 0.0)
@@ -278,10 +282,11 @@ def orbit(p, edges, coef, meta, q0, u0, v0, w0):
     if (q2 - q1) * sig0 <= NARROW * rho0:  # a narrow orbit: its well (.routh_well)
         qc = circular_q(p, edges, coef, meta, c1, c2, q1, q2)
         hw = 0.6 * (q2 - q1) + abs(0.5 * (q1 + q2) - qc)
-        ok, rmin2, rmax2, T, psi = _in_well(p, edges, coef, meta, c1, c2, e0, q0, u0, qc, hw,
-                                            (q1 - qc) / hw, (q2 - qc) / hw)  # fmt: skip
+        w = _in_well(p, edges, coef, meta, c1, c2, e0, q0, u0, qc, hw, (q1 - qc) / hw,
+                     (q2 - qc) / hw)  # fmt: skip
+        ok, rmin2, rmax2, T, psi, qw1, qw2 = w
         if ok:
-            if lifts_in_well(p, edges, coef, meta, c1, c2, e0, q1, qc, q2):
+            if lifts_in_well(p, edges, coef, meta, c1, c2, e0, qw1, qc, qw2):
                 return LIFTS, rmin2, rmax2, nan, nan, nan, IL, Iw
             return BOUNDED, rmin2, rmax2, T, psi, (2.0 * psi - 2.0 * math.pi) / T, IL, Iw
     qx = meta[Q_AXIS]

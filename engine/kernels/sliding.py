@@ -37,8 +37,15 @@ FORCE_TERMS = ("rolling_resistance",)
 H_MU_K = N_PARAMS  # kinetic friction coefficient
 H_C_SPIN = N_PARAMS + 1  # spin-friction coefficient (couple c_spin a N)
 N_HYBRID_PARAMS = N_PARAMS + 2
-#: Length of the hybrid state.
-N_HYBRID = 10
+#: The hybrid state (both modes): the centre (r, theta, u, v), the contact point's slip seen as
+#: the spin's tangential parts (p1, p2), the spin about the normal w, the work taken by rolling
+#: resistance, sliding friction and spin friction [J].
+HYBRID_STATE = ("r", "theta", "u", "v", "p1", "p2", "w", "W_rolling_resistance",
+                "W_sliding_friction", "W_spin_friction")  # fmt: skip
+#: Length of the hybrid state, and its components' places (never indexed by number).
+N_HYBRID = len(HYBRID_STATE)
+(YH_R, YH_THETA, YH_U, YH_V, YH_P1, YH_P2, YH_W, YH_WORK_RR, YH_WORK_SLIDE,
+ YH_WORK_SPIN) = range(N_HYBRID)  # fmt: skip
 #: Modes.
 MODE_ROLLING = 0
 MODE_SLIDING = 1
@@ -205,9 +212,9 @@ def rolling_rates(r, u, v, w, stuck, hp):
 def hybrid_rhs(y, hp, mode, stuck, out):
     """dy/dt of the hybrid state in ``mode`` into ``out`` (length :data:`N_HYBRID`)."""
     if mode == MODE_SLIDING:
-        d = sliding_rates(y[0], y[2], y[3], y[4], y[5], y[6], stuck, hp)
+        d = sliding_rates(y[YH_R], y[YH_U], y[YH_V], y[YH_P1], y[YH_P2], y[YH_W], stuck, hp)
     else:
-        d = rolling_rates(y[0], y[2], y[3], y[6], stuck, hp)
+        d = rolling_rates(y[YH_R], y[YH_U], y[YH_V], y[YH_W], stuck, hp)
     for j in range(N_HYBRID):
         out[j] = d[j]
 
@@ -226,8 +233,8 @@ def hybrid_energy(r, u, v, p1, p2, w, hp):
 @kernel
 def slip_speed(y):
     """|s| [m/s], s = (u - p2, v + p1)."""
-    s1 = y[2] - y[5]
-    s2 = y[3] + y[4]
+    s1 = y[YH_U] - y[YH_P2]
+    s2 = y[YH_V] + y[YH_P1]
     return math.sqrt(s1 * s1 + s2 * s2)
 
 
@@ -235,7 +242,7 @@ def slip_speed(y):
 def rolling_friction(y, hp):
     """(f1, f2) [N]: the contact force that makes ds/dt = 0 in the state y, f = -k M D/(1+k)
     (with rolling resistance; spin friction does not enter)."""
-    r, u, v, p1, p2, w = y[0], y[2], y[3], y[4], y[5], y[6]
+    r, u, v, p1, p2, w = y[YH_R], y[YH_U], y[YH_V], y[YH_P1], y[YH_P2], y[YH_W]
     N = normal_force(r, v, hp)
     t1, t2, _ = couples(p1, p2, w, N, True, 0.0, hp)
     if u == 0.0 and v == 0.0 and p1 == 0.0 and p2 == 0.0:  # rolling at rest: static resistance
@@ -253,7 +260,7 @@ def rolling_friction(y, hp):
 def hold_margin(y, hp):
     """|f_roll| - mu N [N]: > 0 where static friction cannot hold the rolling motion."""
     f1, f2 = rolling_friction(y, hp)
-    return math.sqrt(f1 * f1 + f2 * f2) - hp[P_MU] * normal_force(y[0], y[3], hp)
+    return math.sqrt(f1 * f1 + f2 * f2) - hp[P_MU] * normal_force(y[YH_R], y[YH_V], hp)
 
 
 @kernel
@@ -261,27 +268,27 @@ def spin_hold_margin(y, hp):
     """|couple that holds w = 0| - c_spin N (1 + :data:`SPIN_BAND`) [N] (> 0: the spin cannot
     stay stuck). The band keeps a spin whose needed couple grazes the limit from sticking and
     unsticking without end (docs/physics.md "Spin stick")."""
-    cs = hp[H_C_SPIN] * normal_force(y[0], y[3], hp)
-    return abs(spin_hold(y[0], y[3], y[5], hp)) - cs * (1.0 + SPIN_BAND)
+    cs = hp[H_C_SPIN] * normal_force(y[YH_R], y[YH_V], hp)
+    return abs(spin_hold(y[YH_R], y[YH_V], y[YH_P2], hp)) - cs * (1.0 + SPIN_BAND)
 
 
 @kernel
 def stick(y, hp):
     """Remove the remaining slip by the friction impulse J = -k M s/(1+k) at the contact
     (conserves the angular momentum about the contact point); returns the energy it takes
-    [J], k M |s|^2/(2(1+k)), which is booked to sliding friction (y[8])."""
+    [J], k M |s|^2/(2(1+k)), which is booked to sliding friction (y[YH_WORK_SLIDE])."""
     k = hp[P_K]
-    s1 = y[2] - y[5]
-    s2 = y[3] + y[4]
+    s1 = y[YH_U] - y[YH_P2]
+    s2 = y[YH_V] + y[YH_P1]
     j1 = -k * s1 / (1.0 + k)  # J/M
     j2 = -k * s2 / (1.0 + k)
-    y[2] += j1
-    y[3] += j2
-    y[4] += j2 / k
-    y[5] -= j1 / k
+    y[YH_U] += j1
+    y[YH_V] += j2
+    y[YH_P1] += j2 / k
+    y[YH_P2] -= j1 / k
     # exactly on the rolling constraint (the impulse does it up to rounding)
-    y[4] = -y[3]
-    y[5] = y[2]
+    y[YH_P1] = -y[YH_V]
+    y[YH_P2] = y[YH_U]
     lost = 0.5 * k * hp[P_M] * (s1 * s1 + s2 * s2) / (1.0 + k)
-    y[8] += lost
+    y[YH_WORK_SLIDE] += lost
     return lost

@@ -53,12 +53,22 @@ from .hybrid_step import (
     rolling_invariants,
     segment,
 )
-from .layouts import P_CRR, P_G, P_K, P_M, P_R_VERTEX, P_RIM, P_V_REST
+from .layouts import P_CRR, P_G, P_K, P_M, P_R_VERTEX, P_RIM, P_V_REST, Y_R, Y_THETA, Y_U, Y_V, Y_W
 from .model import ROLLING_RESISTANCE, kinetic_energy, motion_rates
 from .sliding import (
     MODE_ROLLING,
     MODE_SLIDING,
     N_HYBRID,
+    YH_P1,
+    YH_P2,
+    YH_R,
+    YH_THETA,
+    YH_U,
+    YH_V,
+    YH_W,
+    YH_WORK_RR,
+    YH_WORK_SLIDE,
+    YH_WORK_SPIN,
     hold_margin,
     hybrid_energy,
     hybrid_params,
@@ -85,9 +95,9 @@ def mode_energy(y, hp, mode):
     """E [J] of the hybrid state: the rolling formula while rolling (as a fate map computes
     it), the sliding one otherwise."""
     if mode == MODE_ROLLING:
-        return invariants_of(y[0], y[2], y[3], y[6], hp[P_SIN], hp[P_COS], hp[P_M], hp[P_G],
-                             hp[P_K])[0]  # fmt: skip
-    return hybrid_energy(y[0], y[2], y[3], y[4], y[5], y[6], hp)
+        return invariants_of(y[YH_R], y[YH_U], y[YH_V], y[YH_W], hp[P_SIN], hp[P_COS], hp[P_M],
+                             hp[P_G], hp[P_K])[0]  # fmt: skip
+    return hybrid_energy(y[YH_R], y[YH_U], y[YH_V], y[YH_P1], y[YH_P2], y[YH_W], hp)
 
 
 #: Floats of a story's state (``hs``): its time [s], the time spent sliding [s], the energy at
@@ -118,9 +128,9 @@ def story_begin(effects, spin, p, mu_k, c_spin, energy, h, Lz, r_start, u0, slip
         r1 = r_start
         r2 = math.inf
     yi = initial_state(p, effects, r_start, e_true, h, Lz)
-    yi[2] = u0
+    yi[Y_U] = u0
     if r_start <= p[P_R_VERTEX]:  # in the vertex region: it ends there unless it leaves it
-        leaves = u0 > 0.0 or (u0 == 0.0 and motion_rates(yi[0], 0.0, yi[3], yi[4], p,
+        leaves = u0 > 0.0 or (u0 == 0.0 and motion_rates(yi[Y_R], 0.0, yi[Y_V], yi[Y_W], p,
                                                          effects)[2] > 0.0)  # fmt: skip
         if r_start == 0.0 or not leaves:
             out[0] = 0.0
@@ -131,7 +141,7 @@ def story_begin(effects, spin, p, mu_k, c_spin, energy, h, Lz, r_start, u0, slip
     for j in range(yi.shape[0]):
         y0[j] = yi[j]
     sc = tolerance_scales(p, effects, y0, e_true, h, Lz, min(r1, r_start), r2, rc)
-    p[P_V_REST] = REST_SPEED * rtol * max(max(sc[2], abs(y0[3])), max(abs(slip_u), abs(slip_v)))
+    p[P_V_REST] = REST_SPEED * rtol * max(max(sc[Y_U], abs(y0[Y_V])), max(abs(slip_u), abs(slip_v)))
     for j in range(y0.shape[0]):
         atol[j] = sc[j] * rtol
     hq = hybrid_params(p, mu_k, c_spin)
@@ -139,32 +149,32 @@ def story_begin(effects, spin, p, mu_k, c_spin, energy, h, Lz, r_start, u0, slip
         hp[j] = hq[j]
     for j in range(N_HYBRID):
         y[j] = 0.0
-    y[0] = y0[0]
-    y[2] = y0[2]
-    y[3] = y0[3]
-    y[4] = slip_v - y0[3]
-    y[5] = y0[2] - slip_u
-    y[6] = y0[4]
-    vel = max(max(sc[2], sc[3]), max(sc[4], max(abs(slip_u), abs(slip_v))))
-    hatol[0] = atol[0]
-    hatol[1] = rtol
-    hatol[2] = atol[2]
-    hatol[3] = atol[3]
-    hatol[4] = rtol * vel
-    hatol[5] = rtol * vel
-    hatol[6] = atol[4]
+    y[YH_R] = y0[Y_R]
+    y[YH_U] = y0[Y_U]
+    y[YH_V] = y0[Y_V]
+    y[YH_P1] = slip_v - y0[Y_V]
+    y[YH_P2] = y0[Y_U] - slip_u
+    y[YH_W] = y0[Y_W]
+    vel = max(max(sc[Y_U], sc[Y_V]), max(sc[Y_W], max(abs(slip_u), abs(slip_v))))
+    hatol[YH_R] = atol[Y_R]
+    hatol[YH_THETA] = rtol
+    hatol[YH_U] = atol[Y_U]
+    hatol[YH_V] = atol[Y_V]
+    hatol[YH_P1] = rtol * vel
+    hatol[YH_P2] = rtol * vel
+    hatol[YH_W] = atol[Y_W]
     e_scale = max(abs(e_true), 0.5 * M * vel * vel)
-    hatol[7] = rtol * e_scale
-    hatol[8] = rtol * e_scale
-    hatol[9] = rtol * e_scale
+    hatol[YH_WORK_RR] = rtol * e_scale
+    hatol[YH_WORK_SLIDE] = rtol * e_scale
+    hatol[YH_WORK_SPIN] = rtol * e_scale
     mode = MODE_SLIDING if (slip_u != 0.0 or slip_v != 0.0) else MODE_ROLLING
     if mode == MODE_ROLLING:
         E0 = invariants(y0, p)[0]
         scale = max(abs(E0), kinetic_energy(y0, p))
     else:
-        E0 = hybrid_energy(y[0], y[2], y[3], y[4], y[5], y[6], hp)
-        scale = max(abs(E0), E0 - hybrid_energy(y[0], 0.0, 0.0, 0.0, 0.0, 0.0, hp))
-    stuck = spin == 1 and y[6] == 0.0 and spin_hold_margin(y, hp) <= 0.0
+        E0 = hybrid_energy(y[YH_R], y[YH_U], y[YH_V], y[YH_P1], y[YH_P2], y[YH_W], hp)
+        scale = max(abs(E0), E0 - hybrid_energy(y[YH_R], 0.0, 0.0, 0.0, 0.0, 0.0, hp))
+    stuck = spin == 1 and y[YH_W] == 0.0 and spin_hold_margin(y, hp) <= 0.0
     hi[HI_MODE] = mode
     hi[HI_EPISODES] = 1 if mode == MODE_SLIDING else 0
     hi[HI_STUCK] = 1 if stuck else 0
@@ -212,20 +222,20 @@ def rolling_stretch(effects, p, y, y0, atol, rtol, hs, hi, yr, ra):
         return hs[HS_ENERGY], hs[HS_H], hs[HS_LZ]
     for j in range(nr):
         yr[j] = 0.0
-    yr[0] = y[0]
-    yr[1] = y[1]
-    yr[2] = y[2]
-    yr[3] = y[3]
-    yr[4] = y[6]
+    yr[Y_R] = y[YH_R]
+    yr[Y_THETA] = y[YH_THETA]
+    yr[Y_U] = y[YH_U]
+    yr[Y_V] = y[YH_V]
+    yr[Y_W] = y[YH_W]
     if effects & ROLLING_RESISTANCE:
-        yr[nr - 1] = y[7]
+        yr[nr - 1] = y[YH_WORK_RR]
     E1, Lz1, h1 = invariants(yr, p)
     e1 = radial_energy(E1, h1, p[P_M], p[P_K])
     ok1, q1, q2, qc = orbit_start(p, e1, h1, Lz1)
     if not ok1:
-        q1 = yr[0]
+        q1 = yr[Y_R]
         q2 = math.inf
-    sc = tolerance_scales(p, effects, yr, e1, h1, Lz1, min(q1, yr[0]), q2, qc)
+    sc = tolerance_scales(p, effects, yr, e1, h1, Lz1, min(q1, yr[Y_R]), q2, qc)
     for j in range(nr):
         ra[j] = sc[j] * rtol
     return e1, h1, Lz1
@@ -238,15 +248,15 @@ def rolled(effects, f, dt, yr, st, y, hs, hi, ev_t, ev_kind, ev_y):
     nr = yr.shape[0]
     hs[HS_T] += dt
     hi[HI_STEPS] += st
-    y[0] = yr[0]
-    y[1] = yr[1]
-    y[2] = yr[2]
-    y[3] = yr[3]
-    y[4] = -yr[3]
-    y[5] = yr[2]
-    y[6] = yr[4]
+    y[YH_R] = yr[Y_R]
+    y[YH_THETA] = yr[Y_THETA]
+    y[YH_U] = yr[Y_U]
+    y[YH_V] = yr[Y_V]
+    y[YH_P1] = -yr[Y_V]
+    y[YH_P2] = yr[Y_U]
+    y[YH_W] = yr[Y_W]
     if effects & ROLLING_RESISTANCE:
-        y[7] = yr[nr - 1]
+        y[YH_WORK_RR] = yr[nr - 1]
     t = hs[HS_T]
     if f != FATE_SLIPPED:
         hi[HI_FATE] = f
@@ -256,7 +266,7 @@ def rolled(effects, f, dt, yr, st, y, hs, hi, ev_t, ev_kind, ev_y):
             hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_VERTEX, y)
         elif f == FATE_REST:
             hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_REST, y)
-            if y[6] != 0.0:  # the centre is held at rest, the sphere spins on in place
+            if y[YH_W] != 0.0:  # the centre is held at rest, the sphere spins on in place
                 hi[HI_FATE] = SPINNING
         return
     hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_SLIP, y)
@@ -297,8 +307,8 @@ def hybrid_stretch(method, p, y, hp, rtol, hatol, t_horizon, max_steps, K, ytmp,
         # on, and that is no ``roll``: an EV_NO_HOLD, recorded for the sampled trajectory only
         yt = y.copy()
         stick(yt, hp)
-        stops = (hp[P_CRR] > 0.0 and holds_at_rest(p)
-                 and math.sqrt(yt[2] * yt[2] + yt[3] * yt[3]) <= hp[P_V_REST])  # fmt: skip
+        speed = math.sqrt(yt[YH_U] * yt[YH_U] + yt[YH_V] * yt[YH_V])
+        stops = hp[P_CRR] > 0.0 and holds_at_rest(p) and speed <= hp[P_V_REST]
         if stops or hold_margin(yt, hp) <= 0.0:
             stick(y, hp)
             hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_STICK, y)
@@ -313,9 +323,9 @@ def hybrid_stretch(method, p, y, hp, rtol, hatol, t_horizon, max_steps, K, ytmp,
             hi[HI_ARMED] &= ARMED_SPIN | ARMED_ROT
         return
     if end == EV_ROT_STOP:  # (p1, p2) down to the threshold: the rest of it to the resistance
-        y[7] += 0.5 * hp[P_K] * hp[P_M] * (y[4] * y[4] + y[5] * y[5])
-        y[4] = 0.0
-        y[5] = 0.0
+        y[YH_WORK_RR] += 0.5 * hp[P_K] * hp[P_M] * (y[YH_P1] * y[YH_P1] + y[YH_P2] * y[YH_P2])
+        y[YH_P1] = 0.0
+        y[YH_P2] = 0.0
         hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, end, y)  # (the state after)
         hi[HI_ARMED] &= ARMED_ROLL | ARMED_SPIN
         return
@@ -329,8 +339,8 @@ def hybrid_stretch(method, p, y, hp, rtol, hatol, t_horizon, max_steps, K, ytmp,
         hi[HI_EPISODES] += 1
         hi[HI_ARMED] &= ARMED_SPIN
     elif end == EV_SPIN_STOP:  # |w| down to the threshold: the rest of it to spin friction
-        y[9] += 0.5 * hp[P_K] * hp[P_M] * y[6] * y[6]
-        y[6] = 0.0
+        y[YH_WORK_SPIN] += 0.5 * hp[P_K] * hp[P_M] * y[YH_W] * y[YH_W]
+        y[YH_W] = 0.0
         hi[HI_STUCK] = 1 if spin_hold_margin(y, hp) <= 0.0 else 0
         hi[HI_ARMED] &= ARMED_ROLL | ARMED_ROT
     elif end == EV_SPIN_GO:
@@ -354,29 +364,29 @@ def story_result(spin, p, y, y0, hp, hs, hi, out):
     E1 = mode_energy(y, hp, mode)
     if mode == MODE_ROLLING and episodes == 0 and spin == 0:
         yr = y0.copy()
-        yr[0] = y[0]
-        yr[2] = y[2]
-        yr[3] = y[3]
-        yr[4] = y[6]
+        yr[Y_R] = y[YH_R]
+        yr[Y_U] = y[YH_U]
+        yr[Y_V] = y[YH_V]
+        yr[Y_W] = y[YH_W]
         E1 = invariants(yr, p)[0]
     if hi[HI_FATE] == FATE_REST or hi[HI_FATE] == SPINNING:  # its state at rest
         fe, fh, fl = rolling_invariants(y, hp)
     E0 = hs[HS_E0]
-    work = y[7] + y[8] + y[9]
+    work = y[YH_WORK_RR] + y[YH_WORK_SLIDE] + y[YH_WORK_SPIN]
     out[0] = hs[HS_T]
-    out[1] = y[0]
-    out[2] = y[1]
-    out[3] = abs(y[1]) / (2.0 * math.pi)
+    out[1] = y[YH_R]
+    out[2] = y[YH_THETA]
+    out[3] = abs(y[YH_THETA]) / (2.0 * math.pi)
     out[4] = E0 - E1
     out[5] = abs(E1 + work - E0) / hs[HS_SCALE]
     out[6] = hs[HS_SLIDE]
     out[7] = episodes
-    out[8] = math.sqrt(y[2] * y[2] + y[3] * y[3])
+    out[8] = math.sqrt(y[YH_U] * y[YH_U] + y[YH_V] * y[YH_V])
     out[9] = fe
     out[10] = fh
     out[11] = fl
-    out[12] = y[7]
-    out[13] = y[8]
-    out[14] = y[9]
-    out[15] = y[6]
+    out[12] = y[YH_WORK_RR]
+    out[13] = y[YH_WORK_SLIDE]
+    out[14] = y[YH_WORK_SPIN]
+    out[15] = y[YH_W]
     return hi[HI_FATE]

@@ -29,6 +29,15 @@ from .sliding import (
     H_C_SPIN,
     MODE_ROLLING,
     MODE_SLIDING,
+    YH_P1,
+    YH_P2,
+    YH_R,
+    YH_THETA,
+    YH_U,
+    YH_V,
+    YH_W,
+    YH_WORK_RR,
+    YH_WORK_SPIN,
     hold_margin,
     rolling_rates,
     spin_hold_margin,
@@ -74,25 +83,25 @@ def story_rest(p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y):
     sin(alpha)) (N = M g sin(alpha) at rest: a ``spin_stop`` event and fate ``rest``), or at
     the horizon if that comes first (fate ``rolling``, the spin part way down)."""
     stuck = hi[HI_STUCK] != 0
-    u = y[2]
-    v = y[3]
+    u = y[YH_U]
+    v = y[YH_V]
     speed = math.sqrt(u * u + v * v)
     if speed > 0.0:
-        d = rolling_rates(y[0], u, v, y[6], stuck, hp)
-        decel = -(u * d[2] + v * d[3]) / speed
+        d = rolling_rates(y[YH_R], u, v, y[YH_W], stuck, hp)
+        decel = -(u * d[YH_U] + v * d[YH_V]) / speed
         dt = speed / decel if decel > 0.0 else 0.0
         half = 0.5 * dt
         e_moving = mode_energy(y, hp, MODE_ROLLING)
-        y[0] += u * half
-        y[1] += d[1] * half
-        y[6] += d[6] * half
-        w_spin = d[9] * half
-        y[9] += w_spin
-        y[2] = 0.0
-        y[3] = 0.0
-        y[4] = 0.0
-        y[5] = 0.0
-        y[7] += e_moving - mode_energy(y, hp, MODE_ROLLING) - w_spin
+        y[YH_R] += u * half
+        y[YH_THETA] += d[YH_THETA] * half
+        y[YH_W] += d[YH_W] * half
+        w_spin = d[YH_WORK_SPIN] * half
+        y[YH_WORK_SPIN] += w_spin
+        y[YH_U] = 0.0
+        y[YH_V] = 0.0
+        y[YH_P1] = 0.0
+        y[YH_P2] = 0.0
+        y[YH_WORK_RR] += e_moving - mode_energy(y, hp, MODE_ROLLING) - w_spin
         hs[HS_T] += dt
     t = hs[HS_T]
     if not holds_at_rest(p):  # it starts again from rest
@@ -103,7 +112,7 @@ def story_rest(p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y):
         _push_slip(t, y, hi, ev_t, ev_kind, ev_y)
         return
     hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_REST, y)
-    w = y[6]
+    w = y[YH_W]
     if w != 0.0 and hp[H_C_SPIN] == 0.0:
         hi[HI_FATE] = SPINNING
         return
@@ -114,13 +123,13 @@ def story_rest(p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y):
         t_stop = t + abs(w) / rate
         if t_stop > t_horizon:  # still spinning down at the horizon
             w1 = w - math.copysign(rate * (t_horizon - t), w)
-            y[9] += 0.5 * kM * (w * w - w1 * w1)
-            y[6] = w1
+            y[YH_WORK_SPIN] += 0.5 * kM * (w * w - w1 * w1)
+            y[YH_W] = w1
             hs[HS_T] = t_horizon
             hi[HI_FATE] = ROLLING
         else:
-            y[9] += 0.5 * kM * w * w
-            y[6] = 0.0
+            y[YH_WORK_SPIN] += 0.5 * kM * w * w
+            y[YH_W] = 0.0
             hs[HS_T] = t_stop
             hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t_stop, EV_SPIN_STOP, y)
     fe, fh, fl = rolling_invariants(y, hp)  # the sphere at rest: its last rolling state
@@ -141,7 +150,7 @@ def stretch_start(p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y):
     before every stretch), in every effect set."""
     t = hs[HS_T]
     if hi[HI_MODE] == MODE_ROLLING:
-        speed = math.sqrt(y[2] * y[2] + y[3] * y[3])
+        speed = math.sqrt(y[YH_U] * y[YH_U] + y[YH_V] * y[YH_V])
         if hp[P_CRR] > 0.0 and speed <= hp[P_V_REST] and (speed > 0.0 or holds_at_rest(p)):
             story_rest(p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y)
             return

@@ -25,7 +25,7 @@ import math
 from .._jit import kernel
 from .effects import FORCE_EFFECTS
 from .forces import effect_terms, taken_power
-from .layouts import P_G, P_INV_M1K, P_K, P_KK, P_M, P_MU, P_RADIUS
+from .layouts import P_G, P_INV_M1K, P_K, P_KK, P_M, P_MU, P_RADIUS, Y_R, Y_U, Y_V, Y_W
 from .meridian import P_Q_FLOOR, centre
 from .meridian import SLOTS as SLOTS
 
@@ -77,7 +77,7 @@ def normal_force(q, u, v, p):
 @kernel
 def lift_margin(y, p):
     """Event function of lift-off: -N [N] (>= 0: the sphere leaves the surface)."""
-    return -normal_force(y[0], y[2], y[3], p)
+    return -normal_force(y[Y_R], y[Y_U], y[Y_V], p)
 
 
 @kernel
@@ -127,10 +127,10 @@ def invariants(y, p):
     """(E [J], M rho v [kg m^2/s], w [m/s]) of the state y: the energy, conserved, and the
     quantities Routh's two linear integrals are made of (``engine.surfaces``), which on a
     curved meridian are not conserved themselves."""
-    rho, z, cb, sb, kappa, sigma, fit = centre(p, y[0])
+    rho, z, cb, sb, kappa, sigma, fit = centre(p, y[Y_R])
     M = p[P_M]
     k = p[P_K]
-    u, v, w = y[2], y[3], y[4]
+    u, v, w = y[Y_U], y[Y_V], y[Y_W]
     E = 0.5 * (1.0 + k) * M * (u * u + v * v) + 0.5 * k * M * w * w + M * p[P_G] * z
     return E, M * rho * v, w
 
@@ -139,7 +139,7 @@ def invariants(y, p):
 def rolling_friction(y, p, effects):
     """(F1, F2, N) [N]: the friction at the contact that rolling needs, along (e1, e2), with the
     part the effects' forces and couples need, and the normal force."""
-    q, u, v, w = y[0], y[2], y[3], y[4]
+    q, u, v, w = y[Y_R], y[Y_U], y[Y_V], y[Y_W]
     udot, vdot, wdot, N, sigma, irho = pull(q, u, v, w, p)
     rho, z, cb, sb, kappa, sigma, fit = centre(p, q)
     kM = p[P_KK] * p[P_M]

@@ -34,6 +34,11 @@ from .layouts import (
     P_RIM,
     P_RIM_SLANT,
     P_V_REST,
+    Y_QUAT,
+    Y_R,
+    Y_U,
+    Y_V,
+    Y_W,
     state_size,
 )
 from .meridian import (
@@ -194,12 +199,12 @@ def launch_state(effects, p, X, i):
     if not math.isfinite(q0):
         return np.empty(0)
     y = np.zeros(state_size(effects))
-    y[0] = q0
-    y[2] = X[X_U, i] if X.shape[0] > X_U else 0.0
-    y[3] = X[X_V, i]
-    y[4] = X[X_W, i]
+    y[Y_R] = q0
+    y[Y_U] = X[X_U, i] if X.shape[0] > X_U else 0.0
+    y[Y_V] = X[X_V, i]
+    y[Y_W] = X[X_W, i]
     if effects & ATTITUDE:
-        y[5] = 1.0
+        y[Y_QUAT] = 1.0
     return y
 
 
@@ -211,16 +216,16 @@ def tolerance_scales(effects, p, y0):
     each floored at sqrt(eps) of it; the work of the effects: the energy scale."""
     n = y0.shape[0]
     sc = np.ones(n)
-    rho, z, cb, sb, kappa, sigma, fit = centre(p, y0[0])
+    rho, z, cb, sb, kappa, sigma, fit = centre(p, y0[Y_R])
     z_in = centre(p, max(p[P_Q_LO], 0.0))[1] if math.isfinite(p[P_Q_LO]) else z
     drop = max(z - z_in, 0.0)
-    speed = math.sqrt(y0[2] ** 2 + y0[3] ** 2 + y0[4] ** 2)
+    speed = math.sqrt(y0[Y_U] ** 2 + y0[Y_V] ** 2 + y0[Y_W] ** 2)
     vel = max(speed, math.sqrt(2.0 * p[P_G] * drop / (1.0 + p[P_K])))
     floor = SQRT_EPS * vel
-    sc[0] = max(abs(y0[0]), 1.0) if p[P_KIND] == CYLINDER else max(abs(y0[0]), floor)
-    sc[2] = max(vel, floor)
-    sc[3] = max(abs(y0[3]), floor)
-    sc[4] = max(max(abs(y0[4]), abs(y0[3])), floor)
+    sc[Y_R] = max(abs(y0[Y_R]), 1.0) if p[P_KIND] == CYLINDER else max(abs(y0[Y_R]), floor)
+    sc[Y_U] = max(vel, floor)
+    sc[Y_V] = max(abs(y0[Y_V]), floor)
+    sc[Y_W] = max(max(abs(y0[Y_W]), abs(y0[Y_V])), floor)
     if effects & DISSIPATIVE:
         sc[n - 1] = max(0.5 * p[P_M] * vel * vel, p[P_M] * p[P_G] * max(abs(z), drop))
     return sc
@@ -233,7 +238,7 @@ def period_start(effects, p, X, i, rtol):
     not at a turning point, or has no speed along the parallel (it passes through the axis)."""
     nan = (math.nan, math.nan, math.nan)
     y0 = launch_state(effects, p, X, i)
-    if y0.shape[0] == 0 or y0[2] != 0.0 or y0[3] == 0.0 or not math.isfinite(y0[4]):
+    if y0.shape[0] == 0 or y0[Y_U] != 0.0 or y0[Y_V] == 0.0 or not math.isfinite(y0[Y_W]):
         return False, np.empty(0), np.empty(0), nan
     atol = tolerance_scales(effects, p, y0) * rtol
     return True, y0, atol, nan
@@ -246,12 +251,12 @@ def fate_start(effects, p, X, i, rtol):
     nan = (math.nan, math.nan, math.nan)
     none = np.empty(0)
     y0 = launch_state(effects, p, X, i)
-    if y0.shape[0] == 0 or not (math.isfinite(y0[2]) and math.isfinite(y0[3])):
+    if y0.shape[0] == 0 or not (math.isfinite(y0[Y_U]) and math.isfinite(y0[Y_V])):
         return NO_ORBIT, math.nan, none, 0.0, 0.0, none, nan
-    if y0[0] > p[P_RIM]:
+    if y0[Y_R] > p[P_RIM]:
         return NO_ORBIT, math.nan, none, 0.0, 0.0, none, nan
     sc = tolerance_scales(effects, p, y0)
-    p[P_V_REST] = REST_SPEED * rtol * max(sc[2], abs(y0[3]))
+    p[P_V_REST] = REST_SPEED * rtol * max(sc[Y_U], abs(y0[Y_V]))
     return RUNS, math.nan, y0, 0.0, 0.0, sc * rtol, nan
 
 
@@ -260,7 +265,7 @@ def holds_at_rest(p, y):
     """Whether rolling resistance can hold a sphere at rest at y: the slope's pull
     g sin(b) against the most the resistance gives, c_rr N = c_rr M g cos(b) (at rest the
     normal force is the weight's part): tan(b) <= c_rr."""
-    rho, z, cb, sb, kappa, sigma, fit = centre(p, y[0])
+    rho, z, cb, sb, kappa, sigma, fit = centre(p, y[Y_R])
     return sb <= p[P_CRR] * cb
 
 
@@ -268,4 +273,4 @@ def holds_at_rest(p, y):
 def starts_inner(effects, p, y0):
     """Whether the run from the turning point y0 starts at the inner one: the meridian
     acceleration there points outward."""
-    return motion_rates(y0[0], 0.0, y0[3], y0[4], p, effects)[2] > 0.0
+    return motion_rates(y0[Y_R], 0.0, y0[Y_V], y0[Y_W], p, effects)[2] > 0.0

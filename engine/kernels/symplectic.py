@@ -35,7 +35,7 @@ import numpy as np
 from .._jit import kernel
 from .cone import P_ALPHA, P_COS, P_SIN, coefficients
 from .effects import CAPABILITIES, needing_any
-from .layouts import P_G, P_K, P_M
+from .layouts import P_G, P_K, P_M, Y_R, Y_THETA, Y_U, Y_V, Y_W
 from .protocol import (
     BUFFER_FULL,
     EPS,
@@ -191,11 +191,11 @@ def full_state(z, p, h, Lz, out):
     M = p[P_M]
     s = p[P_SIN]
     r = z[Z_R]
-    out[0] = r
-    out[1] = z[Z_TH]
-    out[2] = z[Z_P] / M
-    out[3] = Lz / (M * r * s)
-    out[4] = h + Lz * p[P_COS] / (M * r * s * s)
+    out[Y_R] = r
+    out[Y_THETA] = z[Z_TH]
+    out[Y_U] = z[Z_P] / M
+    out[Y_V] = Lz / (M * r * s)
+    out[Y_W] = h + Lz * p[P_COS] / (M * r * s * s)
 
 
 @kernel
@@ -323,7 +323,7 @@ def sym_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_ste
     cf = ttl_coefficients(p, energy, h, Lz)
     wts = weights(np.int64(DEFAULT_ORDER))
     hstep = step_size(np.int64(DEFAULT_ORDER), rtol)
-    z = initial_z(p, y0[0], y0[2], energy, h, Lz)
+    z = initial_z(p, y0[Y_R], y0[Y_U], energy, h, Lz)
     work = np.empty(3 * 5 + 2 * 5 + 8)
     zn, zt, zs = work[0:5], work[5:10], work[10:15]
     y, buf, st = work[15:20], work[20:25], work[25:]
