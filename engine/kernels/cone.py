@@ -271,14 +271,14 @@ def contact_velocity(y, ydot, p):
     r = y[Y_R]
     cth = math.cos(y[Y_THETA])
     sth = math.sin(y[Y_THETA])
-    rd = ydot[0]
-    vt = r * s * ydot[1]
+    rd = ydot[Y_R]
+    vt = r * s * ydot[Y_THETA]
     # R_dot = rdot e1 + r s thetadot e2
     Rx = rd * s * cth - vt * sth
     Ry = rd * s * sth + vt * cth
     Rz = rd * c
     q0, q1, q2, q3 = y[Y_QUAT], y[Y_QUAT + 1], y[Y_QUAT + 2], y[Y_QUAT + 3]
-    d0, d1, d2, d3 = ydot[5], ydot[6], ydot[7], ydot[8]
+    d0, d1, d2, d3 = ydot[Y_QUAT], ydot[Y_QUAT + 1], ydot[Y_QUAT + 2], ydot[Y_QUAT + 3]
     n2 = q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3
     # vector part of 2 qdot * conj(q)
     wx = 2.0 * (-d0 * q1 + d1 * q0 - d2 * q3 + d3 * q2) / n2

@@ -156,7 +156,7 @@ def initial_step(method, effects, y0, K, p, rtol, atol, ytmp):
         h0 = 0.01 * d0 / d1
     for j in range(n):
         ytmp[j] = y0[j] + h0 * K[0, j]
-    if not ytmp[0] - domain_floor(p, effects) > 0.0:
+    if not ytmp[Y_R] - domain_floor(p, effects) > 0.0:
         return h0
     rhs(ytmp, p, effects, K, 1)
     d2 = 0.0
