@@ -35,6 +35,7 @@ from .kernels.meridian import (
     P_Q_LO,
     P_SHAPE1,
     P_SHAPE2,
+    PARABOLOID,
     POWER_LAW,
     PROFILE,
     centre,
@@ -123,14 +124,15 @@ def may_lift(p: np.ndarray, q_a: float, q_b: float) -> bool:
     meridian [q_a, q_b] of the surface of ``p``: where it curves away from the ball (kappa < 0),
     falls away outward (sin b < 0: the parallel's term is negative) or overhangs (cos b <= 0);
     elsewhere every term of N is >= 0. The funnel is convex everywhere, a power law z = c rho^n
-    where c n (n - 1) < 0 (its slope never falls outward for c, n > 0); the others are looked
-    at on :data:`LIFT_PROBES` points (an infinite range up to 10^6 times its start)."""
+    where c n (n - 1) < 0 (its slope never falls outward for c, n > 0); the bowl (to its
+    equator), paraboloid, cone and cylinder never; a profile is looked at on :data:`LIFT_PROBES`
+    points (an infinite range up to 10^6 times its start)."""
     kind = p[P_KIND]
     if kind == FUNNEL:
         return True
     if kind == POWER_LAW:
         return bool(p[P_SHAPE1] * p[P_SHAPE2] * (p[P_SHAPE2] - 1.0) < 0.0)
-    if kind == CYLINDER:
+    if kind in (CYLINDER, CONE, BOWL, PARABOLOID):  # kappa >= 0, cos b > 0, sin b >= 0
         return False
     lo = max(q_a, 0.0) if kind != PROFILE else q_a
     if math.isfinite(q_b):
