@@ -289,15 +289,26 @@ def threading_layer() -> str:
 _ENTRIES: dict[tuple, Any] = {}
 
 
-def call_specialized(dispatcher: Any, args: tuple, literal_positions: tuple[int, ...]) -> Any:
-    """Call a kernel that makes some int arguments literal (``numba.literally``) without paying
-    numba's literal dispatch on every call.
+@functools.cache
+def _positions(dispatcher: Any, literal: tuple[str, ...]) -> tuple[int, ...]:
+    """The places of the parameters named ``literal`` in the kernel's signature."""
+    params = list(inspect.signature(dispatcher.py_func).parameters)
+    missing = [name for name in literal if name not in params]
+    if missing:
+        raise TypeError(f"{dispatcher.py_func.__qualname__} has no parameter {missing[0]!r}")
+    return tuple(params.index(name) for name in literal)
+
+
+def call_specialized(dispatcher: Any, args: tuple, literal: tuple[str, ...]) -> Any:
+    """Call a kernel that makes the int arguments named ``literal`` literal
+    (``numba.literally``) without paying numba's literal dispatch on every call.
 
     A Python int never matches a literal signature directly, so each call would re-type the
     kernel's head (tens of ms). The first call per literal values goes through the dispatcher
     (compiling or loading the specialisation from the cache); later calls use that
     specialisation's compiled entry point. The other arguments must keep their types.
     """
+    literal_positions = _positions(dispatcher, literal)
     values = tuple(int(args[i]) for i in literal_positions)
     key = (dispatcher, values)
     entry = _ENTRIES.get(key)

@@ -178,11 +178,17 @@ def check_horizon(
     return given if given.given else None
 
 
+def check_count(name: str, value: Any, *, least: int = 0) -> int:
+    """A count: an integer >= ``least`` (not a boolean, not a float)."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, Integral) or value < least:
+        what = "a positive integer" if least == 1 else f"an integer >= {least}"
+        raise PlanError(name, f"must be {what}", value)
+    return int(value)
+
+
 def check_max_steps(value: Any) -> int:
     """A step budget: an integer >= 1 (not a boolean, not a float)."""
-    if isinstance(value, bool | np.bool_) or not isinstance(value, Integral) or value < 1:
-        raise PlanError("max_steps", "must be a positive integer", value)
-    return int(value)
+    return check_count("max_steps", value, least=1)
 
 
 def check_positive(name: str, value: Any) -> float:

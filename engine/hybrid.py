@@ -19,16 +19,21 @@ from .kernels.effects import REVOLUTIONS, ROLLING_EFFECTS
 from .kernels.hybrid import (
     HYBRID_ROWS,
     hybrid_fate_points,
+    hybrid_story,
 )
 from .kernels.lanes_hybrid import hybrid_fate_points_lanes
 from .kernels.layouts import P_THETA_MAX
+from .kernels.protocol import LITERAL as RUN_LITERAL
 from .kernels.sliding import HYBRID_STATE  # the components of an event's ``state``
 from .scene import Scene
 
-__all__ = ["HYBRID_VARIABLES", "HYBRID_STATE", "hybrid_fates", "hybrid_setup"]
+__all__ = ["HYBRID_VARIABLES", "HYBRID_STATE", "hybrid_fates", "hybrid_setup", "whole_story"]
 
 #: Variables a fate map of a sliding scene adds to today's fate variables.
 HYBRID_VARIABLES = HYBRID_ROWS[6:]
+#: The hybrid kernels' literal parameters (:func:`._jit.call_specialized`): a run's, and
+#: whether spin friction is on.
+LITERAL = (*RUN_LITERAL, "spin")
 #: Step budget of one launch (accepted + rejected steps, both modes).
 MAX_STEPS = 10_000_000
 
@@ -43,6 +48,39 @@ def hybrid_setup(scene: Scene, theta_max: float) -> tuple[np.ndarray, int, int]:
         REVOLUTIONS if math.isfinite(theta_max) else 0
     )
     return params, effects, 1 if scene.c_spin > 0 else 0
+
+
+def whole_story(
+    method_id: int,
+    params: np.ndarray,
+    effects: int,
+    spin: int,
+    scene: Scene,
+    energy: float,
+    h: float,
+    Lz: float,
+    launch: tuple[float, float, float, float],
+    rtol: float,
+    t_horizon: float,
+    max_steps: int = MAX_STEPS,
+    capacity: int = 64,
+) -> tuple:
+    """:func:`.kernels.hybrid.hybrid_story` of one launch (``launch`` = (r_start, u0, slip_u,
+    slip_v)) with every event and mark it records: a story with more than ``capacity`` of them
+    counts them all (kernels/protocol ``push_event``) and is told again with room for that
+    count (the story is deterministic: the same events again). Returns the kernel's tuple
+    (fate, floats, steps, n_events, times, kinds, states), the arrays cut to n_events."""
+    cap = max(int(capacity), 1)
+    while True:
+        res = hybrid_story(method_id, effects, spin, params, float(scene.mu_k),
+                           float(scene.c_spin), float(energy), float(h), float(Lz),
+                           *map(float, launch), float(rtol), float(t_horizon), int(max_steps),
+                           cap)  # fmt: skip
+        if res[3] <= cap:
+            break
+        cap = int(res[3])
+    fate, f, steps, n_ev, ev_t, ev_kind, ev_y = res
+    return fate, f, steps, n_ev, ev_t[:n_ev], ev_kind[:n_ev], ev_y[:n_ev]
 
 
 def hybrid_fates(
@@ -90,9 +128,9 @@ def hybrid_fates(
                 effects, spin, float(rtol), float(t_max), int(max_steps))  # fmt: skip
         if lanes and m.family == "runge-kutta" and spin == 0:
             args += (numba.get_num_threads(), out_fate, out_f, out_n)
-            call_specialized(hybrid_fate_points_lanes, args, (11, 12, 13))
+            call_specialized(hybrid_fate_points_lanes, args, LITERAL)
         else:
-            call_specialized(hybrid_fate_points, args + (out_fate, out_f, out_n), (11, 12, 13))
+            call_specialized(hybrid_fate_points, args + (out_fate, out_f, out_n), LITERAL)
     res: dict[str, np.ndarray] = {"fate": out_fate}
     for i, name in enumerate(HYBRID_ROWS):
         res[name] = out_f[i]

@@ -25,7 +25,7 @@ from .kernels.lanes import integrate_points_lanes as _lanes_kernel
 from .kernels.lanes_fate import fate_points_lanes as _fate_lanes_kernel
 from .kernels.orbit import PERIOD_ROWS
 from .kernels.orbit import integrate_points as _integrate_points_kernel
-from .kernels.protocol import STATUS_MESSAGES, UNSUPPORTED
+from .kernels.protocol import LITERAL, STATUS_MESSAGES, UNSUPPORTED
 from .methods import DEFAULT_RTOL, METHODS, Method
 from .scene import Scene
 from .schema import period_variables
@@ -101,10 +101,10 @@ def integrate_points(
     if m.family == "runge-kutta":  # several orbits at once on the SIMD lanes
         args = (X, params, method, effects, rtol, max_steps, numba.get_num_threads(), out_f,
                 out_n, out_status)  # fmt: skip
-        call_specialized(_lanes_kernel, args, (2, 3))
+        call_specialized(_lanes_kernel, args, LITERAL)
         return
     args = (X, params, method, effects, rtol, max_steps, out_f, out_n, out_status)
-    call_specialized(_integrate_points_kernel, args, (2, 3))
+    call_specialized(_integrate_points_kernel, args, LITERAL)
 
 
 def fate_points(
@@ -133,9 +133,9 @@ def fate_points(
             max_steps)  # fmt: skip
     if lanes and _BY_ID[method].family == "runge-kutta":
         args += (numba.get_num_threads(), out_fate, out_f, out_n)
-        call_specialized(_fate_lanes_kernel, args, (2, 3))
+        call_specialized(_fate_lanes_kernel, args, LITERAL)
         return
-    call_specialized(_fate_points_kernel, args + (out_fate, out_f, out_n), (2, 3))
+    call_specialized(_fate_points_kernel, args + (out_fate, out_f, out_n), LITERAL)
 
 
 def evaluate_integrated(

@@ -16,9 +16,9 @@ import xarray as xr
 
 from ._jit import call_specialized
 from ._version import __version__
-from .hybrid import HYBRID_STATE, hybrid_setup
+from .hybrid import HYBRID_STATE, hybrid_setup, whole_story
 from .kernels.cone import set_alpha
-from .kernels.hybrid import HYBRID_FATE_NAMES, hybrid_story
+from .kernels.hybrid import HYBRID_FATE_NAMES
 from .kernels.hybrid_step import ARMED_KEPT, EV_NO_HOLD, EV_ROT_STOP, HYBRID_EVENT_NAMES
 from .kernels.layouts import P_K, P_M
 from .kernels.model import N_PARAMS
@@ -170,19 +170,12 @@ def hybrid_trajectory(
     """The trajectory of :func:`engine.simulate` on a scene with ``mu_k`` (validated inputs)."""
     params, effects, spin = hybrid_setup(scene, math.inf)
     set_alpha(params, alpha)
-    cap = 64
-    while True:
-        res = hybrid_story(method_id, effects, spin, params, float(scene.mu_k),
-                           float(scene.c_spin), energy, h, Lz, r0, u0, slip_u, slip_v, rtol,
-                           t_end, int(max_steps), cap)  # fmt: skip
-        if res[3] <= cap:
-            break
-        cap = int(res[3])
+    res = whole_story(method_id, params, effects, spin, scene, energy, h, Lz,
+                      (r0, u0, slip_u, slip_v), rtol, t_end, max_steps)  # fmt: skip
     fate_id, f, story_steps, n_ev, ev_t, ev_kind, ev_y = res
     fate = HYBRID_FATE_NAMES[fate_id]
     if fate == "no_orbit":
         raise ValueError(f"the orbit starts at r = {r0!r} m, beyond the rim ({scene.rim!r} m)")
-    ev_t, ev_kind, ev_y = ev_t[:n_ev].copy(), ev_kind[:n_ev].copy(), ev_y[:n_ev].copy()
     hp = np.empty(N_HYBRID_PARAMS)
     hp[:N_PARAMS] = params
     hp[H_MU_K], hp[H_C_SPIN] = scene.mu_k, scene.c_spin
@@ -211,7 +204,7 @@ def hybrid_trajectory(
     n_cap = len(t0) + (int(t1[-1] / dt_out) + 2 if dt_out else 4096)
     while True:
         tr = (np.empty(n_cap), np.empty((n_cap, N_HYBRID)), np.empty(n_cap, np.int64))
-        st, n_tr, trace_steps = call_specialized(trace_stretches, (*args_head, *tr), (0,))
+        st, n_tr, trace_steps = call_specialized(trace_stretches, (*args_head, *tr), ("method",))
         if st != BUFFER_FULL:
             break
         n_cap *= 4

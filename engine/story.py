@@ -8,11 +8,18 @@ from typing import Any
 
 import numpy as np
 
-from .checks import check_launch_values, check_method, check_number, check_rtol, check_scene
+from .checks import (
+    check_count,
+    check_launch_values,
+    check_method,
+    check_number,
+    check_rtol,
+    check_scene,
+)
 from .fates import Horizon, require_horizon
-from .hybrid import HYBRID_STATE, MAX_STEPS, hybrid_fates, hybrid_setup
+from .hybrid import HYBRID_STATE, hybrid_fates, hybrid_setup, whole_story
 from .kernels.cone import set_alpha
-from .kernels.hybrid import HYBRID_FATE_NAMES, HYBRID_ROWS, hybrid_story
+from .kernels.hybrid import HYBRID_FATE_NAMES, HYBRID_ROWS
 from .kernels.hybrid_step import HYBRID_EVENT_NAMES
 from .launch import invariants
 from .scene import Scene
@@ -84,11 +91,13 @@ def story(
     Returns ``fate`` (name), the rows of :data:`engine.kernels.hybrid.HYBRID_ROWS`, ``n_steps``
     and ``events``: a list of dicts (``kind``: slip, roll, spin_stop, spin_go, rest, spill,
     vertex, horizon; ``t`` [s]; ``state``: dict of :data:`HYBRID_STATE`; a roll event's state is
-    the one after the sticking impulse)."""
+    the one after the sticking impulse): the first ``max_events`` of them, with
+    ``events_dropped`` the count of those that followed."""
     scene = check_scene(scene, sliding=True)
     m = check_method(method, scene, integrator=True)
     rtol = check_rtol(rtol, m)
     t_max, theta_max = _horizon(horizon_time, horizon_revolutions)
+    max_events = check_count("max_events", max_events)
     given = dict(alpha=alpha, r0=r0, v0=v0, w0=w0, u0=u0, slip_u=slip_u, slip_v=slip_v)
     launch = {n: check_number(n, x) for n, x in given.items()}
     check_launch_values(launch, scene)
@@ -96,21 +105,19 @@ def story(
     params, effects, spin = hybrid_setup(scene, theta_max)
     set_alpha(params, float(alpha))
     inv = invariants(alpha, r0, 0.0, v0, w0, scene)
-    res = hybrid_story(m.kernel_id, effects, spin, params, float(scene.mu_k),
-                       float(scene.c_spin), float(inv["energy"]), float(inv["h"]),
-                       float(inv["Lz"]), float(r0), float(u0), float(slip_u), float(slip_v),
-                       rtol, t_max, MAX_STEPS, int(max_events))  # fmt: skip
-    fate, f, steps, n_ev, ev_t, ev_kind, ev_y = res
+    res = whole_story(m.kernel_id, params, effects, spin, scene, inv["energy"], inv["h"],
+                      inv["Lz"], (r0, u0, slip_u, slip_v), rtol, t_max,
+                      capacity=max_events)  # fmt: skip
+    fate, f, steps, _, ev_t, ev_kind, ev_y = res
     out: dict[str, Any] = {"fate": HYBRID_FATE_NAMES[fate]}
     out.update({name: float(f[i]) for i, name in enumerate(HYBRID_ROWS)})
     out["n_steps"] = int(steps)
-    events = []
-    for i in range(min(n_ev, max_events)):
-        if ev_kind[i] >= len(HYBRID_EVENT_NAMES):  # the kernel's own marks (the sampled
-            continue  # trajectory's): not events of the story
+    told = np.flatnonzero(ev_kind < len(HYBRID_EVENT_NAMES))  # without the kernel's own marks
+    events = []  # (the sampled trajectory's): not events of the story
+    for i in told[:max_events]:
         state = {name: float(ev_y[i, j]) for j, name in enumerate(HYBRID_STATE)}
         events.append({"kind": HYBRID_EVENT_NAMES[ev_kind[i]], "t": float(ev_t[i]),
                        "state": state})  # fmt: skip
     out["events"] = events
-    out["events_dropped"] = max(0, n_ev - max_events)
+    out["events_dropped"] = len(told) - len(events)
     return out

@@ -26,7 +26,7 @@ from .kernels.meridian import P_KIND
 from .kernels.model import SURFACE, make_params, scene_key
 from .kernels.orbit import PERIOD_ROWS
 from .kernels.orbit import integrate_points as _integrate_points_kernel
-from .kernels.protocol import UNSUPPORTED
+from .kernels.protocol import LITERAL, UNSUPPORTED
 from .methods import Method
 from .scene import Scene
 from .surfaces import Surface
@@ -91,7 +91,7 @@ def surface_period(
     elif n:
         args = (X, params, method.kernel_id, key, rtol, max_steps, numba.get_num_threads(), out_f,
                 out_n, out_status)  # fmt: skip
-        call_specialized(_lanes_kernel, args, (2, 3))
+        call_specialized(_lanes_kernel, args, LITERAL)
     res = {name: out_f[i] for i, name in enumerate(PERIOD_ROWS)}
     res["n_steps"] = out_n
     res["status"] = out_status
@@ -108,7 +108,7 @@ def surface_period_scalar(
     out_status = np.empty(n, np.int8)
     key = scene_key(SURFACE, scene.effects_mask)
     args = (X, params, method.kernel_id, key, rtol, max_steps, out_f, out_n, out_status)
-    call_specialized(_integrate_points_kernel, args, (2, 3))
+    call_specialized(_integrate_points_kernel, args, LITERAL)
     res = {name: out_f[i] for i, name in enumerate(PERIOD_ROWS)}
     res["n_steps"] = out_n
     res["status"] = out_status
@@ -142,9 +142,11 @@ def surface_fates(
         args = (X, p, method.kernel_id, key, rtol, t_horizon, max_steps)
         if lanes and method.family == "runge-kutta":
             args += (numba.get_num_threads(), out_fate, out_f, out_n)
-            call_specialized(_fate_lanes_kernel, args, (2, 3))
+            call_specialized(_fate_lanes_kernel, args, LITERAL)
         else:
-            call_specialized(_fate_points_kernel, args + (out_fate, out_f, out_n), (2, 3))
+            call_specialized(
+                _fate_points_kernel, args + (out_fate, out_f, out_n), ("method", "effects")
+            )
     res = {"fate": out_fate}
     res.update({name: out_f[i] for i, name in enumerate(FATE_ROWS)})
     res["n_steps"] = out_n

@@ -8,7 +8,7 @@ import numpy as np
 
 from ._jit import call_specialized
 from .kernels.layouts import ATTITUDE
-from .kernels.protocol import BUFFER_FULL
+from .kernels.protocol import BUFFER_FULL, LITERAL
 from .kernels.trajectory import solve_restarting
 
 __all__ = ["TrajectoryRun"]
@@ -40,7 +40,7 @@ class TrajectoryRun:
                   np.empty((self.cap_tr if effects & ATTITUDE else 0, n)))  # fmt: skip
             args = (kid, effects, y0, p, orbit, rtol, atol, t_stop, n_apsides, self.max_steps,
                     record, dt_out, *ev, *tr)  # fmt: skip
-            res = call_specialized(solve_restarting, args, (0, 1))
+            res = call_specialized(solve_restarting, args, LITERAL)
             if int(res[0]) != BUFFER_FULL:
                 break
             full_ev, full_tr = int(res[5]) >= self.cap_ev - 1, int(res[6]) >= self.cap_tr - 1

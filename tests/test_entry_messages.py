@@ -234,6 +234,8 @@ CASES = [
         "evaluate_integrated": lambda: evaluate_integrated_(max_steps=0),
         "fates": lambda: fates_(max_steps=0),
     }),
+    Case("max_events_negative", "check_count", {"story": lambda: story_(max_events=-1)}),
+    Case("max_events_float", "check_count", {"story": lambda: story_(max_events=2.0)}),
     Case("horizon_time", "horizon_value", {
         "evaluate": lambda: evaluate(scene=FATE, **RK, horizon_time=-1.0),
         "survey": lambda: survey(scene=FATE, **RK, horizon_time=-1.0),

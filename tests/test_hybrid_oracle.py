@@ -240,6 +240,23 @@ def test_a_return_that_does_not_hold_is_not_a_roll():
     assert kinds == ["slip", "roll"] * int(out["slip_episodes"])
 
 
+def test_a_story_with_more_events_than_room_keeps_the_first_and_counts_the_rest():
+    """The event buffer's rule (kernels/protocol.push_event, one for every run): a story kept
+    to its first events runs on to the same end and counts the events it did not keep. This
+    launch also records ~50 marks (returns that static friction did not hold): they take no
+    place of an event and are not counted as dropped events."""
+    sc = Scene(M=1.0, a=A, k=0.4, **MU_K_IS_MU)
+    alpha, r0, v0, w0 = AT_THE_LIMIT
+    whole = story(alpha, r0, v0, w0, scene=sc, rtol=1e-10, horizon_time=2.0)
+    n = len(whole["events"])
+    assert n >= 4 and whole["events_dropped"] == 0
+    kept = story(alpha, r0, v0, w0, scene=sc, rtol=1e-10, horizon_time=2.0, max_events=3)
+    assert kept["events"] == whole["events"][:3]
+    assert kept["events_dropped"] == n - 3
+    rest = {k: v for k, v in kept.items() if k not in ("events", "events_dropped")}
+    assert rest == {k: v for k, v in whole.items() if k not in ("events", "events_dropped")}
+
+
 @pytest.mark.slow
 def test_with_kinetic_equal_to_static_friction_the_events_are_the_models():
     """The same launch against the rigid-body model (its return is a roll only if static

@@ -10,6 +10,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "engine"
 
@@ -62,3 +64,13 @@ def test_cache_is_shared_by_content_and_keyed_on_what_an_entry_point_compiles(tm
     hits, misses, new = _probe(b, cache)
     assert (hits, misses) == (0, 1)
     assert float(new) == 2.0 * float(old)
+
+
+def test_a_literal_is_named_by_a_parameter_the_kernel_has():
+    """call_specialized reads the literal arguments' places from the kernel's signature: a name
+    the kernel lacks is an error before anything is called."""
+    from engine._jit import call_specialized
+    from engine.kernels.trajectory import solve_restarting
+
+    with pytest.raises(TypeError, match="solve_restarting has no parameter 'methd'"):
+        call_specialized(solve_restarting, (), ("methd", "effects"))

@@ -293,17 +293,6 @@ def ev_y_stick(ev_y, i, y):
 
 
 @kernel
-def push_event(ev_t, ev_kind, ev_y, n_ev, t, kind, y):
-    """Record event ``kind`` at t [s] with state y if there is room; returns the count."""
-    if n_ev < ev_t.shape[0]:
-        ev_t[n_ev] = t
-        ev_kind[n_ev] = kind
-        for j in range(N_HYBRID):
-            ev_y[n_ev, j] = y[j]
-    return n_ev + 1
-
-
-@kernel
 def release_spin(y, hp):
     """The spin leaves the stick: w = 0, not stuck (the couple is then static Coulomb friction
     at w = 0, :func:`.sliding.couples`, and the spin's sign is taken from where it goes)."""

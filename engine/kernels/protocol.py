@@ -26,6 +26,11 @@ from .effects import EFFECTS, REVOLUTIONS, bringing
 from .layouts import P_R_VERTEX, P_THETA_MAX, P_V_REST, Y_R, Y_THETA, Y_U, Y_V
 from .model import leaves, lift_margin, rim_margin, slip_margin
 
+#: The parameters every run kernel makes literal (``numba.literally``): the method's id and
+#: the effect set, so that a run compiles only its own method's and effects' code. The Python
+#: side names them to :func:`engine._jit.call_specialized`.
+LITERAL = ("method", "effects")
+
 EPS = 2.220446049250313e-16
 SQRT_EPS = 1.4901161193847656e-08
 
@@ -137,14 +142,22 @@ def event_buffers(capacity, n):
 
 @kernel
 def push_event(ev_t, ev_kind, ev_y, n_ev, t, kind, y):
-    """Append event ``kind`` at time t [s] with state y; returns the new count, or -1 if the
-    buffers are full."""
-    if n_ev == ev_t.shape[0]:
-        return -1
-    ev_t[n_ev] = t
-    ev_kind[n_ev] = kind
-    copy_row(y, ev_y, n_ev)
+    """Record event ``kind`` at time t [s] with state y while the buffers have room; returns
+    the count of events so far, recorded or not. The one rule of every event buffer: a run
+    that needs all its events (a trajectory, whose caller retries with more room) stops with
+    :data:`BUFFER_FULL` once :func:`events_full`; a story runs on and reports how many it
+    dropped."""
+    if n_ev < ev_t.shape[0]:
+        ev_t[n_ev] = t
+        ev_kind[n_ev] = kind
+        copy_row(y, ev_y, n_ev)
     return n_ev + 1
+
+
+@kernel
+def events_full(n_ev, ev_t):
+    """Whether some of ``n_ev`` events found no room in the buffers (:func:`push_event`)."""
+    return n_ev > ev_t.shape[0]
 
 
 @kernel
@@ -160,8 +173,8 @@ def push_state(tr_t, tr_y, n_tr, t, y):
 @kernel
 def record_apsis(ev_t, ev_kind, ev_y, n_ev, t, y, g_aps, n_aps, n_apsides):
     """Append the apsis the apsis function (sign ``g_aps`` before it) just crossed at time t with
-    state y. Returns (new event count or -1 if full, the new sign, apsides so far, whether the
-    run's ``n_apsides`` (if > 0) are reached)."""
+    state y. Returns (the event count (:func:`push_event`), the new sign, apsides so far,
+    whether the run's ``n_apsides`` (if > 0) are reached)."""
     kind = APOCENTRE if g_aps > 0.0 else PERICENTRE
     n_ev = push_event(ev_t, ev_kind, ev_y, n_ev, t, kind, y)
     n_aps += 1
@@ -297,7 +310,7 @@ def start_protocol(effects, y, p, record, ev_t, ev_kind, ev_y, tr_t, tr_y):
     if kind < 0:
         return OK, 0, n_tr
     n_ev = push_event(ev_t, ev_kind, ev_y, 0, 0.0, kind, y)
-    if n_ev < 0:
+    if events_full(n_ev, ev_t):
         return BUFFER_FULL, 0, n_tr
     return status_of(kind), n_ev, n_tr
 

@@ -28,6 +28,7 @@ from .protocol import (
     brent_start,
     brent_update,
     event_value,
+    events_full,
     kind_enabled,
     push_event,
     record_apsis,
@@ -187,7 +188,7 @@ def step_events(method, effects, y, ynew, K, h, t, p, buf, st, K2, g_aps, n_aps,
             th_aps = th
             n_ev, g_aps, n_aps, reached = record_apsis(ev_t, ev_kind, ev_y, n_ev, t_aps, buf,
                                                        g_aps, n_aps, n_apsides)  # fmt: skip
-            if n_ev < 0:
+            if events_full(n_ev, ev_t):
                 return False, th_stop, stop_status, g_aps, n_aps, n_ev, i_aps, th_aps
             if reached:
                 th_stop = th
@@ -195,6 +196,6 @@ def step_events(method, effects, y, ynew, K, h, t, p, buf, st, K2, g_aps, n_aps,
     if th_stop <= 1.0 and stop_status != OK:
         rk_dense(method, y, K, h, th_stop, buf)
         n_ev = push_event(ev_t, ev_kind, ev_y, n_ev, t + th_stop * h, stop_kind, buf)
-        if n_ev < 0:
+        if events_full(n_ev, ev_t):
             return False, th_stop, stop_status, g_aps, n_aps, n_ev, i_aps, th_aps
     return True, th_stop, stop_status, g_aps, n_aps, n_ev, i_aps, th_aps

@@ -48,13 +48,13 @@ from .hybrid_step import (
     EV_VERTEX,
     SEG_FAILED,
     SEG_TIME,
-    push_event,
     release_spin,
     rolling_invariants,
     segment,
 )
 from .layouts import P_CRR, P_G, P_K, P_M, P_R_VERTEX, P_RIM, P_V_REST, Y_R, Y_THETA, Y_U, Y_V, Y_W
 from .model import ROLLING_RESISTANCE, kinetic_energy, motion_rates
+from .protocol import push_event
 from .sliding import (
     MODE_ROLLING,
     MODE_SLIDING,

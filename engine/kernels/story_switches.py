@@ -20,11 +20,11 @@ from .hybrid_step import (
     EV_SLIP,
     EV_SPIN_GO,
     EV_SPIN_STOP,
-    push_event,
     release_spin,
     rolling_invariants,
 )
 from .layouts import P_CRR, P_G, P_K, P_M, P_MU, P_V_REST
+from .protocol import push_event
 from .sliding import (
     H_C_SPIN,
     MODE_ROLLING,

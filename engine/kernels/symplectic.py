@@ -53,6 +53,7 @@ from .protocol import (
     brent_update,
     copy_into,
     event_value,
+    events_full,
     kind_enabled,
     push_event,
     push_state,
@@ -286,7 +287,7 @@ def _step_events(effects, z, zn, hstep, wts, cf, p, h, Lz, t_end, g_aps, n_aps, 
             full_state(zt, p, h, Lz, buf)
             n_ev, g_aps, n_aps, reached = record_apsis(ev_t, ev_kind, ev_y, n_ev, zt[Z_T], buf,
                                                        g_aps, n_aps, n_apsides)  # fmt: skip
-            if n_ev < 0:
+            if events_full(n_ev, ev_t):
                 return False, sig_stop, stop_status, stop_is_event, stop_kind, g_aps, n_aps, n_ev
             if reached:
                 sig_stop = sig
@@ -365,7 +366,7 @@ def sym_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_ste
             if stop_is_event:
                 full_state(zt, p, h, Lz, buf)
                 n_ev = push_event(ev_t, ev_kind, ev_y, n_ev, zt[Z_T], stop_kind, buf)
-                if n_ev < 0:
+                if events_full(n_ev, ev_t):
                     n_ev = ev_t.shape[0]
                     status = BUFFER_FULL
                     break

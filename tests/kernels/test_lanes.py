@@ -26,7 +26,7 @@ from engine.kernels.lanes_step import (
 )
 from engine.kernels.model import RIM, SLIP_CHECK
 from engine.kernels.orbit import period_apsides, reduce_period, solve
-from engine.kernels.protocol import MAX_STEPS, NOT_BOUNDED, OK, PERICENTRE, RECORD_NONE
+from engine.kernels.protocol import LITERAL, MAX_STEPS, NOT_BOUNDED, OK, PERICENTRE, RECORD_NONE
 from engine.kernels.roots import circular_radius
 from engine.methods import METHODS
 from engine.scene import Scene
@@ -55,7 +55,7 @@ def lanes(alpha, energy, h, Lz, scene, method, rtol=RTOL, max_steps=10**6, worke
     f, steps, st = np.full((5, n), -1.0), np.full(n, -1, np.int64), np.full(n, -1, np.int8)
     args = (points(alpha, energy, h, Lz), scene.params(), METHODS[method].kernel_id,
             scene.effects_mask, rtol, max_steps, workers, f, steps, st)  # fmt: skip
-    call_specialized(integrate_points_lanes, args, (2, 3))
+    call_specialized(integrate_points_lanes, args, LITERAL)
     return f, steps, st
 
 
@@ -85,7 +85,7 @@ def scalar(alpha, energy, h, Lz, scene, method, rtol=RTOL, max_steps=10**6, n_ap
         args = (METHODS[method].kernel_id, eff, y0, p, (energy[i], h[i], Lz[i]), rtol, atol,
                 math.inf, n_apsides, max_steps, RECORD_NONE, 0.0, ev_t, ev_kind, ev_y, tr_t, tr_y,
                 tr_rate)  # fmt: skip
-        res = call_specialized(solve, args, (0, 1))
+        res = call_specialized(solve, args, LITERAL)
         out = reduce_period(eff, p, y0, res, ev_t, ev_kind, ev_y)
         if whole and out[0] == OK:  # the whole period: T is the time to the next r_min
             assert res[5] == 2 and ev_kind[1] == PERICENTRE
