@@ -120,12 +120,13 @@ def hybrid_fates(
     cols = [np.ascontiguousarray(c, np.float64) for c in (alpha, energy, h, Lz, r_start)]
     extra = [np.ascontiguousarray(zero if c is None else c, np.float64) for c in
              (u0, slip_u, slip_v)]  # fmt: skip
+    launch = (*cols, *extra)  # kernels/story_parts.LAUNCH_COLUMNS
     out_fate = np.zeros(n, np.int8)
     out_f = np.empty((len(HYBRID_ROWS), n))
     out_n = np.zeros(n, np.int64)
     if n:
-        args = (*cols, *extra, params, float(scene.mu_k), float(scene.c_spin), m.kernel_id,
-                effects, spin, float(rtol), float(t_max), int(max_steps))  # fmt: skip
+        args = (launch, params, float(scene.mu_k), float(scene.c_spin), m.kernel_id, effects,
+                spin, float(rtol), float(t_max), int(max_steps))  # fmt: skip
         if lanes and m.family == "runge-kutta" and spin == 0:
             args += (numba.get_num_threads(), out_fate, out_f, out_n)
             call_specialized(hybrid_fate_points_lanes, args, LITERAL)

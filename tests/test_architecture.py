@@ -424,6 +424,20 @@ def test_modules_stay_readable():
     assert not shrunk, f"lower (or drop) the ratchet's entries: {shrunk}"
 
 
+#: The most parameters a kernel function takes: longer lists travel as tuples with named places
+#: (kernels/story_parts.L_*, lanes_fate.R_* and OUT_*, lanes_hybrid.ST_* and SC_*).
+MAX_PARAMS = 20
+
+
+def test_no_kernel_function_takes_a_long_positional_list():
+    long = []
+    for path in sorted((PKG / "kernels").glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.FunctionDef) and len(node.args.args) > MAX_PARAMS:
+                long.append(f"{path.name}:{node.name} ({len(node.args.args)} parameters)")
+    assert not long, long
+
+
 def _private_imports() -> list[str]:
     """``from engine.x import _name`` anywhere in the package (a module's private name used by
     another module)."""

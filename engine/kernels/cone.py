@@ -7,7 +7,9 @@ inside a right circular cone of half-aperture alpha, as numba kernels.
   the radial energy;
 - the invariants E, L_z, h and the contact forces (F, N) of a state;
 - the rolling equations of motion (:func:`motion_rates`), the effects' forces and couples
-  added as every model adds them (:mod:`.forces`), and the angular velocity in the fixed frame.
+  added as every model adds them (:mod:`.forces`), and the angular velocity in the fixed frame;
+- its meridian frame for the sliding equations (:func:`contact_frame`, read by
+  :mod:`.sliding`), its height energy and a resting spin's rate of decay.
 
 State y: r [m] (the centre's distance from the vertex of its own cone, along the generatrix),
 theta [rad], u = rdot [m/s], v = r sin(alpha) thetadot [m/s], w = a omega_nu [m/s]
@@ -152,6 +154,37 @@ def contact_forces_of(r, v, w, s, c, cot, M, g, kk):
 def normal_force(r, v, p):
     """N [N] = M (g sin(alpha) + kappa v^2), kappa = cot(alpha)/r (rolling and sliding)."""
     return p[P_M] * (p[P_G] * p[P_SIN] + v * v * p[P_COT] / r)
+
+
+@kernel
+def contact_frame(r, u, v, p):
+    """The cone's meridian at the centre's r as the hybrid model reads any surface of
+    revolution (:func:`.sliding.frame_rates`): (dtheta/dt [rad/s], N [N], g sin b [m s-2],
+    cos(b)/rho, kappa, sin(b)/rho [1/m]). The generatrix rises at b = pi/2 - alpha and is
+    straight (kappa = 0), rho = r sin(alpha): cos(b)/rho = 1/r, sin(b)/rho = cot(alpha)/r,
+    g sin b = g cos(alpha), and N is :func:`normal_force`."""
+    ir = 1.0 / r
+    return v * ir / p[P_SIN], normal_force(r, v, p), p[P_G] * p[P_COS], ir, 0.0, p[P_COT] * ir
+
+
+@kernel
+def rolling_invariants_of(r, u, v, w, p):
+    """(E [J], L_z [kg m^2/s], h [m/s]) of a rolling state given by its parts (a hybrid state's:
+    :func:`invariants_of` with the cone of ``p``)."""
+    return invariants_of(r, u, v, w, p[P_SIN], p[P_COS], p[P_M], p[P_G], p[P_K])
+
+
+@kernel
+def height_energy(r, p):
+    """M g z [J] of the centre at r (z measured from the vertex of the centre's cone)."""
+    return p[P_M] * p[P_G] * r * p[P_COS]
+
+
+@kernel
+def rest_spin_rate(c_spin, p):
+    """|dw/dt| [m s-2] of a sphere at rest spinning against spin friction, c_spin N/(k M) with
+    N = M g sin(alpha)."""
+    return c_spin * p[P_G] * p[P_SIN] / p[P_K]
 
 
 #: Inside a cone N = M (g sin(alpha) + kappa v^2) > 0 (:func:`normal_force`): the sphere never

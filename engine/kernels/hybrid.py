@@ -33,6 +33,14 @@ from .story_parts import (
     HS_T,
     HYBRID_FATE_NAMES,
     HYBRID_ROWS,
+    L_ALPHA,
+    L_ENERGY,
+    L_H,
+    L_LZ,
+    L_R_START,
+    L_SLIP_U,
+    L_SLIP_V,
+    L_U0,
     N_HI,
     N_HS,
     SLIDING,
@@ -72,8 +80,9 @@ def hybrid_fate_of(method, effects, spin, p, mu_k, c_spin, energy, h, Lz, r_star
     hatol = np.empty(N_HYBRID)
     hs = np.zeros(N_HS)
     hi = np.zeros(N_HI, np.int64)
-    fate = story_begin(effects, spin, p, mu_k, c_spin, energy, h, Lz, r_start, u0, slip_u, slip_v,
-                       rtol, out, y0, atol, hp, y, hatol, hs, hi)  # fmt: skip
+    start = (energy, h, Lz, r_start, u0, slip_u, slip_v)
+    fate = story_begin(effects, spin, p, mu_k, c_spin, start, rtol, out, y0, atol, hp, y, hatol,
+                       hs, hi)  # fmt: skip
     if fate >= 0:
         return fate, out, 0, 0
     S = tableau(method)[6]
@@ -102,25 +111,26 @@ def hybrid_fate_of(method, effects, spin, p, mu_k, c_spin, energy, h, Lz, r_star
 
 
 @parallel_kernel
-def hybrid_fate_points(alpha, energy, h, Lz, r_start, u0, slip_u, slip_v, params, mu_k, c_spin,
-                       method, effects, spin, rtol, t_horizon, max_steps, out_fate, out_f,
-                       out_n):  # fmt: skip
-    """:func:`hybrid_fate_of` for every point, in parallel (``method``, ``effects``, ``spin``:
-    literal ints). Writes ``out_fate`` int8[n], ``out_f`` float64[len(HYBRID_ROWS), n] and
-    ``out_n`` int64[n] steps."""
+def hybrid_fate_points(launch, params, mu_k, c_spin, method, effects, spin, rtol, t_horizon,
+                       max_steps, out_fate, out_f, out_n):  # fmt: skip
+    """:func:`hybrid_fate_of` for every point of ``launch`` (the ``L_*`` tuple of
+    :mod:`.story_parts`), in parallel (``method``, ``effects``, ``spin``: literal ints). Writes
+    ``out_fate`` int8[n], ``out_f`` float64[len(HYBRID_ROWS), n] and ``out_n`` int64[n] steps."""
     literally(method)
     literally(effects)
     literally(spin)
-    for i in prange(alpha.shape[0]):
+    for i in prange(launch[L_ALPHA].shape[0]):
         p = params.copy()
-        set_alpha(p, alpha[i])
+        set_alpha(p, launch[L_ALPHA][i])
         ev_t = np.empty(0)
         ev_kind = np.empty(0, np.int8)
         ev_y = np.empty((0, N_HYBRID))
-        fate, f, steps, _ = hybrid_fate_of(method, effects, spin, p, mu_k, c_spin, energy[i],
-                                           h[i], Lz[i], r_start[i], u0[i], slip_u[i],
-                                           slip_v[i], rtol, t_horizon, max_steps, ev_t,
-                                           ev_kind, ev_y)  # fmt: skip
+        fate, f, steps, _ = hybrid_fate_of(method, effects, spin, p, mu_k, c_spin,
+                                           launch[L_ENERGY][i], launch[L_H][i], launch[L_LZ][i],
+                                           launch[L_R_START][i], launch[L_U0][i],
+                                           launch[L_SLIP_U][i], launch[L_SLIP_V][i], rtol,
+                                           t_horizon, max_steps, ev_t, ev_kind,
+                                           ev_y)  # fmt: skip
         out_fate[i] = fate
         for j in range(f.shape[0]):
             out_f[j, i] = f[j]

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 
 from .._jit import kernel
-from .cone import P_COS, P_SIN, invariants_of, radial_energy
+from .cone import radial_energy, rolling_invariants_of
 from .hybrid_rk import (
     ADV_OK,
     ADV_REACHED,
@@ -36,7 +36,7 @@ from .hybrid_rk import (
     stalled_rot,
     step_controller,
 )
-from .layouts import P_CRR, P_G, P_K, P_M, P_MU, P_R_VERTEX, P_RIM, P_THETA_MAX, P_V_REST
+from .layouts import P_CRR, P_K, P_M, P_MU, P_R_VERTEX, P_RIM, P_THETA_MAX, P_V_REST
 from .rk_codegen import tableau
 from .sliding import (
     H_C_SPIN,
@@ -276,12 +276,8 @@ def segment(method, y, hp, mode, stuck, armed, t, t_end, rtol, atol, max_steps, 
 @kernel
 def rolling_invariants(y, hp):
     """(calE [J], h [m/s], L_z) of the rolling hybrid state y."""
-    M = hp[P_M]
-    k = hp[P_K]
-    E, Lz, h = invariants_of(
-        y[YH_R], y[YH_U], y[YH_V], y[YH_W], hp[P_SIN], hp[P_COS], M, hp[P_G], k
-    )
-    return radial_energy(E, h, M, k), h, Lz
+    E, Lz, h = rolling_invariants_of(y[YH_R], y[YH_U], y[YH_V], y[YH_W], hp)
+    return radial_energy(E, h, hp[P_M], hp[P_K]), h, Lz
 
 
 @kernel

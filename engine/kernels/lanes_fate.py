@@ -55,6 +55,14 @@ from .rk_events import rk_dense, step_events
 F_T0, F_TV, F_WORK0, F_HORIZON = 0, 1, 2, 3
 #: Column of the int array after :data:`.lanes.ORBIT` ... :data:`.lanes.N_EV`: restarts so far.
 RESTARTS = 3
+#: A worker's lane runs travel as one tuple (numba's own type: a class of this package in a
+#: cached signature would stop another version from reading that cache), with these places:
+#: the lanes (:func:`.lanes.lane_workspace`: the vector state W, ints I, floats F, event buffers
+#: LEV, LEVK) and the scalar arrays their runs share (stages K, a state buf, the located events'
+#: buffers). :mod:`.lanes_hybrid` runs its rolling stretches with the same tuple.
+R_W, R_I, R_F, R_LEV, R_LEVK, R_K, R_BUF, R_EV_T, R_EV_KIND, R_EV_Y = range(10)
+#: Where the points' results go (a tuple): fates, float rows, steps.
+OUT_FATE, OUT_F, OUT_N = range(3)
 
 
 @kernel(inline="always")
@@ -68,72 +76,73 @@ def _clip(method, effects, l, W):
 
 
 @kernel(inline="always")
-def lane_run_from(method, effects, l, y, t_left, atol, p, rtol, max_steps, W, I, LEV, LEVK, K,
-                  buf, ev_t, ev_kind, ev_y):  # fmt: skip
+def lane_run_from(method, effects, l, y, t_left, atol, p, rtol, max_steps, runs):
     """Start lane l's run from state y with t_left [s] to its horizon and tolerances atol
     (:func:`.lanes.lane_begin`), its first attempt clipped as :func:`.rk.rk_run` clips it; the
     status of the start (OK: the lane runs). Every start and restart of a fate-run lane (here
-    and in :mod:`.lanes_hybrid`)."""
+    and in :mod:`.lanes_hybrid`); ``runs``: the ``R_*`` tuple."""
     ly = lanes_layout(method, effects)
+    W = runs[R_W]
     W[ly.T_END * LANES + l] = t_left
-    status = lane_begin(method, effects, l, y, atol, p, rtol, max_steps, W, I, LEV, LEVK, K, buf,
-                        ev_t, ev_kind, ev_y)  # fmt: skip
+    status = lane_begin(method, effects, l, y, atol, p, rtol, max_steps, W, runs[R_I],
+                        runs[R_LEV], runs[R_LEVK], runs[R_K], runs[R_BUF], runs[R_EV_T],
+                        runs[R_EV_KIND], runs[R_EV_Y])  # fmt: skip
     if status == OK:
         _clip(method, effects, l, W)
     return status
 
 
 @kernel(inline="always")
-def _finish(method, effects, l, fate, t, y, steps, W, I, F, LY0, p, out_fate, out_f, out_n):
+def _finish(method, effects, l, fate, t, y, steps, runs, LY0, p, out):
     """Write lane l's point (its fate at state y, t [s] into its run) and idle the lane."""
     ly = lanes_layout(method, effects)
     L = LANES
+    W, I, F = runs[R_W], runs[R_I], runs[R_F]
     i = I[l, ORBIT]
     res = fate_result(effects, p, LY0[l], F[l, F_TV], F[l, F_WORK0], fate, t, y, steps)
-    store_fate(out_fate, out_f, out_n, i, res)
+    store_fate(out[OUT_FATE], out[OUT_F], out[OUT_N], i, res)
     I[l, ORBIT] = -1
     W[ly.ACTIVE * L + l] = 0.0
     W[ly.H * L + l] = 0.0
 
 
 @kernel(inline="always")
-def _run_ended(method, effects, l, status, t_run, y, rtol, max_steps, W, I, F, LY0, LEV, LEVK,
-               p, K, buf, at, ev_t, ev_kind, ev_y, out_fate, out_f, out_n):  # fmt: skip
+def _run_ended(method, effects, l, status, t_run, y, rtol, max_steps, runs, LY0, p, at, out):
     """Lane l's run ended with ``status`` at state y (in place), t_run [s] into the run (p: its
-    parameters): :func:`.fate.run_restarting`'s loop. Returns True when the lane runs again (a
-    restart from rest), False when its point is written."""
+    parameters; ``at``: scratch for its tolerances): :func:`.fate.run_restarting`'s loop.
+    Returns True when the lane runs again (a restart from rest), False when its point is
+    written into ``out`` (the ``OUT_*`` tuple)."""
     ly = lanes_layout(method, effects)
     L = LANES
+    W, I, F = runs[R_W], runs[R_I], runs[R_F]
     while True:
         steps = np.int64(W[ly.N_ACC * L + l] + W[ly.N_REJ * L + l])
         ended, status, t = after_run(effects, status, y, p, F[l, F_T0] + t_run)
         if ended:
-            _finish(method, effects, l, fate_of_status(status), t, y, steps, W, I, F, LY0, p,
-                    out_fate, out_f, out_n)  # fmt: skip
+            _finish(method, effects, l, fate_of_status(status), t, y, steps, runs, LY0, p, out)
             return False
         F[l, F_T0] = t
         I[l, RESTARTS] += 1
         if steps >= max_steps or I[l, RESTARTS] >= MAX_RESTARTS:
-            _finish(method, effects, l, FAILED, t, y, steps, W, I, F, LY0, p, out_fate, out_f,
-                    out_n)  # fmt: skip
+            _finish(method, effects, l, FAILED, t, y, steps, runs, LY0, p, out)
             return False
         for j in range(ly.n):
             at[j] = W[(ly.ATOL + j) * L + l]
-        status = lane_run_from(method, effects, l, y, F[l, F_HORIZON] - t, at, p, rtol,
-                               max_steps, W, I, LEV, LEVK, K, buf, ev_t, ev_kind,
-                               ev_y)  # fmt: skip
+        status = lane_run_from(method, effects, l, y, F[l, F_HORIZON] - t, at, p, rtol, max_steps,
+                               runs)  # fmt: skip
         if status == OK:
             return True
         t_run = 0.0
 
 
 @kernel(inline="always")
-def _lane_start(method, effects, l, i, X, params, rtol, t_horizon, max_steps, W, I, F, LY0, LEV,
-                LEVK, p, K, buf, y, ev_t, ev_kind, ev_y, out_fate, out_f, out_n):  # fmt: skip
+def _lane_start(method, effects, l, i, X, params, rtol, t_horizon, max_steps, runs, LY0, p, y,
+                out):  # fmt: skip
     """Start point i (``X[:, i]``) in lane l as :func:`.fate.fate_of` starts it. Returns True
     when it runs; False when its point is written (it ended at its start)."""
     ly = lanes_layout(method, effects)
     L = LANES
+    W, I, F = runs[R_W], runs[R_I], runs[R_F]
     for k in range(N_PARAMS):
         p[k] = params[k]
     set_point(p, X, i, effects)
@@ -144,7 +153,7 @@ def _lane_start(method, effects, l, i, X, params, rtol, t_horizon, max_steps, W,
     W[ly.ACTIVE * L + l] = 0.0
     start, r, y0, t0, work0, atol, orbit = fate_start(effects, p, X, i, rtol)
     if start != RUNS:
-        store_fate(out_fate, out_f, out_n, i, ended_at_start(start, r))
+        store_fate(out[OUT_FATE], out[OUT_F], out[OUT_N], i, ended_at_start(start, r))
         I[l, ORBIT] = -1
         return False
     for j in range(ly.n):
@@ -156,16 +165,13 @@ def _lane_start(method, effects, l, i, X, params, rtol, t_horizon, max_steps, W,
     F[l, F_HORIZON] = t_horizon - t0
     ended, status = starts_at_rest(effects, y, p)
     if ended:
-        _finish(method, effects, l, fate_of_status(status), 0.0, y, 0, W, I, F, LY0, p, out_fate,
-                out_f, out_n)  # fmt: skip
+        _finish(method, effects, l, fate_of_status(status), 0.0, y, 0, runs, LY0, p, out)
         return False
     status = lane_run_from(method, effects, l, y, F[l, F_HORIZON] - 0.0, atol, p, rtol, max_steps,
-                           W, I, LEV, LEVK, K, buf, ev_t, ev_kind, ev_y)  # fmt: skip
+                           runs)  # fmt: skip
     if status == OK:
         return True
-    return _run_ended(method, effects, l, status, 0.0, y, rtol, max_steps, W, I, F, LY0, LEV,
-                      LEVK, p, K, buf, atol, ev_t, ev_kind, ev_y, out_fate, out_f,
-                      out_n)  # fmt: skip
+    return _run_ended(method, effects, l, status, 0.0, y, rtol, max_steps, runs, LY0, p, atol, out)
 
 
 @kernel(inline="always")
@@ -222,7 +228,8 @@ def lanes_fate_worker(method, effects, X, params, rtol, t_horizon, max_steps, qu
         method, effects, 5, 4, 4)  # fmt: skip
     ys, yn, y, at, buf = V[0], V[1], V[2], V[3], V[4]
     X, params = borrow(X), borrow(params)
-    out_fate, out_f, out_n = borrow(out_fate), borrow(out_f), borrow(out_n)
+    out = (borrow(out_fate), borrow(out_f), borrow(out_n))
+    runs = (W, I, F, LEV, LEVK, K, buf, ev_t, ev_kind, ev_y)  # R_*
     n_points = X.shape[1]
     while True:
         running = 0
@@ -231,9 +238,8 @@ def lanes_fate_worker(method, effects, X, params, rtol, t_horizon, max_steps, qu
                 i = fetch_add(queue, 1)
                 if i >= n_points:
                     break
-                _lane_start(method, effects, l, i, X, params, rtol, t_horizon, max_steps, W, I,
-                            F, LY0, LEV, LEVK, p, K, buf, y, ev_t, ev_kind, ev_y, out_fate,
-                            out_f, out_n)  # fmt: skip
+                _lane_start(method, effects, l, i, X, params, rtol, t_horizon, max_steps, runs,
+                            LY0, p, y, out)  # fmt: skip
             running += I[l, ORBIT] >= 0
         if running == 0:
             break
@@ -246,9 +252,8 @@ def lanes_fate_worker(method, effects, X, params, rtol, t_horizon, max_steps, qu
                                              y, buf, brent, ev_t, ev_kind, ev_y)  # fmt: skip
             if ended:
                 lane_params(method, effects, l, W, p)
-                _run_ended(method, effects, l, status, t, y, rtol, max_steps, W, I, F, LY0, LEV,
-                           LEVK, p, K, buf, at, ev_t, ev_kind, ev_y, out_fate, out_f,
-                           out_n)  # fmt: skip
+                _run_ended(method, effects, l, status, t, y, rtol, max_steps, runs, LY0, p, at,
+                           out)  # fmt: skip
     # The owners live to here: the borrowed views above hold no reference of their own.
     owners[0][0] = owners[1][0] + owners[2][0]
 

@@ -43,7 +43,16 @@ from .._jit import kernel, parallel_kernel
 from .cone import set_alpha
 from .fate import FAILED, MAX_RESTARTS, after_run, fate_of_status, starts_at_rest
 from .lanes import ORBIT, lane_params, lane_workspace
-from .lanes_fate import lane_flagged_run, lane_run_from
+from .lanes_fate import (
+    OUT_F,
+    OUT_FATE,
+    OUT_N,
+    R_F,
+    R_I,
+    R_W,
+    lane_flagged_run,
+    lane_run_from,
+)
 from .lanes_step import LANES, borrow, fetch_add, lanes_attempt, lanes_control_fate, lanes_layout
 from .model import N_PARAMS
 from .protocol import OK
@@ -55,6 +64,14 @@ from .story_parts import (
     HI_STEPS,
     HS_T,
     HYBRID_ROWS,
+    L_ALPHA,
+    L_ENERGY,
+    L_H,
+    L_LZ,
+    L_R_START,
+    L_SLIP_U,
+    L_SLIP_V,
+    L_U0,
     N_HI,
     N_HS,
     hybrid_stretch,
@@ -74,24 +91,36 @@ F_T0, F_HORIZON, F_STEPS0 = 0, 1, 2
 RESTARTS = 3
 
 
+#: The lanes' stories travel as one tuple (numba's own type, as :mod:`.lanes_fate`'s runs), with
+#: these places: a lane's story state (one row per lane: its parameters, rolling start and
+#: tolerances, hybrid parameters, state and tolerances, the story's floats and ints) and what a
+#: story writes on the way (its result row; event buffers of size 0: a map keeps no events).
+(ST_LP, ST_LY0, ST_LAT, ST_LHP, ST_LYH, ST_LHAT, ST_LHS, ST_LHI, ST_ROW, ST_HEV_T, ST_HEV_KIND,
+ ST_HEV_Y) = range(12)  # fmt: skip
+#: The scratch arrays of the lanes' scalar code, one tuple: tolerances at, the hybrid steps'
+#: stages HK and states hw, a rolling stretch's start yr and its tolerances ra.
+SC_AT, SC_HK, SC_HW, SC_YR, SC_RA = range(5)
+
+
 @kernel
-def _store(out_fate, out_f, out_n, i, fate, row, steps):
-    out_fate[i] = fate
+def _store(out, i, fate, row, steps):
+    out[OUT_FATE][i] = fate
     for j in range(row.shape[0]):
-        out_f[j, i] = row[j]
-    out_n[i] = steps
+        out[OUT_F][j, i] = row[j]
+    out[OUT_N][i] = steps
 
 
 @kernel
-def _stretch_ended(method, effects, l, status, t_run, yv, rtol, max_steps, W, I, F, LP, LYH, LHS,
-                   LHI, LEV, LEVK, K, buf, at, ev_t, ev_kind, ev_y, hev_t, hev_kind,
-                   hev_y):  # fmt: skip
+def _stretch_ended(method, effects, l, status, t_run, yv, rtol, max_steps, st, runs, at):
     """Lane l's run of a rolling stretch ended with ``status`` at state yv, t_run [s] into the
-    run: :func:`.fate.run_restarting`'s loop. Returns True when the lane runs again (a restart
-    from rest), False when the stretch is over (its end taken by :func:`.story_parts.rolled`)."""
+    run: :func:`.fate.run_restarting`'s loop (``st``: the lanes' stories, the ``ST_*`` tuple;
+    ``runs``: their runs, :mod:`.lanes_fate`'s ``R_*`` tuple; ``at``: scratch). Returns True
+    when the lane runs again (a restart from rest), False when the stretch is over (its end
+    taken by :func:`.story_parts.rolled`)."""
+    W, I, F = runs[R_W], runs[R_I], runs[R_F]
     ly = lanes_layout(method, effects)
     L = LANES
-    p = LP[l]
+    p = st[ST_LP][l]
     while True:
         steps = np.int64(W[ly.N_ACC * L + l] + W[ly.N_REJ * L + l])
         ended, status, t = after_run(effects, status, yv, p, F[l, F_T0] + t_run)
@@ -105,40 +134,42 @@ def _stretch_ended(method, effects, l, status, t_run, yv, rtol, max_steps, W, I,
         if ended:
             W[ly.ACTIVE * L + l] = 0.0
             W[ly.H * L + l] = 0.0
-            rolled(effects, fate, t, yv, steps - np.int64(F[l, F_STEPS0]), LYH[l], LHS[l], LHI[l],
-                   hev_t, hev_kind, hev_y)  # fmt: skip
+            rolled(effects, fate, t, yv, steps - np.int64(F[l, F_STEPS0]), st[ST_LYH][l],
+                   st[ST_LHS][l], st[ST_LHI][l], st[ST_HEV_T], st[ST_HEV_KIND],
+                   st[ST_HEV_Y])  # fmt: skip
             return False
         for j in range(ly.n):
             at[j] = W[(ly.ATOL + j) * L + l]
         status = lane_run_from(method, effects, l, yv, F[l, F_HORIZON] - t, at, p, rtol,
-                               max_steps, W, I, LEV, LEVK, K, buf, ev_t, ev_kind,
-                               ev_y)  # fmt: skip
+                               max_steps, runs)  # fmt: skip
         if status == OK:
             return True
         t_run = 0.0
 
 
 @kernel
-def _lane_story(method, effects, spin, l, rtol, t_horizon, max_steps, W, I, F, LP, LY0, LAT, LHP,
-                LYH, LHAT, LHS, LHI, LEV, LEVK, K, HK, hw, yr, ra, buf, at, ev_t, ev_kind, ev_y,
-                hev_t, hev_kind, hev_y, row, out_fate, out_f, out_n):  # fmt: skip
+def _lane_story(method, effects, spin, l, rtol, t_horizon, max_steps, st, runs, sc, out):
     """Go on with lane l's story in scalar code (:func:`.hybrid.hybrid_fate_of`'s loop) until a
-    rolling stretch runs on the lanes (returns True) or the story ends (its point written, the
-    lane idle: False). hw: the hybrid steps' scratch states."""
+    rolling stretch runs on the lanes (returns True) or the story ends (its point written into
+    ``out``, :mod:`.lanes_fate`'s ``OUT_*`` tuple; the lane idle: False). ``sc``: the
+    ``SC_*`` scratch tuple."""
+    W, I, F = runs[R_W], runs[R_I], runs[R_F]
     ly = lanes_layout(method, effects)
     L = LANES
-    p = LP[l]
-    y = LYH[l]
-    hs = LHS[l]
-    hi = LHI[l]
+    p = st[ST_LP][l]
+    y = st[ST_LYH][l]
+    hs = st[ST_LHS][l]
+    hi = st[ST_LHI][l]
+    hev_t, hev_kind, hev_y = st[ST_HEV_T], st[ST_HEV_KIND], st[ST_HEV_Y]
+    yr, ra, hw = sc[SC_YR], sc[SC_RA], sc[SC_HW]
     while hi[HI_FATE] < 0:
         if story_runs_out(max_steps, hi):
             break
-        stretch_start(p, y, LHP[l], t_horizon, hs, hi, hev_t, hev_kind, hev_y)  # as the scalar
+        stretch_start(p, y, st[ST_LHP][l], t_horizon, hs, hi, hev_t, hev_kind, hev_y)  # as scalar
         if hi[HI_FATE] >= 0:
             break
         if hi[HI_MODE] == MODE_ROLLING and spin == 0:
-            rolling_stretch(effects, p, y, LY0[l], LAT[l], rtol, hs, hi, yr, ra)
+            rolling_stretch(effects, p, y, st[ST_LY0][l], st[ST_LAT][l], rtol, hs, hi, yr, ra)
             ended, status = starts_at_rest(effects, yr, p)  # as fate_run starts
             if ended:
                 rolled(effects, fate_of_status(status), 0.0, yr, 0, y, hs, hi, hev_t, hev_kind,
@@ -152,19 +183,18 @@ def _lane_story(method, effects, spin, l, rtol, t_horizon, max_steps, W, I, F, L
             W[ly.N_REJ * L + l] = 0.0
             W[ly.ACTIVE * L + l] = 0.0
             status = lane_run_from(method, effects, l, yr, F[l, F_HORIZON] - 0.0, ra, p, rtol,
-                                   max_steps, W, I, LEV, LEVK, K, buf, ev_t, ev_kind,
-                                   ev_y)  # fmt: skip
+                                   max_steps, runs)  # fmt: skip
             if status == OK:
                 return True
-            if _stretch_ended(method, effects, l, status, 0.0, yr, rtol, max_steps, W, I, F, LP,
-                              LYH, LHS, LHI, LEV, LEVK, K, buf, at, ev_t, ev_kind, ev_y, hev_t,
-                              hev_kind, hev_y):  # fmt: skip
+            if _stretch_ended(method, effects, l, status, 0.0, yr, rtol, max_steps, st, runs,
+                              sc[SC_AT]):  # fmt: skip
                 return True
             continue
-        hybrid_stretch(method, p, y, LHP[l], rtol, LHAT[l], t_horizon, max_steps, HK, hw[0], hw[1],
-                       hw[2], hs, hi, hev_t, hev_kind, hev_y)  # fmt: skip
-    fate = story_result(spin, p, y, LY0[l], LHP[l], hs, hi, row)
-    _store(out_fate, out_f, out_n, I[l, ORBIT], fate, row, hi[HI_STEPS])
+        hybrid_stretch(method, p, y, st[ST_LHP][l], rtol, st[ST_LHAT][l], t_horizon, max_steps,
+                       sc[SC_HK], hw[0], hw[1], hw[2], hs, hi, hev_t, hev_kind,
+                       hev_y)  # fmt: skip
+    fate = story_result(spin, p, y, st[ST_LY0][l], st[ST_LHP][l], hs, hi, st[ST_ROW])
+    _store(out, I[l, ORBIT], fate, st[ST_ROW], hi[HI_STEPS])
     I[l, ORBIT] = -1
     W[ly.ACTIVE * L + l] = 0.0
     W[ly.H * L + l] = 0.0
@@ -172,33 +202,35 @@ def _lane_story(method, effects, spin, l, rtol, t_horizon, max_steps, W, I, F, L
 
 
 @kernel
-def _lane_start(effects, spin, l, i, alpha, energy, hh, Lz, r_start, u0, slip_u, slip_v, params,
-                mu_k, c_spin, rtol, I, LP, LY0, LAT, LHP, LYH, LHAT, LHS, LHI, row, out_fate,
-                out_f, out_n):  # fmt: skip
-    """Begin launch i's story in lane l (:func:`.story_parts.story_begin`). Returns True when it
-    goes on; False when its point is written (it ended at its start)."""
-    p = LP[l]
+def _lane_start(effects, spin, l, i, launch, params, mu_k, c_spin, rtol, st, I, out):
+    """Begin launch i's story (``launch``: the ``L_*`` tuple of :mod:`.story_parts`) in lane l
+    (:func:`.story_parts.story_begin`). Returns True when it goes on; False when its point is
+    written (it ended at its start)."""
+    p = st[ST_LP][l]
     for k in range(N_PARAMS):
         p[k] = params[k]
-    set_alpha(p, alpha[i])
+    set_alpha(p, launch[L_ALPHA][i])
+    row = st[ST_ROW]
     for j in range(row.shape[0]):
         row[j] = math.nan
-    fate = story_begin(effects, spin, p, mu_k, c_spin, energy[i], hh[i], Lz[i], r_start[i], u0[i],
-                       slip_u[i], slip_v[i], rtol, row, LY0[l], LAT[l], LHP[l], LYH[l], LHAT[l],
-                       LHS[l], LHI[l])  # fmt: skip
+    start = (launch[L_ENERGY][i], launch[L_H][i], launch[L_LZ][i], launch[L_R_START][i],
+             launch[L_U0][i], launch[L_SLIP_U][i], launch[L_SLIP_V][i])  # fmt: skip
+    fate = story_begin(effects, spin, p, mu_k, c_spin, start, rtol, row, st[ST_LY0][l],
+                       st[ST_LAT][l], st[ST_LHP][l], st[ST_LYH][l], st[ST_LHAT][l],
+                       st[ST_LHS][l], st[ST_LHI][l])  # fmt: skip
     if fate >= 0:
-        _store(out_fate, out_f, out_n, i, fate, row, 0)
+        _store(out, i, fate, row, 0)
         return False
     I[l, ORBIT] = i
     return True
 
 
 @kernel
-def lanes_hybrid_worker(method, effects, spin, alpha, energy, hh, Lz, r_start, u0, slip_u, slip_v,
-                        params, mu_k, c_spin, rtol, t_horizon, max_steps, queue, out_fate, out_f,
-                        out_n):  # fmt: skip
-    """Follow launches LANES at a time through their stories (:func:`.hybrid.hybrid_fate_of`),
-    into out_fate, out_f (rows :data:`.story_parts.HYBRID_ROWS`) and out_n (steps); a lane
+def lanes_hybrid_worker(method, effects, spin, launch, params, mu_k, c_spin, rtol, t_horizon,
+                        max_steps, queue, out):  # fmt: skip
+    """Follow launches (the ``L_*`` tuple of :mod:`.story_parts`) LANES at a time through their
+    stories (:func:`.hybrid.hybrid_fate_of`), into ``out`` (the ``OUT_*`` tuple of
+    :mod:`.lanes_fate`: fates, the rows of :data:`.story_parts.HYBRID_ROWS`, steps); a lane
     whose story has ended takes the next launch from ``queue`` (int64[1], shared by the
     workers)."""
     ly = lanes_layout(method, effects)
@@ -207,24 +239,18 @@ def lanes_hybrid_worker(method, effects, spin, alpha, energy, hh, Lz, r_start, u
     owners, W, LY0, LEV, pw, K, K2, V, brent, ev_t, ev_kind, ev_y, F, I, LEVK = lane_workspace(
         method, effects, 7, 4, 3)  # fmt: skip
     ys, yn, yv, at, buf, yr, ra = V[0], V[1], V[2], V[3], V[4], V[5], V[6]
-    LP = np.zeros((L, N_PARAMS))
-    LAT = np.zeros((L, n))
-    LHP = np.zeros((L, N_HYBRID_PARAMS))
-    LYH = np.zeros((L, N_HYBRID))
-    LHAT = np.zeros((L, N_HYBRID))
-    LHS = np.zeros((L, N_HS))
-    LHI = np.zeros((L, N_HI), np.int64)
-    HK = np.empty((tableau(method)[6], N_HYBRID))
-    hw = np.empty((3, N_HYBRID))
-    row = np.empty(len(HYBRID_ROWS))
-    hev_t = np.empty(0)
-    hev_kind = np.empty(0, np.int8)
-    hev_y = np.empty((0, N_HYBRID))
-    alpha, energy, hh, Lz, r_start = (borrow(alpha), borrow(energy), borrow(hh), borrow(Lz),
-                                      borrow(r_start))  # fmt: skip
-    u0, slip_u, slip_v, params = borrow(u0), borrow(slip_u), borrow(slip_v), borrow(params)
-    out_fate, out_f, out_n = borrow(out_fate), borrow(out_f), borrow(out_n)
-    n_points = alpha.shape[0]
+    st = (np.zeros((L, N_PARAMS)), LY0, np.zeros((L, n)), np.zeros((L, N_HYBRID_PARAMS)),
+          np.zeros((L, N_HYBRID)), np.zeros((L, N_HYBRID)), np.zeros((L, N_HS)),
+          np.zeros((L, N_HI), np.int64), np.empty(len(HYBRID_ROWS)), np.empty(0),
+          np.empty(0, np.int8), np.empty((0, N_HYBRID)))  # ST_*  # fmt: skip
+    runs = (W, I, F, LEV, LEVK, K, buf, ev_t, ev_kind, ev_y)  # lanes_fate's R_*
+    sc = (at, np.empty((tableau(method)[6], N_HYBRID)), np.empty((3, N_HYBRID)), yr, ra)  # SC_*
+    launch = (borrow(launch[L_ALPHA]), borrow(launch[L_ENERGY]), borrow(launch[L_H]),
+              borrow(launch[L_LZ]), borrow(launch[L_R_START]), borrow(launch[L_U0]),
+              borrow(launch[L_SLIP_U]), borrow(launch[L_SLIP_V]))  # L_*  # fmt: skip
+    params = borrow(params)
+    out = (borrow(out[OUT_FATE]), borrow(out[OUT_F]), borrow(out[OUT_N]))
+    n_points = launch[L_ALPHA].shape[0]
     while True:
         running = 0
         for l in range(L):  # refill idle lanes; stories that end in scalar code are written
@@ -232,13 +258,10 @@ def lanes_hybrid_worker(method, effects, spin, alpha, energy, hh, Lz, r_start, u
                 i = fetch_add(queue, 1)
                 if i >= n_points:
                     break
-                if _lane_start(effects, spin, l, i, alpha, energy, hh, Lz, r_start, u0, slip_u,
-                               slip_v, params, mu_k, c_spin, rtol, I, LP, LY0, LAT, LHP, LYH,
-                               LHAT, LHS, LHI, row, out_fate, out_f, out_n):  # fmt: skip
-                    _lane_story(method, effects, spin, l, rtol, t_horizon, max_steps, W, I, F, LP,
-                                LY0, LAT, LHP, LYH, LHAT, LHS, LHI, LEV, LEVK, K, HK, hw, yr, ra,
-                                buf, at, ev_t, ev_kind, ev_y, hev_t, hev_kind, hev_y, row,
-                                out_fate, out_f, out_n)  # fmt: skip
+                if _lane_start(effects, spin, l, i, launch, params, mu_k, c_spin, rtol, st, I,
+                               out):  # fmt: skip
+                    _lane_story(method, effects, spin, l, rtol, t_horizon, max_steps, st, runs,
+                                sc, out)  # fmt: skip
             running += I[l, ORBIT] >= 0
         if running == 0:
             break
@@ -253,22 +276,16 @@ def lanes_hybrid_worker(method, effects, spin, alpha, energy, hh, Lz, r_start, u
             if not ended:
                 continue
             lane_params(method, effects, l, W, pw)
-            if _stretch_ended(method, effects, l, status, t, yv, rtol, max_steps, W, I, F, LP,
-                              LYH, LHS, LHI, LEV, LEVK, K, buf, at, ev_t, ev_kind, ev_y, hev_t,
-                              hev_kind, hev_y):  # fmt: skip
+            if _stretch_ended(method, effects, l, status, t, yv, rtol, max_steps, st, runs, at):
                 continue
-            _lane_story(method, effects, spin, l, rtol, t_horizon, max_steps, W, I, F, LP, LY0,
-                        LAT, LHP, LYH, LHAT, LHS, LHI, LEV, LEVK, K, HK, hw, yr, ra, buf, at,
-                        ev_t, ev_kind, ev_y, hev_t, hev_kind, hev_y, row, out_fate, out_f,
-                        out_n)  # fmt: skip
+            _lane_story(method, effects, spin, l, rtol, t_horizon, max_steps, st, runs, sc, out)
     # The owners live to here: the borrowed views above hold no reference of their own.
     owners[0][0] = owners[1][0] + owners[2][0]
 
 
 @parallel_kernel
-def hybrid_fate_points_lanes(alpha, energy, h, Lz, r_start, u0, slip_u, slip_v, params, mu_k,
-                             c_spin, method, effects, spin, rtol, t_horizon, max_steps, n_workers,
-                             out_fate, out_f, out_n):  # fmt: skip
+def hybrid_fate_points_lanes(launch, params, mu_k, c_spin, method, effects, spin, rtol, t_horizon,
+                             max_steps, n_workers, out_fate, out_f, out_n):  # fmt: skip
     """:func:`.hybrid.hybrid_fate_points` for a Runge-Kutta ``method`` (literal, like
     ``effects`` and ``spin``), its results bit for bit: ``n_workers``
     :func:`lanes_hybrid_worker` (one per thread) taking launches from one queue."""
@@ -276,7 +293,7 @@ def hybrid_fate_points_lanes(alpha, energy, h, Lz, r_start, u0, slip_u, slip_v, 
     literally(effects)
     literally(spin)
     queue = np.zeros(1, np.int64)
-    for _ in prange(max(1, min(n_workers, alpha.shape[0]))):
-        lanes_hybrid_worker(method, effects, spin, alpha, energy, h, Lz, r_start, u0, slip_u,
-                            slip_v, params, mu_k, c_spin, rtol, t_horizon, max_steps, queue,
-                            out_fate, out_f, out_n)  # fmt: skip
+    out = (out_fate, out_f, out_n)  # OUT_*
+    for _ in prange(max(1, min(n_workers, launch[L_ALPHA].shape[0]))):
+        lanes_hybrid_worker(method, effects, spin, launch, params, mu_k, c_spin, rtol, t_horizon,
+                            max_steps, queue, out)  # fmt: skip

@@ -26,9 +26,8 @@ from .effects import EFFECTS, REVOLUTIONS, bringing
 from .layouts import P_R_VERTEX, P_THETA_MAX, P_V_REST, Y_R, Y_THETA, Y_U, Y_V
 from .model import leaves, lift_margin, rim_margin, slip_margin
 
-#: The parameters every run kernel makes literal (``numba.literally``): the method's id and
-#: the effect set, so that a run compiles only its own method's and effects' code. The Python
-#: side names them to :func:`engine._jit.call_specialized`.
+#: The parameters every run kernel makes literal (``numba.literally``; named so to
+#: :func:`engine._jit.call_specialized`): a run compiles only its method's and effects' code.
 LITERAL = ("method", "effects")
 
 EPS = 2.220446049250313e-16
@@ -143,10 +142,9 @@ def event_buffers(capacity, n):
 @kernel
 def push_event(ev_t, ev_kind, ev_y, n_ev, t, kind, y):
     """Record event ``kind`` at time t [s] with state y while the buffers have room; returns
-    the count of events so far, recorded or not. The one rule of every event buffer: a run
-    that needs all its events (a trajectory, whose caller retries with more room) stops with
-    :data:`BUFFER_FULL` once :func:`events_full`; a story runs on and reports how many it
-    dropped."""
+    the count of events so far, recorded or not (every event buffer's one rule: a trajectory,
+    which needs them all, stops with :data:`BUFFER_FULL` once :func:`events_full`, and is run
+    again with more room; a story runs on)."""
     if n_ev < ev_t.shape[0]:
         ev_t[n_ev] = t
         ev_kind[n_ev] = kind

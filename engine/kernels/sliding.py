@@ -1,6 +1,10 @@
 """Sliding, rolling again and spin friction: the right-hand sides of the hybrid model
 (docs/physics.md "Sliding, rolling again, and spin friction"), as numba kernels.
 
+The equations are written once for any surface of revolution (:func:`frame_rates`), in the
+meridian frame the model gives at the centre: the cone's (:func:`.cone.contact_frame`), the one
+model with sliding contact so far.
+
 The hybrid state (length :data:`N_HYBRID`), the same in both modes::
 
     r, theta, u, v          the centre on its cone (as in engine.kernels.model)
@@ -24,8 +28,8 @@ import math
 import numpy as np
 
 from .._jit import kernel
-from .cone import P_COS, P_COT, P_SIN
-from .layouts import P_CRR, P_G, P_K, P_M, P_MU
+from .cone import contact_frame, height_energy
+from .layouts import P_CRR, P_K, P_M, P_MU
 from .model import N_PARAMS
 
 #: Hybrid parameter array: the scene's ``model.P_*`` entries, then these two.
@@ -66,9 +70,40 @@ def hybrid_params(p, mu_k, c_spin):
 
 
 @kernel
-def normal_force(r, v, hp):
-    """N [N] = M (g sin(alpha) + kappa v^2), kappa = cot(alpha)/r (both modes)."""
-    return hp[P_M] * (hp[P_G] * hp[P_SIN] + v * v * hp[P_COT] / r)
+def spin_hold(frame, u, v, p1, p2, kM):
+    """T3/a [N] that holds w = 0 (dw/dt = 0 in :func:`frame_rates`): k M (kappa u p1 +
+    sin(b)/rho v p2)."""
+    kappa = frame[4]
+    kp = frame[5]
+    return kM * (kappa * u * p1 + kp * v * p2)
+
+
+@kernel
+def frame_rates(frame, u, v, p1, p2, w, f1, f2, t1, t2, t3, M, kM):
+    """(du/dt, dv/dt, dp1/dt, dp2/dt, dw/dt) of a sphere on any surface of revolution, in the
+    frame (e1 along the centre's meridian, e2 along its parallel, nu from the contact to the
+    centre) that the model gives at the centre (``frame`` = :func:`.cone.contact_frame`'s:
+    dtheta/dt, N, g sin b, cos(b)/rho, kappa, sin(b)/rho), under the contact's friction
+    (f1, f2) [N] and the couples (T1, T2, T3)/a [N] (docs/physics.md "Equations of motion
+    while sliding"):
+
+        du/dt  = cos(b)/rho v^2 - g sin b + f1/M
+        dv/dt  = -cos(b)/rho u v + f2/M
+        dp1/dt = cos(b)/rho v p2 + kappa u w + (f2 + T1/a)/(k M)
+        dp2/dt = -cos(b)/rho v p1 + sin(b)/rho v w + (T2/a - f1)/(k M)
+        dw/dt  = -kappa u p1 - sin(b)/rho v p2 + (T3/a)/(k M)
+
+    (the frame turns at kappa u about -e2 and at dtheta/dt about the axis; Newton for the
+    centre, Euler about it, each seen in the turning frame)."""
+    c = frame[3]
+    kappa = frame[4]
+    kp = frame[5]
+    udot = v * v * c - frame[2] + f1 / M
+    vdot = -u * v * c + f2 / M
+    p1dot = p2 * v * c + kappa * u * w + (f2 + t1) / kM
+    p2dot = -p1 * v * c + kp * v * w + (t2 - f1) / kM
+    wdot = -kappa * u * p1 - kp * v * p2 + t3 / kM
+    return udot, vdot, p1dot, p2dot, wdot
 
 
 @kernel
@@ -97,19 +132,13 @@ def couples(p1, p2, w, N, stuck, hold, hp):
 
 
 @kernel
-def spin_hold(r, v, p2, hp):
-    """T3/a [N] that holds w = 0: k M kappa v p2."""
-    return hp[P_K] * hp[P_M] * hp[P_COT] / r * v * p2
-
-
-@kernel
-def free_slip_rate(r, u, v, p1, p2, w, t1, t2, hp):
-    """(D1, D2) [m/s^2]: the slip velocity's rate without the contact force f."""
-    ir = 1.0 / r
-    kM = hp[P_K] * hp[P_M]
-    kappa = hp[P_COT] * ir
-    d1 = v * v * ir + p1 * v * ir - hp[P_G] * hp[P_COS] - kappa * v * w - t2 / kM
-    d2 = (p2 - u) * v * ir + t1 / kM
+def free_slip_rate(frame, u, v, p1, p2, w, t1, t2, kM):
+    """(D1, D2) [m/s^2]: the slip velocity's rate without the contact force f, ds/dt of
+    :func:`frame_rates` at f = 0 (s = (u - p2, v + p1))."""
+    c = frame[3]
+    kp = frame[5]
+    d1 = v * v * c + p1 * v * c - frame[2] - kp * v * w - t2 / kM
+    d2 = (p2 - u) * v * c + frame[4] * u * w + t1 / kM
     return d1, d2
 
 
@@ -135,10 +164,9 @@ def sliding_rates(r, u, v, p1, p2, w, stuck, hp):
     "Rolling resistance while sliding")."""
     M = hp[P_M]
     kM = hp[P_K] * M
-    ir = 1.0 / r
-    kappa = hp[P_COT] * ir
-    N = normal_force(r, v, hp)
-    hold = spin_hold(r, v, p2, hp)
+    frame = contact_frame(r, u, v, hp)
+    N = frame[1]
+    hold = spin_hold(frame, u, v, p1, p2, kM)
     t1, t2, t3 = couples(p1, p2, w, N, stuck, hold, hp)
     s1 = u - p2
     s2 = v + p1
@@ -149,28 +177,31 @@ def sliding_rates(r, u, v, p1, p2, w, stuck, hp):
         f1 = -fk * s1 / sl
         f2 = -fk * s2 / sl
     elif static_rr:  # at rest: the slip starts along the centre's pull ((p1, p2) held at 0)
-        d1 = v * v * ir - hp[P_G] * hp[P_COS]
-        d2 = -u * v * ir
+        d1 = v * v * frame[3] - frame[2]
+        d2 = -u * v * frame[3]
         dl = math.sqrt(d1 * d1 + d2 * d2)
         f1 = -fk * d1 / dl if dl > 0.0 else 0.0
         f2 = -fk * d2 / dl if dl > 0.0 else 0.0
     else:  # the slip starts along D (physics "Switching between rolling and sliding")
-        d1, d2 = free_slip_rate(r, u, v, p1, p2, w, t1, t2, hp)
+        d1, d2 = free_slip_rate(frame, u, v, p1, p2, w, t1, t2, kM)
         dl = math.sqrt(d1 * d1 + d2 * d2)
         f1 = -fk * d1 / dl if dl > 0.0 else 0.0
         f2 = -fk * d2 / dl if dl > 0.0 else 0.0
     held = False
     if static_rr:  # the couple that keeps p1dot = p2dot = 0, up to c_rr N
-        t1, t2, held = clamp_pair(-f2, f1 - kM * kappa * v * w, hp[P_CRR] * N)
-    udot = v * v * ir - hp[P_G] * hp[P_COS] + f1 / M
-    vdot = -u * v * ir + f2 / M
-    p1dot = 0.0 if held else p2 * v * ir + (f2 + t1) / kM
-    p2dot = 0.0 if held else -p1 * v * ir + kappa * v * w + (t2 - f1) / kM
-    wdot = 0.0 if stuck else -kappa * v * p2 + t3 / kM
+        kappa_w = kM * frame[4] * u * w
+        t1, t2, held = clamp_pair(-f2 - kappa_w, f1 - kM * frame[5] * v * w, hp[P_CRR] * N)
+    udot, vdot, p1dot, p2dot, wdot = frame_rates(frame, u, v, p1, p2, w, f1, f2, t1, t2, t3, M,
+                                                 kM)  # fmt: skip
+    if held:
+        p1dot = 0.0
+        p2dot = 0.0
+    if stuck:
+        wdot = 0.0
     p_rr = hp[P_CRR] * N * math.sqrt(p1 * p1 + p2 * p2)
     p_slide = fk * sl
     p_spin = 0.0 if stuck else hp[H_C_SPIN] * N * abs(w)
-    return u, v * ir / hp[P_SIN], udot, vdot, p1dot, p2dot, wdot, p_rr, p_slide, p_spin
+    return u, frame[0], udot, vdot, p1dot, p2dot, wdot, p_rr, p_slide, p_spin
 
 
 @kernel
@@ -187,25 +218,33 @@ def rolling_rest_couple(udot, vdot, N, hp):
 
 @kernel
 def rolling_rates(r, u, v, w, stuck, hp):
-    """Rates of the hybrid state while rolling (p1 = -v, p2 = u kept): the rolling equations with
-    rolling resistance and the spin couple (which enters dw/dt only)."""
+    """Rates of the hybrid state while rolling (p1 = -v, p2 = u kept): :func:`frame_rates`
+    with the friction that keeps the slip zero eliminated, rolling resistance and the spin
+    couple (which enters dw/dt only); with k' = k/(1+k)
+
+        du/dt = cos(b)/rho v^2 + k' sin(b)/rho v w - g sin(b)/(1+k)
+        dv/dt = -cos(b)/rho u v - k' kappa u w
+        dw/dt = (kappa - sin(b)/rho) u v   (the rolling model's, :mod:`.surface`)."""
     M = hp[P_M]
     k = hp[P_K]
-    ir = 1.0 / r
-    kappa = hp[P_COT] * ir
-    N = normal_force(r, v, hp)
-    t1, t2, t3 = couples(-v, u, w, N, stuck, spin_hold(r, v, u, hp), hp)
-    udot = v * v * ir + k / (1.0 + k) * kappa * v * w - hp[P_G] * hp[P_COS] / (1.0 + k)
-    vdot = -u * v * ir
+    kk = k / (1.0 + k)
+    frame = contact_frame(r, u, v, hp)
+    N = frame[1]
+    c = frame[3]
+    kappa = frame[4]
+    kp = frame[5]
+    t1, t2, t3 = couples(-v, u, w, N, stuck, spin_hold(frame, u, v, -v, u, k * M), hp)
+    udot = v * v * c + kk * kp * v * w - frame[2] / (1.0 + k)
+    vdot = -u * v * c - kk * kappa * u * w
     held = False
     if u == 0.0 and v == 0.0:  # at rest the resistance is static (:func:`rolling_rest_couple`)
         t1, t2, held = rolling_rest_couple(udot, vdot, N, hp)
     udot = 0.0 if held else udot + t2 / (M * (1.0 + k))
     vdot = 0.0 if held else vdot - t1 / (M * (1.0 + k))
-    wdot = 0.0 if stuck else -kappa * u * v + t3 / (k * M)
+    wdot = 0.0 if stuck else (kappa - kp) * u * v + t3 / (k * M)
     p_rr = hp[P_CRR] * N * math.sqrt(u * u + v * v)
     p_spin = 0.0 if stuck else hp[H_C_SPIN] * N * abs(w)
-    return u, v * ir / hp[P_SIN], udot, vdot, -vdot, udot, wdot, p_rr, 0.0, p_spin
+    return u, frame[0], udot, vdot, -vdot, udot, wdot, p_rr, 0.0, p_spin
 
 
 @kernel
@@ -226,7 +265,7 @@ def hybrid_energy(r, u, v, p1, p2, w, hp):
     return (
         0.5 * M * (u * u + v * v)
         + 0.5 * hp[P_K] * M * (p1 * p1 + p2 * p2 + w * w)
-        + M * hp[P_G] * r * hp[P_COS]
+        + height_energy(r, hp)
     )
 
 
@@ -241,26 +280,27 @@ def slip_speed(y):
 @kernel
 def rolling_friction(y, hp):
     """(f1, f2) [N]: the contact force that makes ds/dt = 0 in the state y, f = -k M D/(1+k)
-    (with rolling resistance; spin friction does not enter)."""
+    (with rolling resistance; spin friction does not enter), and N [N]."""
     r, u, v, p1, p2, w = y[YH_R], y[YH_U], y[YH_V], y[YH_P1], y[YH_P2], y[YH_W]
-    N = normal_force(r, v, hp)
+    frame = contact_frame(r, u, v, hp)
+    N = frame[1]
+    k = hp[P_K]
+    kM = k * hp[P_M]
     t1, t2, _ = couples(p1, p2, w, N, True, 0.0, hp)
     if u == 0.0 and v == 0.0 and p1 == 0.0 and p2 == 0.0:  # rolling at rest: static resistance
-        k = hp[P_K]
-        ir = 1.0 / r
-        pull = v * v * ir + k / (1.0 + k) * hp[P_COT] * ir * v * w
-        pull -= hp[P_G] * hp[P_COS] / (1.0 + k)
-        t1, t2, _ = rolling_rest_couple(pull, -u * v * ir, N, hp)
-    d1, d2 = free_slip_rate(r, u, v, p1, p2, w, t1, t2, hp)
-    c = -hp[P_K] * hp[P_M] / (1.0 + hp[P_K])
-    return c * d1, c * d2
+        pull = v * v * frame[3] + k / (1.0 + k) * frame[5] * v * w
+        pull -= frame[2] / (1.0 + k)
+        t1, t2, _ = rolling_rest_couple(pull, -u * v * frame[3], N, hp)
+    d1, d2 = free_slip_rate(frame, u, v, p1, p2, w, t1, t2, kM)
+    c = -kM / (1.0 + k)
+    return c * d1, c * d2, N
 
 
 @kernel
 def hold_margin(y, hp):
     """|f_roll| - mu N [N]: > 0 where static friction cannot hold the rolling motion."""
-    f1, f2 = rolling_friction(y, hp)
-    return math.sqrt(f1 * f1 + f2 * f2) - hp[P_MU] * normal_force(y[YH_R], y[YH_V], hp)
+    f1, f2, N = rolling_friction(y, hp)
+    return math.sqrt(f1 * f1 + f2 * f2) - hp[P_MU] * N
 
 
 @kernel
@@ -268,8 +308,11 @@ def spin_hold_margin(y, hp):
     """|couple that holds w = 0| - c_spin N (1 + :data:`SPIN_BAND`) [N] (> 0: the spin cannot
     stay stuck). The band keeps a spin whose needed couple grazes the limit from sticking and
     unsticking without end (docs/physics.md "Spin stick")."""
-    cs = hp[H_C_SPIN] * normal_force(y[YH_R], y[YH_V], hp)
-    return abs(spin_hold(y[YH_R], y[YH_V], y[YH_P2], hp)) - cs * (1.0 + SPIN_BAND)
+    frame = contact_frame(y[YH_R], y[YH_U], y[YH_V], hp)
+    cs = hp[H_C_SPIN] * frame[1]
+    kM = hp[P_K] * hp[P_M]
+    hold = spin_hold(frame, y[YH_U], y[YH_V], y[YH_P1], y[YH_P2], kM)
+    return abs(hold) - cs * (1.0 + SPIN_BAND)
 
 
 @kernel

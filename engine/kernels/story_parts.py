@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 
 from .._jit import kernel
-from .cone import P_COS, P_SIN, invariants, invariants_of, radial_energy
+from .cone import invariants, radial_energy, rolling_invariants_of
 from .cone_starts import initial_state, orbit_start, tolerance_scales
 from .fate import (
     FAILED,
@@ -52,7 +52,7 @@ from .hybrid_step import (
     rolling_invariants,
     segment,
 )
-from .layouts import P_CRR, P_G, P_K, P_M, P_R_VERTEX, P_RIM, P_V_REST, Y_R, Y_THETA, Y_U, Y_V, Y_W
+from .layouts import P_CRR, P_K, P_M, P_R_VERTEX, P_RIM, P_V_REST, Y_R, Y_THETA, Y_U, Y_V, Y_W
 from .model import ROLLING_RESISTANCE, kinetic_energy, motion_rates
 from .protocol import push_event
 from .sliding import (
@@ -83,6 +83,14 @@ SLIDING = 7
 SPINNING = 8
 HYBRID_FATE_NAMES = ("no_orbit", "rolling", "spilled", "slipped", "rest", "vertex", "failed",
                      "sliding", "spinning")  # fmt: skip
+#: The launches of a hybrid fate map travel as one tuple of arrays, one per column, at these
+#: places (the points' starts: the rolling orbit's cone, radial energy [J], spin invariant h
+#: [m/s] and L_z, where it starts [m], its radial speed and its slip velocity [m/s]), as
+#: :func:`.hybrid.hybrid_fate_points` and the lanes take them. A tuple, numba's own type: a
+#: class of this package in a cached kernel's signature would stop another version of the
+#: package from reading that kernel's cache.
+LAUNCH_COLUMNS = ("alpha", "energy", "h", "Lz", "r_start", "u0", "slip_u", "slip_v")
+L_ALPHA, L_ENERGY, L_H, L_LZ, L_R_START, L_U0, L_SLIP_U, L_SLIP_V = range(len(LAUNCH_COLUMNS))
 #: Rows of the float output of :func:`hybrid_fate_points`.
 HYBRID_ROWS = ("fate_time", "fate_r", "fate_theta", "revolutions", "energy_lost",
                "invariant_drift", "slide_time", "slip_episodes", "fate_speed", "final_energy",
@@ -95,8 +103,7 @@ def mode_energy(y, hp, mode):
     """E [J] of the hybrid state: the rolling formula while rolling (as a fate map computes
     it), the sliding one otherwise."""
     if mode == MODE_ROLLING:
-        return invariants_of(y[YH_R], y[YH_U], y[YH_V], y[YH_W], hp[P_SIN], hp[P_COS], hp[P_M],
-                             hp[P_G], hp[P_K])[0]  # fmt: skip
+        return rolling_invariants_of(y[YH_R], y[YH_U], y[YH_V], y[YH_W], hp)[0]
     return hybrid_energy(y[YH_R], y[YH_U], y[YH_V], y[YH_P1], y[YH_P2], y[YH_W], hp)
 
 
@@ -111,12 +118,14 @@ N_HI = 8
 
 
 @kernel
-def story_begin(effects, spin, p, mu_k, c_spin, energy, h, Lz, r_start, u0, slip_u, slip_v, rtol,
-                out, y0, atol, hp, y, hatol, hs, hi):  # fmt: skip
-    """Set up the story of a launch (:func:`hybrid_fate_of`'s arguments): the rest threshold in
-    p, the rolling start state y0 and its tolerances atol (length ``state_size(effects)``), the
-    hybrid parameters hp, state y and tolerances hatol, and the story's state hs, hi. Returns
-    the fate where the launch ends at its start (``out`` then holds its floats), else -1."""
+def story_begin(effects, spin, p, mu_k, c_spin, start, rtol, out, y0, atol, hp, y, hatol, hs, hi):
+    """Set up the story of a launch (``start``: its radial energy [J], h [m/s], L_z, r_start
+    [m], u0, slip_u and slip_v [m/s]; :func:`hybrid_fate_of`'s arguments): the rest threshold
+    in p, the rolling start state y0 and its tolerances atol (length ``state_size(effects)``),
+    the hybrid parameters hp, state y and tolerances hatol, and the story's state hs, hi.
+    Returns the fate where the launch ends at its start (``out`` then holds its floats), else
+    -1."""
+    energy, h, Lz, r_start, u0, slip_u, slip_v = start
     if not (r_start >= 0.0 and math.isfinite(energy) and math.isfinite(Lz)):
         return NO_ORBIT
     if r_start > p[P_RIM]:  # beyond the rim, as a fate map says

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 
 from .._jit import kernel
-from .cone import P_SIN
+from .cone import rest_spin_rate
 from .fate import FATE_REST, ROLLING, holds_at_rest
 from .hybrid_step import (
     ARMED_ROLL,
@@ -23,7 +23,7 @@ from .hybrid_step import (
     release_spin,
     rolling_invariants,
 )
-from .layouts import P_CRR, P_G, P_K, P_M, P_MU, P_V_REST
+from .layouts import P_CRR, P_K, P_M, P_MU, P_V_REST
 from .protocol import push_event
 from .sliding import (
     H_C_SPIN,
@@ -118,7 +118,7 @@ def story_rest(p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y):
         return
     hi[HI_FATE] = FATE_REST
     if w != 0.0:  # spin friction stops the spin in place at a constant rate
-        rate = hp[H_C_SPIN] * hp[P_G] * hp[P_SIN] / hp[P_K]
+        rate = rest_spin_rate(hp[H_C_SPIN], hp)
         kM = hp[P_K] * hp[P_M]
         t_stop = t + abs(w) / rate
         if t_stop > t_horizon:  # still spinning down at the horizon

@@ -4,9 +4,12 @@ launches whose stories end in every fate, slip and roll again several times, and
 the lanes (each lane takes launch after launch, the stories of uneven lengths)."""
 
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
+from numba.core.dispatcher import Dispatcher
 
 from engine import launch
 from engine.hybrid import hybrid_fates
@@ -95,3 +98,38 @@ def test_lanes_equal_the_scalar_kernel_with_strong_rolling_resistance():
     names = {HYBRID_FATE_NAMES[f] for f in want["fate"]}
     assert "failed" not in names and {"rest", "vertex"} <= names, names
     assert (want["slip_episodes"] >= 1).sum() >= 10
+
+
+def _package_classes(ty) -> list[str]:
+    """Classes of this package inside a numba type (a named tuple's class, at any depth)."""
+    found = []
+    cls = getattr(ty, "instance_class", None)
+    if cls is not None and cls.__module__.split(".")[0] == "engine":
+        found.append(f"{cls.__module__}.{cls.__qualname__}")
+    for inner in getattr(ty, "types", ()):
+        found += _package_classes(inner)
+    return found
+
+
+def test_no_cached_kernel_signature_carries_a_class_of_the_package():
+    """After a hybrid map on the lanes and one launch per thread, no kernel compiled in this
+    process takes an argument whose numba type names a class of the package: numba pickles the
+    signatures into the cache's index by class name, and a version of the package without that
+    class fails to read that index (an AttributeError that ends the run)."""
+    import engine.kernels as kernels_pkg
+
+    *pts, u0, su, sv = (c[:3] for c in PTS)
+    for lanes in (True, False):
+        hybrid_fates(*pts, Scene(**BENCH), "dop853", 1e-9, 2.0, math.inf, lanes=lanes, u0=u0,
+                     slip_u=su, slip_v=sv)  # fmt: skip
+
+    pkg_dir = Path(kernels_pkg.__file__).parent
+    seen, bad = 0, []
+    for path in sorted(pkg_dir.glob("*.py")):
+        mod = sys.modules.get(f"engine.kernels.{path.stem}")
+        for name, obj in vars(mod).items() if mod is not None else ():
+            if isinstance(obj, Dispatcher) and obj.py_func.__module__ == mod.__name__:
+                for sig in obj.signatures:
+                    seen += 1
+                    bad += [f"{name}: {c}" for t in sig for c in _package_classes(t)]
+    assert seen > 20 and not bad, (seen, bad)

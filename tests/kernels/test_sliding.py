@@ -160,3 +160,108 @@ def test_spin_friction_alone_stops_the_spin():
     t = sol.t_events[0][0]
     assert t == pytest.approx(k * w0 / (c_spin * g), rel=1e-6)
     assert sol.y_events[0][0][9] == pytest.approx(0.5 * k * 1.3 * w0**2, rel=1e-6)
+
+
+# ------------------------------------------------------ any surface of revolution, from Newton
+#: Centre meridians (rho(t), z(t)) with their first and second derivatives, written out here: a
+#: sphere of radius 0.9 (a bowl's centre), a funnel's 1/rho wall, a profile curving both ways.
+MERIDIANS = {
+    "bowl": lambda t: (0.9 * math.sin(t), -0.9 * math.cos(t), 0.9 * math.cos(t),
+                       0.9 * math.sin(t), -0.9 * math.sin(t), 0.9 * math.cos(t)),
+    "funnel": lambda t: (t, -0.5 / t, 1.0, 0.5 / t**2, 0.0, -1.0 / t**3),
+    "profile": lambda t: (t, 0.3 * t**2 - 0.2 * t**3, 1.0, 0.6 * t - 0.6 * t**2, 0.0,
+                          0.6 - 1.2 * t),
+}  # fmt: skip
+SPOTS = {"bowl": (0.2, 1.3), "funnel": (0.3, 2.0), "profile": (0.2, 1.4)}
+
+
+def _newton_euler(meridian, t, theta, u, v, P, f, T, M, k, g, a):
+    """The rates (du/dt, dv/dt, dp1/dt, dp2/dt, dw/dt) and N of a sphere whose centre moves on
+    the surface of revolution of ``meridian`` at (t, theta) with speeds (u, v) along (e1, e2),
+    angular velocity a omega = P (fixed frame), under gravity, the contact force f (fixed
+    frame) plus N nu, and the couple a T: Newton for the centre with its constraint to the
+    surface solved as a 3x3 linear system, Euler about the centre, the frame's turning by the
+    derivatives of its vectors. No formula of the engine is used."""
+    rho, z, rt, zt, rtt, ztt = meridian(t)
+    c, s = math.cos(theta), math.sin(theta)
+    sig = math.hypot(rt, zt)
+    X_t = np.array([rt * c, rt * s, zt])
+    X_th = np.array([-rho * s, rho * c, 0.0])
+    X_tt = np.array([rtt * c, rtt * s, ztt])
+    X_tth = np.array([-rt * s, rt * c, 0.0])
+    X_thth = np.array([-rho * c, -rho * s, 0.0])
+    e1, e2 = X_t / sig, np.array([-s, c, 0.0])
+    nu = np.cross(e1, e2)
+    td, thd = u / sig, v / rho
+    known = M * (X_tt * td * td + 2.0 * X_tth * td * thd + X_thth * thd * thd)
+    rhs = np.array([0.0, 0.0, -M * g]) + f - known
+    tdd, thdd, N = np.linalg.solve(np.column_stack([M * X_t, M * X_th, -nu]), rhs)
+    sig_t = (rt * rtt + zt * ztt) / sig
+    udot = sig_t * td * td + sig * tdd
+    vdot = rt * td * thd + rho * thdd
+    Pdot = (np.cross(-a * nu, f) + a * T) / (k * M * a)  # a domega/dt
+    e1dot = (X_tt * sig - X_t * sig_t) / sig**2 * td + X_tth / sig * thd
+    e2dot = np.array([-c, -s, 0.0]) * thd
+    nudot = np.cross(e1dot, e2) + np.cross(e1, e2dot)
+    rates = (udot, vdot, Pdot @ e1 + P @ e1dot, Pdot @ e2 + P @ e2dot, Pdot @ nu + P @ nudot)
+    return rates, N, (e1, e2, nu)
+
+
+@pytest.mark.parametrize("name", sorted(MERIDIANS))
+def test_the_sliding_equations_are_newton_and_euler_on_any_surface_of_revolution(name):
+    """frame_rates (the sliding equations in the meridian frame, as every model's hybrid state
+    uses them) against Newton-Euler in the fixed frame on a bowl, a funnel and a profile, with
+    random speeds, spins, contact forces and couples; and the normal force the constraint needs
+    against N = M (g cos b + kappa u^2 + sin(b)/rho v^2) (the models' formula)."""
+    from engine.kernels.sliding import frame_rates
+
+    rng = np.random.default_rng(5)
+    M, k, g, a = 1.3, 0.4, 9.81, 0.02
+    worst = 0.0
+    for _ in range(50):
+        t = rng.uniform(*SPOTS[name])
+        theta = rng.uniform(-3.0, 3.0)
+        u, v, p1, p2, w = rng.uniform(-2.0, 2.0, 5)
+        f1, f2, t1, t2, t3 = rng.uniform(-3.0, 3.0, 5)
+        rho, z, rt, zt, rtt, ztt = MERIDIANS[name](t)
+        sig = math.hypot(rt, zt)
+        cb, sb = rt / sig, zt / sig
+        kappa = (rt * ztt - zt * rtt) / sig**3
+        e1, e2, nu = _newton_euler(MERIDIANS[name], t, theta, 0.0, 0.0, np.zeros(3),
+                                   np.zeros(3), np.zeros(3), M, k, g, a)[2]  # fmt: skip
+        P = p1 * e1 + p2 * e2 + w * nu
+        f = f1 * e1 + f2 * e2
+        T = t1 * e1 + t2 * e2 + t3 * nu
+        want, N, _ = _newton_euler(MERIDIANS[name], t, theta, u, v, P, f, T, M, k, g, a)
+        frame = (v / rho, N, g * sb, cb / rho, kappa, sb / rho)
+        got = frame_rates.py_func(frame, u, v, p1, p2, w, f1, f2, t1, t2, t3, M, k * M)
+        scale = g + 4.0 / rho + 3.0 / (k * M)
+        err = max(abs(x - y) for x, y in zip(got, want, strict=True)) / scale
+        worst = max(worst, err)
+        assert N == pytest.approx(M * (g * cb + kappa * u * u + sb / rho * v * v), rel=1e-12)
+    assert worst < 1e-12
+
+
+def _straight(sa, ca):
+    """The cone's centre meridian rho = t sin(alpha), z = t cos(alpha) (t = r)."""
+    return lambda t: (t * sa, t * ca, sa, ca, 0.0, 0.0)
+
+
+def test_the_cones_frame_is_its_meridian_seen_as_any_surface():
+    """cone.contact_frame (what the hybrid model reads on the cone) against the frame of the
+    meridian rho = r sin(alpha), z = r cos(alpha) computed as for any surface above, and the
+    cone's sliding rates against Newton-Euler there."""
+    rng = np.random.default_rng(9)
+    M, k, g = 1.3, 0.4, 9.81
+    for _ in range(50):
+        alpha = rng.uniform(0.1, 1.5)
+        hp = _hp(alpha, M=M, k=k, g=g, mu_k=0.0)
+        r, u, v = rng.uniform(0.05, 3.0), *rng.uniform(-2.0, 2.0, 2)
+        sa, ca = math.sin(alpha), math.cos(alpha)
+        thd, N, gt, c, kappa, kp = cone.contact_frame.py_func(r, u, v, hp)
+        assert (thd, c, kappa) == pytest.approx((v / (r * sa), 1.0 / r, 0.0), rel=1e-14)
+        assert (gt, kp) == pytest.approx((g * ca, ca / (sa * r)), rel=1e-14)
+        line = _straight(sa, ca)
+        _, N_want, _ = _newton_euler(line, r, 0.4, u, v, np.zeros(3), np.zeros(3),
+                                     np.zeros(3), M, k, g, 0.02)  # fmt: skip
+        assert N == pytest.approx(N_want, rel=1e-12)
