@@ -42,7 +42,7 @@ from engine.kernels.cone_starts import orbit_start, tolerance_scales
 from engine.kernels.layouts import ATTITUDE, P_KK
 from engine.kernels.model import RIM, ROLLING_RESISTANCE, SLIP_CHECK
 from engine.kernels.orbit import integrate_points as scalar_points
-from engine.kernels.protocol import EPS, brent_next, brent_start, brent_update
+from engine.kernels.protocol import EPS, LITERAL, brent_next, brent_start, brent_update
 from engine.kernels.rk import ERR_FLOOR, MIN_FACTOR, SAFETY, initial_step
 from engine.kernels.tableaux import RK_TABLEAUX
 from engine.methods import METHODS
@@ -304,7 +304,7 @@ def main() -> None:
         out_s = np.empty(n, np.int8)
         call = (points(alpha, energy, hh, Lz), base.params(), RK45, 0, args.rtol, max_steps,
                 out_f, out_n, out_s)  # fmt: skip
-        call_specialized(scalar_points, call, (2, 3))
+        call_specialized(scalar_points, call, LITERAL)
         return out_f, out_n, out_s
 
     def run_hand():

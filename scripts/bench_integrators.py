@@ -50,6 +50,7 @@ from engine._jit import call_specialized
 from engine.integrated import evaluate_integrated, points
 from engine.kernels.lanes import integrate_points_lanes
 from engine.kernels.lanes_step import LANES, lanes_attempt, layout
+from engine.kernels.protocol import LITERAL
 from engine.methods import METHODS
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -98,7 +99,7 @@ class EngineKernel:
     def __call__(self) -> np.ndarray:
         args = (points(*self.args_in), self.params, self.method, 0, self.rtol, 1_000_000,
                 self.workers, self.f, self.steps, self.status)  # fmt: skip
-        call_specialized(integrate_points_lanes, args, (2, 3))
+        call_specialized(integrate_points_lanes, args, LITERAL)
         return self.f[1]
 
 
@@ -285,11 +286,11 @@ def step_cost(method: str, rtol: float) -> float:
     ly = layout(m, 5)
     W = np.ones(ly.n_slots * LANES)
     W[ly.H * LANES : (ly.H + 1) * LANES] = 1e-3
-    call_specialized(_steps, (m, W, rtol, 10), (0,))
+    call_specialized(_steps, (m, W, rtol, 10), ("method",))
     best = math.inf
     for _ in range(5):
         c0 = time.thread_time()
-        call_specialized(_steps, (m, W, rtol, 20_000), (0,))
+        call_specialized(_steps, (m, W, rtol, 20_000), ("method",))
         best = min(best, (time.thread_time() - c0) / 20_000)
     return best / LANES
 

@@ -83,12 +83,10 @@ SLIDING = 7
 SPINNING = 8
 HYBRID_FATE_NAMES = ("no_orbit", "rolling", "spilled", "slipped", "rest", "vertex", "failed",
                      "sliding", "spinning")  # fmt: skip
-#: The launches of a hybrid fate map travel as one tuple of arrays, one per column, at these
-#: places (the points' starts: the rolling orbit's cone, radial energy [J], spin invariant h
-#: [m/s] and L_z, where it starts [m], its radial speed and its slip velocity [m/s]), as
-#: :func:`.hybrid.hybrid_fate_points` and the lanes take them. A tuple, numba's own type: a
-#: class of this package in a cached kernel's signature would stop another version of the
-#: package from reading that kernel's cache.
+#: A hybrid fate map's launches travel as one tuple of arrays (numba's own type: see
+#: docs/architecture.md's kernel contract), a column at each of these places: the rolling
+#: orbit's cone, radial energy [J], spin invariant h [m/s] and L_z, where it starts [m], its
+#: radial speed and slip velocity [m/s] (:func:`.hybrid.hybrid_fate_points`, the lanes).
 LAUNCH_COLUMNS = ("alpha", "energy", "h", "Lz", "r_start", "u0", "slip_u", "slip_v")
 L_ALPHA, L_ENERGY, L_H, L_LZ, L_R_START, L_U0, L_SLIP_U, L_SLIP_V = range(len(LAUNCH_COLUMNS))
 #: Rows of the float output of :func:`hybrid_fate_points`.
