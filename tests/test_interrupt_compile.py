@@ -171,3 +171,59 @@ def test_ctrl_c_while_numba_compiles_or_loads_a_kernel(tmp_path: Path, hook: str
     assert sorted(p.name for p in tmp_path.iterdir()) == ["numba-cache", "s.toml", "tiny"]
     leftovers = [p.name for p in (tmp_path / "numba-cache").rglob("*") if ".tmp." in p.name]
     assert leftovers == []
+
+
+#: Sends itself a SIGINT from code whose exceptions Python swallows (argv[1]: a destructor run by
+#: the garbage collector, or a weakref callback), inside interrupts_outside_compile_hooks, then
+#: works on for up to 5 s: the Ctrl-C must still end the work.
+IN_SWALLOWING_CODE = textwrap.dedent(
+    """
+    import gc, os, signal, sys, time, weakref
+    from engine.commands.interrupts import interrupts_outside_compile_hooks
+
+    class Doomed:
+        def __del__(self):
+            if sys.argv[1] == "destructor":
+                os.kill(os.getpid(), signal.SIGINT)
+                for _ in range(1000):  # lines for the handler to run at, all in __del__
+                    pass
+
+    def callback(ref):
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(1000):
+            pass
+
+    try:
+        with interrupts_outside_compile_hooks():
+            doomed = Doomed()
+            doomed.self = doomed  # a cycle: only the garbage collector frees it
+            ref = weakref.ref(doomed, callback) if sys.argv[1] == "weakref" else None
+            del doomed
+            gc.collect()
+            end = time.monotonic() + 5.0
+            while time.monotonic() < end:
+                pass
+    except KeyboardInterrupt:
+        print("interrupted")
+    else:
+        print("the Ctrl-C was lost")
+    """
+)
+
+
+@pytest.mark.parametrize("where", ["destructor", "weakref"])
+def test_ctrl_c_inside_code_that_swallows_exceptions_still_interrupts(where: str):
+    """CI saw the compile test above end 0: the SIGINT came while the garbage collector ran
+    llvmlite's ``ObjectRef.__del__``, and Python printed the KeyboardInterrupt as "Exception
+    ignored" and went on."""
+    proc = subprocess.run(
+        [sys.executable, "-c", IN_SWALLOWING_CODE, where],
+        cwd=ROOT,
+        env=env(),
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout == "interrupted\n", proc.stderr[-3000:]
+    assert "Exception ignored" not in proc.stderr, proc.stderr

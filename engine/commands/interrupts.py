@@ -7,12 +7,17 @@ callbacks; the KeyboardInterrupt raised there cannot pass through C: ctypes prin
 it. The kernel then loads without the cached object (the Ctrl-C is lost and the run goes on) or
 is compiled without it (numba's cache write fails with ``RuntimeError: no compiled object yet``,
 exit 1). numba's cache write (index, then data, each through a temporary file it removes only on
-an ``Exception``) would also leave a temporary file in the cache if interrupted.
+an ``Exception``) would also leave a temporary file in the cache if interrupted. A destructor
+(``__del__``, run by the garbage collector at any line, llvmlite's own among them) and a weakref
+callback swallow a KeyboardInterrupt the same way: Python reports it as "Exception ignored" and
+goes on.
 
 :func:`interrupts_outside_compile_hooks` installs a SIGINT handler that, inside those
-callbacks or the cache write, postpones the interrupt by :data:`RETRY` seconds (and again, until
-the main thread is out of them); elsewhere it raises KeyboardInterrupt as Python's own handler
-does. An interrupt still postponed when the block ends is raised there.
+callbacks, the cache write or a destructor, postpones the interrupt by :data:`RETRY` seconds (and
+again, until the main thread is out of them); elsewhere it raises KeyboardInterrupt as Python's
+own handler does. A KeyboardInterrupt that some other code swallows anyway reaches
+:func:`sys.unraisablehook`; within the block that hook postpones it the same way instead of
+printing it. An interrupt still postponed when the block ends is raised there.
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ from __future__ import annotations
 import _thread
 import contextlib
 import signal
+import sys
 import threading
 from collections.abc import Iterator
 from types import FrameType
@@ -43,9 +49,13 @@ _GUARDED = frozenset(
 )
 
 
+#: Code names whose exceptions Python swallows: a destructor run by the garbage collector.
+_SWALLOWING = frozenset(("__del__",))
+
+
 def _guarded(frame: FrameType | None) -> bool:
     while frame is not None:
-        if frame.f_code in _GUARDED:
+        if frame.f_code in _GUARDED or frame.f_code.co_name in _SWALLOWING:
             return True
         frame = frame.f_back
     return False
@@ -57,15 +67,30 @@ class _Postponer:
     def __init__(self) -> None:
         self.active = True
         self.pending = False
+        self.previous_hook = sys.unraisablehook
 
     def handle(self, signum: int, frame: FrameType | None) -> None:
         if not _guarded(frame):
             self.pending = False
             raise KeyboardInterrupt
+        self.postpone()
+
+    def postpone(self) -> None:
         self.pending = True
         timer = threading.Timer(RETRY, self._again)
         timer.daemon = True
         timer.start()
+
+    def unraisable(self, report: sys.UnraisableHookArgs) -> None:
+        """Within the block: a KeyboardInterrupt that was swallowed comes again later."""
+        if (
+            self.active
+            and report.exc_type is not None
+            and issubclass(report.exc_type, KeyboardInterrupt)
+        ):
+            self.postpone()
+            return
+        self.previous_hook(report)
 
     def _again(self) -> None:
         if self.active and self.pending:
@@ -85,10 +110,12 @@ def interrupts_outside_compile_hooks() -> Iterator[None]:
         return
     postponer = _Postponer()
     signal.signal(signal.SIGINT, postponer.handle)
+    sys.unraisablehook = postponer.unraisable
     try:
         yield
     finally:
         postponer.active = False
         signal.signal(signal.SIGINT, signal.default_int_handler)
+        sys.unraisablehook = postponer.previous_hook
     if postponer.pending:
         raise KeyboardInterrupt
