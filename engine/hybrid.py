@@ -23,6 +23,7 @@ from .kernels.hybrid import (
 )
 from .kernels.lanes_hybrid import hybrid_fate_points_lanes
 from .kernels.layouts import P_THETA_MAX
+from .kernels.model import model_of_key
 from .kernels.protocol import LITERAL as RUN_LITERAL
 from .kernels.sliding import HYBRID_STATE  # the components of an event's ``state``
 from .scene import Scene
@@ -31,9 +32,10 @@ __all__ = ["HYBRID_VARIABLES", "HYBRID_STATE", "hybrid_fates", "hybrid_setup", "
 
 #: Variables a fate map of a sliding scene adds to today's fate variables.
 HYBRID_VARIABLES = HYBRID_ROWS[6:]
-#: The hybrid kernels' literal parameters (:func:`._jit.call_specialized`): a run's, and
-#: whether spin friction is on.
-LITERAL = (*RUN_LITERAL, "spin")
+#: The hybrid kernels' literal parameters (:func:`._jit.call_specialized`): a run's, the model
+#: whose contact frame the hybrid steps read (:mod:`.kernels.contact`), and whether spin
+#: friction is on.
+LITERAL = (*RUN_LITERAL, "model", "spin")
 #: Step budget of one launch (accepted + rejected steps, both modes).
 MAX_STEPS = 10_000_000
 
@@ -72,10 +74,10 @@ def whole_story(
     (fate, floats, steps, n_events, times, kinds, states), the arrays cut to n_events."""
     cap = max(int(capacity), 1)
     while True:
-        res = hybrid_story(method_id, effects, spin, params, float(scene.mu_k),
-                           float(scene.c_spin), float(energy), float(h), float(Lz),
-                           *map(float, launch), float(rtol), float(t_horizon), int(max_steps),
-                           cap)  # fmt: skip
+        res = hybrid_story(method_id, effects, model_of_key(effects), spin, params,
+                           float(scene.mu_k), float(scene.c_spin), float(energy), float(h),
+                           float(Lz), *map(float, launch), float(rtol), float(t_horizon),
+                           int(max_steps), cap)  # fmt: skip
         if res[3] <= cap:
             break
         cap = int(res[3])
@@ -126,7 +128,8 @@ def hybrid_fates(
     out_n = np.zeros(n, np.int64)
     if n:
         args = (launch, params, float(scene.mu_k), float(scene.c_spin), m.kernel_id, effects,
-                spin, float(rtol), float(t_max), int(max_steps))  # fmt: skip
+                model_of_key(effects), spin, float(rtol), float(t_max),
+                int(max_steps))  # fmt: skip
         if lanes and m.family == "runge-kutta" and spin == 0:
             args += (numba.get_num_threads(), out_fate, out_f, out_n)
             call_specialized(hybrid_fate_points_lanes, args, LITERAL)

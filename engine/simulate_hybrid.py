@@ -21,7 +21,7 @@ from .kernels.cone import set_alpha
 from .kernels.hybrid import HYBRID_FATE_NAMES
 from .kernels.hybrid_step import ARMED_KEPT, EV_NO_HOLD, EV_ROT_STOP, HYBRID_EVENT_NAMES
 from .kernels.layouts import P_K, P_M
-from .kernels.model import N_PARAMS
+from .kernels.model import CONE, N_PARAMS
 from .kernels.protocol import (
     AT_VERTEX,
     BUFFER_FULL,
@@ -136,7 +136,7 @@ def _stretches(y, mode, stuck, spin, hp, fate, ev_t, ev_kind, ev_y, t_last):
         elif kind == "spin_stop":  # the rest of the spin goes to spin friction
             y[9] += 0.5 * hp[P_K] * hp[P_M] * y[6] * y[6]
             y[6] = 0.0
-            stuck = spin_hold_margin.py_func(y, hp) <= 0.0
+            stuck = spin_hold_margin.py_func(CONE, y, hp) <= 0.0
         elif kind == "spin_go":
             y[6] = 0.0
             stuck = False
@@ -181,7 +181,7 @@ def hybrid_trajectory(
     hp[H_MU_K], hp[H_C_SPIN] = scene.mu_k, scene.c_spin
     y0 = _start(alpha, energy, h, Lz, r0, u0, slip_u, slip_v, scene)
     mode = MODE_SLIDING if (slip_u != 0.0 or slip_v != 0.0) else MODE_ROLLING
-    stuck = bool(spin and y0[6] == 0.0 and spin_hold_margin.py_func(y0, hp) <= 0.0)
+    stuck = bool(spin and y0[6] == 0.0 and spin_hold_margin.py_func(CONE, y0, hp) <= 0.0)
     if fate == "vertex" and n_ev == 0:  # it starts in the vertex region, moving in
         ev_t, ev_kind, ev_y = np.zeros(1), np.array([_EV["vertex"]], np.int8), y0[None].copy()
     t_last = float(f[0]) if math.isfinite(f[0]) else 0.0
@@ -192,19 +192,20 @@ def hybrid_trajectory(
     states = np.vstack([y0[None], ev_y])
     atol = rtol * np.maximum(np.abs(states).max(axis=0), 1e-300)
     vel = float(np.abs(states[:, 2:7]).max())
-    E0 = float(hybrid_energy.py_func(*y0[[0, 2, 3, 4, 5, 6]], hp))
+    E0 = float(hybrid_energy.py_func(CONE, *y0[[0, 2, 3, 4, 5, 6]], hp))
     atol[0] = rtol * r0
     atol[1] = rtol
     atol[2:7] = rtol * vel
     atol[7:] = rtol * max(abs(E0), 0.5 * scene.M * vel * vel)
-    args_head = (method_id, hp, np.array(t0), np.array(t1), np.array(ys),
+    args_head = (method_id, CONE, hp, np.array(t0), np.array(t1), np.array(ys),
                  np.array(modes, np.int64), np.array(stucks, np.bool_),
                  np.array(keeps, np.int64), rtol, atol,
                  float(dt_out or 0.0), int(max_steps))  # fmt: skip
     n_cap = len(t0) + (int(t1[-1] / dt_out) + 2 if dt_out else 4096)
     while True:
         tr = (np.empty(n_cap), np.empty((n_cap, N_HYBRID)), np.empty(n_cap, np.int64))
-        st, n_tr, trace_steps = call_specialized(trace_stretches, (*args_head, *tr), ("method",))
+        literal = ("method", "model")
+        st, n_tr, trace_steps = call_specialized(trace_stretches, (*args_head, *tr), literal)
         if st != BUFFER_FULL:
             break
         n_cap *= 4
@@ -233,7 +234,7 @@ def _dataset(scene, alpha, energy, h, Lz, u0, slip_u, slip_v, method, rtol, orbi
     s, c = math.sin(alpha), math.cos(alpha)
     col = dict(zip(HYBRID_STATE, Y.T, strict=True))
     r, th = col["r"], col["theta"]
-    E = hybrid_energy.py_func(r, col["u"], col["v"], col["p1"], col["p2"], col["w"], hp)
+    E = hybrid_energy.py_func(CONE, r, col["u"], col["v"], col["p1"], col["p2"], col["w"], hp)
     work = col["W_rolling_resistance"] + col["W_sliding_friction"] + col["W_spin_friction"]
     columns: dict[str, Any] = {
         "mode": modes.astype(np.int8),

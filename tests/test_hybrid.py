@@ -12,6 +12,7 @@ from engine import launch
 from engine.fates import Horizon, fates
 from engine.hybrid import hybrid_fates
 from engine.kernels.hybrid import HYBRID_FATE_NAMES
+from engine.kernels.model import CONE
 from engine.kernels.sliding import hybrid_energy, hybrid_params
 from engine.scene import Scene
 from engine.story import launch_fates, story
@@ -24,7 +25,7 @@ PLAIN = dict(mu=0.5, mu_k=0.25, rim=5000.0)
 
 def _energy(scene, alpha, st):
     hp = hybrid_params(scene.params(alpha), scene.mu_k, scene.c_spin)
-    return hybrid_energy.py_func(st["r"], st["u"], st["v"], st["p1"], st["p2"], st["w"], hp)
+    return hybrid_energy.py_func(CONE, st["r"], st["u"], st["v"], st["p1"], st["p2"], st["w"], hp)
 
 
 @pytest.mark.parametrize("k", [0.4, 2.0 / 3.0])

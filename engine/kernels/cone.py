@@ -159,12 +159,13 @@ def normal_force(r, v, p):
 @kernel
 def contact_frame(r, u, v, p):
     """The cone's meridian at the centre's r as the hybrid model reads any surface of
-    revolution (:func:`.sliding.frame_rates`): (dtheta/dt [rad/s], N [N], g sin b [m s-2],
-    cos(b)/rho, kappa, sin(b)/rho [1/m]). The generatrix rises at b = pi/2 - alpha and is
-    straight (kappa = 0), rho = r sin(alpha): cos(b)/rho = 1/r, sin(b)/rho = cot(alpha)/r,
-    g sin b = g cos(alpha), and N is :func:`normal_force`."""
+    revolution (:func:`.contact.contact_frame`): (dtheta/dt [rad/s], N [N], g sin b [m s-2],
+    cos(b)/rho, kappa, sin(b)/rho [1/m], dr/ds). The generatrix rises at b = pi/2 - alpha and
+    is straight (kappa = 0), rho = r sin(alpha): cos(b)/rho = 1/r, sin(b)/rho = cot(alpha)/r,
+    g sin b = g cos(alpha), N is :func:`normal_force`, and r is the arc length (dr/ds = 1)."""
     ir = 1.0 / r
-    return v * ir / p[P_SIN], normal_force(r, v, p), p[P_G] * p[P_COS], ir, 0.0, p[P_COT] * ir
+    return (v * ir / p[P_SIN], normal_force(r, v, p), p[P_G] * p[P_COS], ir, 0.0, p[P_COT] * ir,
+            1.0)  # fmt: skip
 
 
 @kernel

@@ -58,8 +58,8 @@ __all__ = ["HYBRID_FATE_NAMES", "HYBRID_ROWS", "SLIDING", "hybrid_fate_of", "hyb
 
 
 @kernel
-def hybrid_fate_of(method, effects, spin, p, mu_k, c_spin, energy, h, Lz, r_start, u0, slip_u,
-                   slip_v, rtol, t_horizon, max_steps, ev_t, ev_kind, ev_y):  # fmt: skip
+def hybrid_fate_of(method, effects, model, spin, p, mu_k, c_spin, energy, h, Lz, r_start, u0,
+                   slip_u, slip_v, rtol, t_horizon, max_steps, ev_t, ev_kind, ev_y):  # fmt: skip
     """The whole story of the launch at ``r_start`` [m] on the rolling orbit (calE, h, L_z) (its
     v and w), with radial speed u0 [m/s] and the contact point's slip velocity (slip_u along
     the generatrix, slip_v along the parallel) [m/s] (0, 0: rolling).
@@ -81,8 +81,8 @@ def hybrid_fate_of(method, effects, spin, p, mu_k, c_spin, energy, h, Lz, r_star
     hs = np.zeros(N_HS)
     hi = np.zeros(N_HI, np.int64)
     start = (energy, h, Lz, r_start, u0, slip_u, slip_v)
-    fate = story_begin(effects, spin, p, mu_k, c_spin, start, rtol, out, y0, atol, hp, y, hatol,
-                       hs, hi)  # fmt: skip
+    fate = story_begin(effects, model, spin, p, mu_k, c_spin, start, rtol, out, y0, atol, hp, y,
+                       hatol, hs, hi)  # fmt: skip
     if fate >= 0:
         return fate, out, 0, 0
     S = tableau(method)[6]
@@ -95,7 +95,7 @@ def hybrid_fate_of(method, effects, spin, p, mu_k, c_spin, energy, h, Lz, r_star
     while hi[HI_FATE] < 0:
         if story_runs_out(max_steps, hi):
             break
-        stretch_start(p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y)  # decided at its start
+        stretch_start(model, p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y)  # at its start
         if hi[HI_FATE] >= 0:
             break
         if hi[HI_MODE] == MODE_ROLLING and spin == 0:
@@ -104,20 +104,21 @@ def hybrid_fate_of(method, effects, spin, p, mu_k, c_spin, energy, h, Lz, r_star
                                      max_steps - hi[HI_STEPS])  # fmt: skip
             rolled(effects, f, dt, yf, st, y, hs, hi, ev_t, ev_kind, ev_y)
             continue
-        hybrid_stretch(method, p, y, hp, rtol, hatol, t_horizon, max_steps, K, ytmp, ynew, yev, hs,
-                       hi, ev_t, ev_kind, ev_y)  # fmt: skip
-    fate = story_result(spin, p, y, y0, hp, hs, hi, out)
+        hybrid_stretch(method, model, p, y, hp, rtol, hatol, t_horizon, max_steps, K, ytmp, ynew,
+                       yev, hs, hi, ev_t, ev_kind, ev_y)  # fmt: skip
+    fate = story_result(model, spin, p, y, y0, hp, hs, hi, out)
     return fate, out, hi[HI_STEPS], hi[HI_NEV]
 
 
 @parallel_kernel
-def hybrid_fate_points(launch, params, mu_k, c_spin, method, effects, spin, rtol, t_horizon,
+def hybrid_fate_points(launch, params, mu_k, c_spin, method, effects, model, spin, rtol, t_horizon,
                        max_steps, out_fate, out_f, out_n):  # fmt: skip
     """:func:`hybrid_fate_of` for every point of ``launch`` (the ``L_*`` tuple of
     :mod:`.story_parts`), in parallel (``method``, ``effects``, ``spin``: literal ints). Writes
     ``out_fate`` int8[n], ``out_f`` float64[len(HYBRID_ROWS), n] and ``out_n`` int64[n] steps."""
     literally(method)
     literally(effects)
+    literally(model)
     literally(spin)
     for i in prange(launch[L_ALPHA].shape[0]):
         p = params.copy()
@@ -125,7 +126,7 @@ def hybrid_fate_points(launch, params, mu_k, c_spin, method, effects, spin, rtol
         ev_t = np.empty(0)
         ev_kind = np.empty(0, np.int8)
         ev_y = np.empty((0, N_HYBRID))
-        fate, f, steps, _ = hybrid_fate_of(method, effects, spin, p, mu_k, c_spin,
+        fate, f, steps, _ = hybrid_fate_of(method, effects, model, spin, p, mu_k, c_spin,
                                            launch[L_ENERGY][i], launch[L_H][i], launch[L_LZ][i],
                                            launch[L_R_START][i], launch[L_U0][i],
                                            launch[L_SLIP_U][i], launch[L_SLIP_V][i], rtol,
@@ -138,17 +139,18 @@ def hybrid_fate_points(launch, params, mu_k, c_spin, method, effects, spin, rtol
 
 
 @kernel
-def hybrid_story(method, effects, spin, p, mu_k, c_spin, energy, h, Lz, r_start, u0, slip_u,
+def hybrid_story(method, effects, model, spin, p, mu_k, c_spin, energy, h, Lz, r_start, u0, slip_u,
                  slip_v, rtol, t_horizon, max_steps, capacity):  # fmt: skip
     """:func:`hybrid_fate_of` of one launch with its events kept (at most ``capacity``):
     (fate, floats, steps, n_events, event times, kinds, states)."""
     literally(method)
     literally(effects)
+    literally(model)
     literally(spin)
     ev_t = np.empty(capacity)
     ev_kind = np.empty(capacity, np.int8)
     ev_y = np.empty((capacity, N_HYBRID))
-    fate, f, steps, n_ev = hybrid_fate_of(method, effects, spin, p, mu_k, c_spin, energy, h, Lz,
-                                          r_start, u0, slip_u, slip_v, rtol, t_horizon,
+    fate, f, steps, n_ev = hybrid_fate_of(method, effects, model, spin, p, mu_k, c_spin, energy, h,
+                                          Lz, r_start, u0, slip_u, slip_v, rtol, t_horizon,
                                           max_steps, ev_t, ev_kind, ev_y)  # fmt: skip
     return fate, f, steps, n_ev, ev_t, ev_kind, ev_y

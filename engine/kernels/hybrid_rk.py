@@ -50,7 +50,7 @@ ADV_MAX_STEPS = 3
 
 
 @kernel
-def hybrid_attempt(method, y, h, hp, mode, stuck, K, ytmp, ynew, rtol, atol):
+def hybrid_attempt(method, model, y, h, hp, mode, stuck, K, ytmp, ynew, rtol, atol):
     """One step of size h [s] from y with K[0] = f(y) given: writes the stages K[1..ns],
     ``ynew`` and K[ns] = f(ynew); returns the scaled error (accept when <= 1)."""
     A, C, E, E3, P, ns, S, q, beta, bw, fmax = tableau(method)
@@ -61,7 +61,7 @@ def hybrid_attempt(method, y, h, hp, mode, stuck, K, ytmp, ynew, rtol, atol):
             for m in range(i):
                 acc += A[i, m] * K[m, j]
             ytmp[j] = y[j] + h * acc
-        hybrid_rhs(ytmp, hp, mode, stuck, K[i])
+        hybrid_rhs(model, ytmp, hp, mode, stuck, K[i])
     e5 = 0.0
     e3 = 0.0
     for j in range(n):
@@ -92,10 +92,10 @@ def decide(e_err, r_new, h, err_old, rejected, ctl):
 
 
 @kernel
-def first_step(y, hp, mode, stuck, K, rtol, atol):
+def first_step(model, y, hp, mode, stuck, K, rtol, atol):
     """Writes K[0] = f(y) and returns the first trial step [s] from y (1 % of the state's
     scaled size over its scaled rate, as the rolling integrators start)."""
-    hybrid_rhs(y, hp, mode, stuck, K[0])
+    hybrid_rhs(model, y, hp, mode, stuck, K[0])
     d0 = 0.0
     d1 = 0.0
     for j in range(y.shape[0]):
@@ -184,7 +184,7 @@ def kink_step(method, y, h, hp, mode, stuck, armed, K):
 
 
 @kernel
-def advance(method, y, t, t_end, h, hp, mode, stuck, armed, K, ytmp, ynew, rtol, atol, ctl,
+def advance(method, model, y, t, t_end, h, hp, mode, stuck, armed, K, ytmp, ynew, rtol, atol, ctl,
             err_old, rejected, steps, max_steps):  # fmt: skip
     """Attempt steps from (t, y) towards t_end [s], first of size h [s], until one is accepted:
     a step through a kink (:func:`kink_step`) is retried short of it, a step the decision
@@ -201,7 +201,7 @@ def advance(method, y, t, t_end, h, hp, mode, stuck, armed, K, ytmp, ynew, rtol,
             if h_try < h:  # t_end is within rounding of t
                 return ADV_REACHED, 0.0, h, err_old, rejected, steps
             return ADV_TOO_SMALL, 0.0, h, err_old, rejected, steps
-        err = hybrid_attempt(method, y, h_try, hp, mode, stuck, K, ytmp, ynew, rtol, atol)
+        err = hybrid_attempt(method, model, y, h_try, hp, mode, stuck, K, ytmp, ynew, rtol, atol)
         steps += 1
         h_kink = kink_step(method, y, h_try, hp, mode, stuck, armed, K)
         if h_kink < h_try:  # a stage went through s = 0 or w = 0: retry short of it

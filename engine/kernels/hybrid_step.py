@@ -100,7 +100,7 @@ LOCATE_ITERATIONS = 60
 
 
 @kernel
-def event_value(kind, y, hp, mode, stuck, armed, ref):
+def event_value(model, kind, y, hp, mode, stuck, armed, ref):
     """g(y) of event ``kind``, or -inf where it is off. ``ref`` = (sign of w, slip direction
     (d1, d2), tangential spin direction (q1, q2), velocity (u, v)) at the start of the step:
     the spin's stop is w crossing 0, and the return to rolling is the slip's component along
@@ -116,7 +116,7 @@ def event_value(kind, y, hp, mode, stuck, armed, ref):
     if kind == EV_THETA:
         return abs(y[YH_THETA]) - hp[P_THETA_MAX]
     if kind == EV_SLIP:
-        return hold_margin(y, hp) if mode == MODE_ROLLING and hp[P_MU] < math.inf else off
+        return hold_margin(model, y, hp) if mode == MODE_ROLLING and hp[P_MU] < math.inf else off
     if kind == EV_STICK:
         if mode != MODE_SLIDING or not armed & ARMED_ROLL:
             return off
@@ -126,7 +126,7 @@ def event_value(kind, y, hp, mode, stuck, armed, ref):
             return off
         return hp[P_V_REST] - w_sign * y[YH_W]
     if kind == EV_SPIN_GO:
-        return spin_hold_margin(y, hp) if stuck else off
+        return spin_hold_margin(model, y, hp) if stuck else off
     if kind == EV_REST:
         if mode != MODE_ROLLING or hp[P_CRR] == 0.0:  # the stop needs rolling resistance
             return off
@@ -149,7 +149,7 @@ def fired(kind, g0, g1):
 
 
 @kernel
-def locate(method, kind, y0, h, hp, mode, stuck, armed, ref, K, ytmp, yout, rtol, atol, g0,
+def locate(method, model, kind, y0, h, hp, mode, stuck, armed, ref, K, ytmp, yout, rtol, atol, g0,
            g1):  # fmt: skip
     """The fraction theta in (0, 1] of the step h [s] from y0 where event ``kind`` fires (the
     upper end of the final bracket, where it has fired), with the state there in ``yout``.
@@ -165,8 +165,8 @@ def locate(method, kind, y0, h, hp, mode, stuck, armed, ref, K, ytmp, yout, rtol
         th = (lo * ghi - hi * glo) / (ghi - glo) if ghi != glo else 0.5 * (lo + hi)
         if not (lo < th < hi):
             th = 0.5 * (lo + hi)
-        hybrid_attempt(method, y0, th * h, hp, mode, stuck, K, ytmp, yout, rtol, atol)
-        g = event_value(kind, yout, hp, mode, stuck, armed, ref)
+        hybrid_attempt(method, model, y0, th * h, hp, mode, stuck, K, ytmp, yout, rtol, atol)
+        g = event_value(model, kind, yout, hp, mode, stuck, armed, ref)
         if fired(kind, glo, g):
             hi = th
             ghi = g
@@ -181,12 +181,12 @@ def locate(method, kind, y0, h, hp, mode, stuck, armed, ref, K, ytmp, yout, rtol
             side = 1
         if hi - lo < 1e-15:
             break
-    hybrid_attempt(method, y0, hi * h, hp, mode, stuck, K, ytmp, yout, rtol, atol)
+    hybrid_attempt(method, model, y0, hi * h, hp, mode, stuck, K, ytmp, yout, rtol, atol)
     return hi
 
 
 @kernel
-def first_event(method, y0, y1, h, hp, mode, stuck, armed, K, ytmp, yout, rtol, atol):
+def first_event(method, model, y0, y1, h, hp, mode, stuck, armed, K, ytmp, yout, rtol, atol):
     """The earliest event of the accepted step y0 -> y1 of size h [s]: (kind or -1, theta);
     its state is left in ``yout`` (K[0] = f(y0) is kept)."""
     w_ref = y0[YH_W] if y0[YH_W] != 0.0 else y1[YH_W]  # a spin leaving zero: the way it went
@@ -200,18 +200,18 @@ def first_event(method, y0, y1, h, hp, mode, stuck, armed, K, ytmp, yout, rtol, 
     best = -1
     best_th = 2.0
     for kind in range(N_EVENTS):
-        g0 = event_value(kind, y0, hp, mode, stuck, armed, ref)
+        g0 = event_value(model, kind, y0, hp, mode, stuck, armed, ref)
         if g0 == -math.inf:
             continue
-        g1 = event_value(kind, y1, hp, mode, stuck, armed, ref)
+        g1 = event_value(model, kind, y1, hp, mode, stuck, armed, ref)
         if fired(kind, g0, g1):
-            th = locate(method, kind, y0, h, hp, mode, stuck, armed, ref, K, ytmp, ytmp,
+            th = locate(method, model, kind, y0, h, hp, mode, stuck, armed, ref, K, ytmp, ytmp,
                         rtol, atol, g0, g1)  # fmt: skip
             if th < best_th:
                 best = kind
                 best_th = th
     if best >= 0:
-        hybrid_attempt(method, y0, best_th * h, hp, mode, stuck, K, ytmp, yout, rtol, atol)
+        hybrid_attempt(method, model, y0, best_th * h, hp, mode, stuck, K, ytmp, yout, rtol, atol)
     return best, best_th
 
 
@@ -221,8 +221,8 @@ SEG_FAILED = 101
 
 
 @kernel
-def segment(method, y, hp, mode, stuck, armed, t, t_end, rtol, atol, max_steps, K, ytmp, ynew,
-            yev):  # fmt: skip
+def segment(method, model, y, hp, mode, stuck, armed, t, t_end, rtol, atol, max_steps, K, ytmp,
+            ynew, yev):  # fmt: skip
     """Integrate the hybrid state y in ``mode`` from t [s] to its first event or t_end.
 
     Returns (end: an event kind, :data:`SEG_TIME` or :data:`SEG_FAILED`; t [s]; attempts;
@@ -230,21 +230,21 @@ def segment(method, y, hp, mode, stuck, armed, t, t_end, rtol, atol, max_steps, 
     ns = tableau(method)[5]
     ctl = step_controller(method)
     n = y.shape[0]
-    h = first_step(y, hp, mode, stuck, K, rtol, atol)
+    h = first_step(model, y, hp, mode, stuck, K, rtol, atol)
     err_old = 1e-4
     rejected = False
     steps = 0
     t0 = t
     while True:
-        st, h_try, h, err_old, rejected, steps = advance(method, y, t, t_end, h, hp, mode, stuck,
-                                                         armed, K, ytmp, ynew, rtol, atol, ctl,
-                                                         err_old, rejected, steps,
+        st, h_try, h, err_old, rejected, steps = advance(method, model, y, t, t_end, h, hp, mode,
+                                                         stuck, armed, K, ytmp, ynew, rtol, atol,
+                                                         ctl, err_old, rejected, steps,
                                                          max_steps)  # fmt: skip
         if st == ADV_REACHED:
             return SEG_TIME, t, steps, t - t0, armed
         if st != ADV_OK:
             return SEG_FAILED, t, steps, t - t0, armed
-        kind, th = first_event(method, y, ynew, h_try, hp, mode, stuck, armed, K, ytmp, yev,
+        kind, th = first_event(method, model, y, ynew, h_try, hp, mode, stuck, armed, K, ytmp, yev,
                                rtol, atol)  # fmt: skip
         if kind < 0 and mode == MODE_SLIDING and armed & ARMED_ROLL and stalled(y, ynew, K, hp):
             kind = EV_STICK  # the slip is as near zero as the steps can follow it

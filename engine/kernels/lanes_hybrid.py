@@ -148,7 +148,7 @@ def _stretch_ended(method, effects, l, status, t_run, yv, rtol, max_steps, st, r
 
 
 @kernel
-def _lane_story(method, effects, spin, l, rtol, t_horizon, max_steps, st, runs, sc, out):
+def _lane_story(method, effects, model, spin, l, rtol, t_horizon, max_steps, st, runs, sc, out):
     """Go on with lane l's story in scalar code (:func:`.hybrid.hybrid_fate_of`'s loop) until a
     rolling stretch runs on the lanes (returns True) or the story ends (its point written into
     ``out``, :mod:`.lanes_fate`'s ``OUT_*`` tuple; the lane idle: False). ``sc``: the
@@ -165,7 +165,8 @@ def _lane_story(method, effects, spin, l, rtol, t_horizon, max_steps, st, runs, 
     while hi[HI_FATE] < 0:
         if story_runs_out(max_steps, hi):
             break
-        stretch_start(p, y, st[ST_LHP][l], t_horizon, hs, hi, hev_t, hev_kind, hev_y)  # as scalar
+        stretch_start(model, p, y, st[ST_LHP][l], t_horizon, hs, hi, hev_t, hev_kind,
+                      hev_y)  # as the scalar kernel  # fmt: skip
         if hi[HI_FATE] >= 0:
             break
         if hi[HI_MODE] == MODE_ROLLING and spin == 0:
@@ -190,10 +191,10 @@ def _lane_story(method, effects, spin, l, rtol, t_horizon, max_steps, st, runs, 
                               sc[SC_AT]):  # fmt: skip
                 return True
             continue
-        hybrid_stretch(method, p, y, st[ST_LHP][l], rtol, st[ST_LHAT][l], t_horizon, max_steps,
-                       sc[SC_HK], hw[0], hw[1], hw[2], hs, hi, hev_t, hev_kind,
+        hybrid_stretch(method, model, p, y, st[ST_LHP][l], rtol, st[ST_LHAT][l], t_horizon,
+                       max_steps, sc[SC_HK], hw[0], hw[1], hw[2], hs, hi, hev_t, hev_kind,
                        hev_y)  # fmt: skip
-    fate = story_result(spin, p, y, st[ST_LY0][l], st[ST_LHP][l], hs, hi, st[ST_ROW])
+    fate = story_result(model, spin, p, y, st[ST_LY0][l], st[ST_LHP][l], hs, hi, st[ST_ROW])
     _store(out, I[l, ORBIT], fate, st[ST_ROW], hi[HI_STEPS])
     I[l, ORBIT] = -1
     W[ly.ACTIVE * L + l] = 0.0
@@ -202,7 +203,7 @@ def _lane_story(method, effects, spin, l, rtol, t_horizon, max_steps, st, runs, 
 
 
 @kernel
-def _lane_start(effects, spin, l, i, launch, params, mu_k, c_spin, rtol, st, I, out):
+def _lane_start(effects, model, spin, l, i, launch, params, mu_k, c_spin, rtol, st, I, out):
     """Begin launch i's story (``launch``: the ``L_*`` tuple of :mod:`.story_parts`) in lane l
     (:func:`.story_parts.story_begin`). Returns True when it goes on; False when its point is
     written (it ended at its start)."""
@@ -215,7 +216,7 @@ def _lane_start(effects, spin, l, i, launch, params, mu_k, c_spin, rtol, st, I, 
         row[j] = math.nan
     start = (launch[L_ENERGY][i], launch[L_H][i], launch[L_LZ][i], launch[L_R_START][i],
              launch[L_U0][i], launch[L_SLIP_U][i], launch[L_SLIP_V][i])  # fmt: skip
-    fate = story_begin(effects, spin, p, mu_k, c_spin, start, rtol, row, st[ST_LY0][l],
+    fate = story_begin(effects, model, spin, p, mu_k, c_spin, start, rtol, row, st[ST_LY0][l],
                        st[ST_LAT][l], st[ST_LHP][l], st[ST_LYH][l], st[ST_LHAT][l],
                        st[ST_LHS][l], st[ST_LHI][l])  # fmt: skip
     if fate >= 0:
@@ -226,7 +227,7 @@ def _lane_start(effects, spin, l, i, launch, params, mu_k, c_spin, rtol, st, I, 
 
 
 @kernel
-def lanes_hybrid_worker(method, effects, spin, launch, params, mu_k, c_spin, rtol, t_horizon,
+def lanes_hybrid_worker(method, effects, model, spin, launch, params, mu_k, c_spin, rtol, t_horizon,
                         max_steps, queue, out):  # fmt: skip
     """Follow launches (the ``L_*`` tuple of :mod:`.story_parts`) LANES at a time through their
     stories (:func:`.hybrid.hybrid_fate_of`), into ``out`` (the ``OUT_*`` tuple of
@@ -258,10 +259,10 @@ def lanes_hybrid_worker(method, effects, spin, launch, params, mu_k, c_spin, rto
                 i = fetch_add(queue, 1)
                 if i >= n_points:
                     break
-                if _lane_start(effects, spin, l, i, launch, params, mu_k, c_spin, rtol, st, I,
-                               out):  # fmt: skip
-                    _lane_story(method, effects, spin, l, rtol, t_horizon, max_steps, st, runs,
-                                sc, out)  # fmt: skip
+                if _lane_start(effects, model, spin, l, i, launch, params, mu_k, c_spin, rtol, st,
+                               I, out):  # fmt: skip
+                    _lane_story(method, effects, model, spin, l, rtol, t_horizon, max_steps, st,
+                                runs, sc, out)  # fmt: skip
             running += I[l, ORBIT] >= 0
         if running == 0:
             break
@@ -278,22 +279,24 @@ def lanes_hybrid_worker(method, effects, spin, launch, params, mu_k, c_spin, rto
             lane_params(method, effects, l, W, pw)
             if _stretch_ended(method, effects, l, status, t, yv, rtol, max_steps, st, runs, at):
                 continue
-            _lane_story(method, effects, spin, l, rtol, t_horizon, max_steps, st, runs, sc, out)
+            _lane_story(method, effects, model, spin, l, rtol, t_horizon, max_steps, st, runs, sc,
+                        out)  # fmt: skip
     # The owners live to here: the borrowed views above hold no reference of their own.
     owners[0][0] = owners[1][0] + owners[2][0]
 
 
 @parallel_kernel
-def hybrid_fate_points_lanes(launch, params, mu_k, c_spin, method, effects, spin, rtol, t_horizon,
-                             max_steps, n_workers, out_fate, out_f, out_n):  # fmt: skip
+def hybrid_fate_points_lanes(launch, params, mu_k, c_spin, method, effects, model, spin, rtol,
+                             t_horizon, max_steps, n_workers, out_fate, out_f, out_n):  # fmt: skip
     """:func:`.hybrid.hybrid_fate_points` for a Runge-Kutta ``method`` (literal, like
     ``effects`` and ``spin``), its results bit for bit: ``n_workers``
     :func:`lanes_hybrid_worker` (one per thread) taking launches from one queue."""
     literally(method)
     literally(effects)
+    literally(model)
     literally(spin)
     queue = np.zeros(1, np.int64)
     out = (out_fate, out_f, out_n)  # OUT_*
     for _ in prange(max(1, min(n_workers, launch[L_ALPHA].shape[0]))):
-        lanes_hybrid_worker(method, effects, spin, launch, params, mu_k, c_spin, rtol, t_horizon,
-                            max_steps, queue, out)  # fmt: skip
+        lanes_hybrid_worker(method, effects, model, spin, launch, params, mu_k, c_spin, rtol,
+                            t_horizon, max_steps, queue, out)  # fmt: skip

@@ -107,7 +107,9 @@ MODELS: tuple[Model, ...] = (
             ),
             (
                 "sliding contact",
-                "the sliding model (mu_k, c_spin) is written for the cone's meridian only",
+                "the whole story (rolling, sliding, rolling again) on a surface is not built "
+                "yet: the sliding equations take a surface's frame, but a story's start and its "
+                "rolling stretches still use the cone's invariants (E, h, L_z)",
             ),
         ),
     ),

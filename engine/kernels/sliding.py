@@ -2,12 +2,13 @@
 (docs/physics.md "Sliding, rolling again, and spin friction"), as numba kernels.
 
 The equations are written once for any surface of revolution (:func:`frame_rates`), in the
-meridian frame the model gives at the centre: the cone's (:func:`.cone.contact_frame`), the one
-model with sliding contact so far.
+meridian frame the model gives at the centre (:func:`.contact.contact_frame`: the cone's, a
+surface's). ``model`` (a literal model id, the first parameter of every kernel here that reads
+the frame) picks the model's frame at compile time.
 
 The hybrid state (length :data:`N_HYBRID`), the same in both modes::
 
-    r, theta, u, v          the centre on its cone (as in engine.kernels.model)
+    r, theta, u, v          the centre on its meridian (as in engine.kernels.model)
     p1, p2, w               a omega in (e1, e2, nu): the full angular velocity as speeds [m/s]
     W_rr, W_slide, W_spin   work done against rolling resistance, sliding friction and spin
                             friction [J]
@@ -26,9 +27,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import literally
 
 from .._jit import kernel
-from .cone import contact_frame, height_energy
+from .contact import contact_frame, height_energy
 from .layouts import P_CRR, P_K, P_M, P_MU
 from .model import N_PARAMS
 
@@ -82,8 +84,8 @@ def spin_hold(frame, u, v, p1, p2, kM):
 def frame_rates(frame, u, v, p1, p2, w, f1, f2, t1, t2, t3, M, kM):
     """(du/dt, dv/dt, dp1/dt, dp2/dt, dw/dt) of a sphere on any surface of revolution, in the
     frame (e1 along the centre's meridian, e2 along its parallel, nu from the contact to the
-    centre) that the model gives at the centre (``frame`` = :func:`.cone.contact_frame`'s:
-    dtheta/dt, N, g sin b, cos(b)/rho, kappa, sin(b)/rho), under the contact's friction
+    centre) that the model gives at the centre (``frame`` = :func:`.contact.contact_frame`'s:
+    dtheta/dt, N, g sin b, cos(b)/rho, kappa, sin(b)/rho, dr/ds), under the contact's friction
     (f1, f2) [N] and the couples (T1, T2, T3)/a [N] (docs/physics.md "Equations of motion
     while sliding"):
 
@@ -153,7 +155,7 @@ def clamp_pair(h1, h2, cap):
 
 
 @kernel
-def sliding_rates(r, u, v, p1, p2, w, stuck, hp):
+def sliding_rates(model, r, u, v, p1, p2, w, stuck, hp):
     """Rates of the hybrid state while sliding (module docstring; physics "Equations of motion
     while sliding"): (rdot, thetadot, udot, vdot, p1dot, p2dot, wdot, P_rr, P_slide, P_spin),
     the last three the powers [W] of the three dissipations (>= 0).
@@ -164,7 +166,7 @@ def sliding_rates(r, u, v, p1, p2, w, stuck, hp):
     "Rolling resistance while sliding")."""
     M = hp[P_M]
     kM = hp[P_K] * M
-    frame = contact_frame(r, u, v, hp)
+    frame = contact_frame(model, r, u, v, hp)
     N = frame[1]
     hold = spin_hold(frame, u, v, p1, p2, kM)
     t1, t2, t3 = couples(p1, p2, w, N, stuck, hold, hp)
@@ -201,7 +203,7 @@ def sliding_rates(r, u, v, p1, p2, w, stuck, hp):
     p_rr = hp[P_CRR] * N * math.sqrt(p1 * p1 + p2 * p2)
     p_slide = fk * sl
     p_spin = 0.0 if stuck else hp[H_C_SPIN] * N * abs(w)
-    return u, frame[0], udot, vdot, p1dot, p2dot, wdot, p_rr, p_slide, p_spin
+    return u * frame[6], frame[0], udot, vdot, p1dot, p2dot, wdot, p_rr, p_slide, p_spin
 
 
 @kernel
@@ -217,7 +219,7 @@ def rolling_rest_couple(udot, vdot, N, hp):
 
 
 @kernel
-def rolling_rates(r, u, v, w, stuck, hp):
+def rolling_rates(model, r, u, v, w, stuck, hp):
     """Rates of the hybrid state while rolling (p1 = -v, p2 = u kept): :func:`frame_rates`
     with the friction that keeps the slip zero eliminated, rolling resistance and the spin
     couple (which enters dw/dt only); with k' = k/(1+k)
@@ -228,7 +230,7 @@ def rolling_rates(r, u, v, w, stuck, hp):
     M = hp[P_M]
     k = hp[P_K]
     kk = k / (1.0 + k)
-    frame = contact_frame(r, u, v, hp)
+    frame = contact_frame(model, r, u, v, hp)
     N = frame[1]
     c = frame[3]
     kappa = frame[4]
@@ -244,28 +246,30 @@ def rolling_rates(r, u, v, w, stuck, hp):
     wdot = 0.0 if stuck else (kappa - kp) * u * v + t3 / (k * M)
     p_rr = hp[P_CRR] * N * math.sqrt(u * u + v * v)
     p_spin = 0.0 if stuck else hp[H_C_SPIN] * N * abs(w)
-    return u, frame[0], udot, vdot, -vdot, udot, wdot, p_rr, 0.0, p_spin
+    return u * frame[6], frame[0], udot, vdot, -vdot, udot, wdot, p_rr, 0.0, p_spin
 
 
 @kernel
-def hybrid_rhs(y, hp, mode, stuck, out):
+def hybrid_rhs(model, y, hp, mode, stuck, out):
     """dy/dt of the hybrid state in ``mode`` into ``out`` (length :data:`N_HYBRID`)."""
+    literally(model)  # (called from Python too: the tests)
     if mode == MODE_SLIDING:
-        d = sliding_rates(y[YH_R], y[YH_U], y[YH_V], y[YH_P1], y[YH_P2], y[YH_W], stuck, hp)
+        d = sliding_rates(model, y[YH_R], y[YH_U], y[YH_V], y[YH_P1], y[YH_P2], y[YH_W], stuck,
+                          hp)  # fmt: skip
     else:
-        d = rolling_rates(y[YH_R], y[YH_U], y[YH_V], y[YH_W], stuck, hp)
+        d = rolling_rates(model, y[YH_R], y[YH_U], y[YH_V], y[YH_W], stuck, hp)
     for j in range(N_HYBRID):
         out[j] = d[j]
 
 
 @kernel
-def hybrid_energy(r, u, v, p1, p2, w, hp):
-    """E [J] = M (u^2 + v^2)/2 + k M (p1^2 + p2^2 + w^2)/2 + M g r cos(alpha)."""
+def hybrid_energy(model, r, u, v, p1, p2, w, hp):
+    """E [J] = M (u^2 + v^2)/2 + k M (p1^2 + p2^2 + w^2)/2 + M g z (the model's height)."""
     M = hp[P_M]
     return (
         0.5 * M * (u * u + v * v)
         + 0.5 * hp[P_K] * M * (p1 * p1 + p2 * p2 + w * w)
-        + height_energy(r, hp)
+        + height_energy(model, r, hp)
     )
 
 
@@ -278,11 +282,11 @@ def slip_speed(y):
 
 
 @kernel
-def rolling_friction(y, hp):
+def rolling_friction(model, y, hp):
     """(f1, f2) [N]: the contact force that makes ds/dt = 0 in the state y, f = -k M D/(1+k)
     (with rolling resistance; spin friction does not enter), and N [N]."""
     r, u, v, p1, p2, w = y[YH_R], y[YH_U], y[YH_V], y[YH_P1], y[YH_P2], y[YH_W]
-    frame = contact_frame(r, u, v, hp)
+    frame = contact_frame(model, r, u, v, hp)
     N = frame[1]
     k = hp[P_K]
     kM = k * hp[P_M]
@@ -297,18 +301,18 @@ def rolling_friction(y, hp):
 
 
 @kernel
-def hold_margin(y, hp):
+def hold_margin(model, y, hp):
     """|f_roll| - mu N [N]: > 0 where static friction cannot hold the rolling motion."""
-    f1, f2, N = rolling_friction(y, hp)
+    f1, f2, N = rolling_friction(model, y, hp)
     return math.sqrt(f1 * f1 + f2 * f2) - hp[P_MU] * N
 
 
 @kernel
-def spin_hold_margin(y, hp):
+def spin_hold_margin(model, y, hp):
     """|couple that holds w = 0| - c_spin N (1 + :data:`SPIN_BAND`) [N] (> 0: the spin cannot
     stay stuck). The band keeps a spin whose needed couple grazes the limit from sticking and
     unsticking without end (docs/physics.md "Spin stick")."""
-    frame = contact_frame(y[YH_R], y[YH_U], y[YH_V], hp)
+    frame = contact_frame(model, y[YH_R], y[YH_U], y[YH_V], hp)
     cs = hp[H_C_SPIN] * frame[1]
     kM = hp[P_K] * hp[P_M]
     hold = spin_hold(frame, y[YH_U], y[YH_V], y[YH_P1], y[YH_P2], kM)

@@ -97,12 +97,12 @@ HYBRID_ROWS = ("fate_time", "fate_r", "fate_theta", "revolutions", "energy_lost"
 
 
 @kernel
-def mode_energy(y, hp, mode):
+def mode_energy(model, y, hp, mode):
     """E [J] of the hybrid state: the rolling formula while rolling (as a fate map computes
     it), the sliding one otherwise."""
     if mode == MODE_ROLLING:
         return rolling_invariants_of(y[YH_R], y[YH_U], y[YH_V], y[YH_W], hp)[0]
-    return hybrid_energy(y[YH_R], y[YH_U], y[YH_V], y[YH_P1], y[YH_P2], y[YH_W], hp)
+    return hybrid_energy(model, y[YH_R], y[YH_U], y[YH_V], y[YH_P1], y[YH_P2], y[YH_W], hp)
 
 
 #: Floats of a story's state (``hs``): its time [s], the time spent sliding [s], the energy at
@@ -116,7 +116,8 @@ N_HI = 8
 
 
 @kernel
-def story_begin(effects, spin, p, mu_k, c_spin, start, rtol, out, y0, atol, hp, y, hatol, hs, hi):
+def story_begin(effects, model, spin, p, mu_k, c_spin, start, rtol, out, y0, atol, hp, y, hatol, hs,
+                hi):  # fmt: skip
     """Set up the story of a launch (``start``: its radial energy [J], h [m/s], L_z, r_start
     [m], u0, slip_u and slip_v [m/s]; :func:`hybrid_fate_of`'s arguments): the rest threshold
     in p, the rolling start state y0 and its tolerances atol (length ``state_size(effects)``),
@@ -179,9 +180,9 @@ def story_begin(effects, spin, p, mu_k, c_spin, start, rtol, out, y0, atol, hp, 
         E0 = invariants(y0, p)[0]
         scale = max(abs(E0), kinetic_energy(y0, p))
     else:
-        E0 = hybrid_energy(y[YH_R], y[YH_U], y[YH_V], y[YH_P1], y[YH_P2], y[YH_W], hp)
-        scale = max(abs(E0), E0 - hybrid_energy(y[YH_R], 0.0, 0.0, 0.0, 0.0, 0.0, hp))
-    stuck = spin == 1 and y[YH_W] == 0.0 and spin_hold_margin(y, hp) <= 0.0
+        E0 = hybrid_energy(model, y[YH_R], y[YH_U], y[YH_V], y[YH_P1], y[YH_P2], y[YH_W], hp)
+        scale = max(abs(E0), E0 - hybrid_energy(model, y[YH_R], 0.0, 0.0, 0.0, 0.0, 0.0, hp))
+    stuck = spin == 1 and y[YH_W] == 0.0 and spin_hold_margin(model, y, hp) <= 0.0
     hi[HI_MODE] = mode
     hi[HI_EPISODES] = 1 if mode == MODE_SLIDING else 0
     hi[HI_STUCK] = 1 if stuck else 0
@@ -283,14 +284,14 @@ def rolled(effects, f, dt, yr, st, y, hs, hi, ev_t, ev_kind, ev_y):
 
 
 @kernel
-def hybrid_stretch(method, p, y, hp, rtol, hatol, t_horizon, max_steps, K, ytmp, ynew, yev, hs,
-                   hi, ev_t, ev_kind, ev_y):  # fmt: skip
+def hybrid_stretch(method, model, p, y, hp, rtol, hatol, t_horizon, max_steps, K, ytmp, ynew, yev,
+                   hs, hi, ev_t, ev_kind, ev_y):  # fmt: skip
     """One segment of the story on the hybrid steps (sliding, or rolling with spin friction:
     :func:`.hybrid_step.segment`) and the switch at its end; the story's fate where it ends."""
     mode = hi[HI_MODE]
     stuck = hi[HI_STUCK] != 0
-    end, t, st, dt, armed = segment(method, y, hp, mode, stuck, hi[HI_ARMED], hs[HS_T], t_horizon,
-                                    rtol, hatol, max_steps - hi[HI_STEPS], K, ytmp, ynew,
+    end, t, st, dt, armed = segment(method, model, y, hp, mode, stuck, hi[HI_ARMED], hs[HS_T],
+                                    t_horizon, rtol, hatol, max_steps - hi[HI_STEPS], K, ytmp, ynew,
                                     yev)  # fmt: skip
     hs[HS_T] = t
     hi[HI_ARMED] = armed
@@ -316,7 +317,7 @@ def hybrid_stretch(method, p, y, hp, rtol, hatol, t_horizon, max_steps, K, ytmp,
         stick(yt, hp)
         speed = math.sqrt(yt[YH_U] * yt[YH_U] + yt[YH_V] * yt[YH_V])
         stops = hp[P_CRR] > 0.0 and holds_at_rest(p) and speed <= hp[P_V_REST]
-        if stops or hold_margin(yt, hp) <= 0.0:
+        if stops or hold_margin(model, yt, hp) <= 0.0:
             stick(y, hp)
             hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_STICK, y)
             hi[HI_MODE] = MODE_ROLLING
@@ -348,7 +349,7 @@ def hybrid_stretch(method, p, y, hp, rtol, hatol, t_horizon, max_steps, K, ytmp,
     elif end == EV_SPIN_STOP:  # |w| down to the threshold: the rest of it to spin friction
         y[YH_WORK_SPIN] += 0.5 * hp[P_K] * hp[P_M] * y[YH_W] * y[YH_W]
         y[YH_W] = 0.0
-        hi[HI_STUCK] = 1 if spin_hold_margin(y, hp) <= 0.0 else 0
+        hi[HI_STUCK] = 1 if spin_hold_margin(model, y, hp) <= 0.0 else 0
         hi[HI_ARMED] &= ARMED_ROLL | ARMED_ROT
     elif end == EV_SPIN_GO:
         hi[HI_STUCK] = 0
@@ -357,7 +358,7 @@ def hybrid_stretch(method, p, y, hp, rtol, hatol, t_horizon, max_steps, K, ytmp,
 
 
 @kernel
-def story_result(spin, p, y, y0, hp, hs, hi, out):
+def story_result(model, spin, p, y, y0, hp, hs, hi, out):
     """The rows :data:`HYBRID_ROWS` of the ended story into ``out``; returns its fate."""
     mode = hi[HI_MODE]
     episodes = hi[HI_EPISODES]
@@ -368,7 +369,7 @@ def story_result(spin, p, y, y0, hp, hs, hi, out):
         fe = math.nan
         fh = math.nan
         fl = math.nan
-    E1 = mode_energy(y, hp, mode)
+    E1 = mode_energy(model, y, hp, mode)
     if mode == MODE_ROLLING and episodes == 0 and spin == 0:
         yr = y0.copy()
         yr[Y_R] = y[YH_R]

@@ -69,7 +69,7 @@ def _push_slip(t, y, hi, ev_t, ev_kind, ev_y):
 
 
 @kernel
-def story_rest(p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y):
+def story_rest(model, p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y):
     """The centre's stop by rolling resistance (rolling at most at the rest threshold: the rest
     event, or a stretch that starts there) and what follows it (docs/physics.md "Rest").
 
@@ -87,11 +87,11 @@ def story_rest(p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y):
     v = y[YH_V]
     speed = math.sqrt(u * u + v * v)
     if speed > 0.0:
-        d = rolling_rates(y[YH_R], u, v, y[YH_W], stuck, hp)
+        d = rolling_rates(model, y[YH_R], u, v, y[YH_W], stuck, hp)
         decel = -(u * d[YH_U] + v * d[YH_V]) / speed
         dt = speed / decel if decel > 0.0 else 0.0
         half = 0.5 * dt
-        e_moving = mode_energy(y, hp, MODE_ROLLING)
+        e_moving = mode_energy(model, y, hp, MODE_ROLLING)
         y[YH_R] += u * half
         y[YH_THETA] += d[YH_THETA] * half
         y[YH_W] += d[YH_W] * half
@@ -101,14 +101,14 @@ def story_rest(p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y):
         y[YH_V] = 0.0
         y[YH_P1] = 0.0
         y[YH_P2] = 0.0
-        y[YH_WORK_RR] += e_moving - mode_energy(y, hp, MODE_ROLLING) - w_spin
+        y[YH_WORK_RR] += e_moving - mode_energy(model, y, hp, MODE_ROLLING) - w_spin
         hs[HS_T] += dt
     t = hs[HS_T]
     if not holds_at_rest(p):  # it starts again from rest
         hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_REST, y)
         hi[HI_RESTARTS] += 1
         return
-    if hold_margin(y, hp) > 0.0:  # friction cannot hold it at rest: the whole slope's pull
+    if hold_margin(model, y, hp) > 0.0:  # friction cannot hold it at rest: the whole slope's pull
         _push_slip(t, y, hi, ev_t, ev_kind, ev_y)
         return
     hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_REST, y)
@@ -139,7 +139,7 @@ def story_rest(p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y):
 
 
 @kernel
-def stretch_start(p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y):
+def stretch_start(model, p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y):
     """Transitions decided on the state at the start of a stretch, before it runs (the events
     of a stretch fire on crossings within its steps; docs/physics.md "Where the run goes"):
     rolling with rolling resistance within the rest threshold is the stop (:func:`story_rest`;
@@ -152,11 +152,11 @@ def stretch_start(p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y):
     if hi[HI_MODE] == MODE_ROLLING:
         speed = math.sqrt(y[YH_U] * y[YH_U] + y[YH_V] * y[YH_V])
         if hp[P_CRR] > 0.0 and speed <= hp[P_V_REST] and (speed > 0.0 or holds_at_rest(p)):
-            story_rest(p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y)
+            story_rest(model, p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y)
             return
-        if hp[P_MU] < math.inf and hold_margin(y, hp) > 0.0:
+        if hp[P_MU] < math.inf and hold_margin(model, y, hp) > 0.0:
             _push_slip(t, y, hi, ev_t, ev_kind, ev_y)
-    if hi[HI_STUCK] != 0 and spin_hold_margin(y, hp) > 0.0:
+    if hi[HI_STUCK] != 0 and spin_hold_margin(model, y, hp) > 0.0:
         hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_SPIN_GO, y)
         hi[HI_STUCK] = 0
         release_spin(y, hp)

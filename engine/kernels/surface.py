@@ -75,6 +75,24 @@ def normal_force(q, u, v, p):
 
 
 @kernel
+def contact_frame(q, u, v, p):
+    """The meridian frame at the centre's q for the hybrid model (:func:`.contact.contact_frame`):
+    (dtheta/dt [rad/s], N [N], g sin b [m s-2], cos(b)/rho, kappa, sin(b)/rho [1/m],
+    dq/ds = 1/sigma)."""
+    rho, z, cb, sb, kappa, sigma, fit = centre(p, q)
+    irho = 1.0 / rho
+    sbr = sb * irho
+    N = p[P_M] * (p[P_G] * cb + sbr * v * v + kappa * u * u)
+    return v * irho, N, p[P_G] * sb, cb * irho, kappa, sbr, 1.0 / sigma
+
+
+@kernel
+def height_energy(q, p):
+    """M g z [J] of the centre at q (z of the centre's meridian, :func:`.meridian.centre`)."""
+    return p[P_M] * p[P_G] * centre(p, q)[1]
+
+
+@kernel
 def lift_margin(y, p):
     """Event function of lift-off: -N [N] (>= 0: the sphere leaves the surface)."""
     return -normal_force(y[Y_R], y[Y_U], y[Y_V], p)

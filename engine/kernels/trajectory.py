@@ -45,7 +45,7 @@ def _record(tr_t, tr_y, tr_mode, n, t, y, mode):
 
 
 @kernel
-def trace_stretches(method, hp, seg_t0, seg_t1, seg_y, seg_mode, seg_stuck, seg_keep, rtol,
+def trace_stretches(method, model, hp, seg_t0, seg_t1, seg_y, seg_mode, seg_stuck, seg_keep, rtol,
                     atol, dt_out, max_steps, tr_t, tr_y, tr_mode):  # fmt: skip
     """Integrate stretch i from (seg_t0[i], seg_y[i]) to seg_t1[i] [s] in mode seg_mode[i]
     (spin stuck: seg_stuck[i]), recording each stretch's start, then every accepted step
@@ -58,6 +58,7 @@ def trace_stretches(method, hp, seg_t0, seg_t1, seg_y, seg_mode, seg_stuck, seg_
     is lost by calling again with larger ones) or the failure's status (step budget, step-size
     underflow, a non-finite state); samples recorded; step attempts)."""
     literally(method)
+    literally(model)
     ns = tableau(method)[5]
     S = tableau(method)[6]
     ctl = step_controller(method)
@@ -79,7 +80,7 @@ def trace_stretches(method, hp, seg_t0, seg_t1, seg_y, seg_mode, seg_stuck, seg_
         n_rec = _record(tr_t, tr_y, tr_mode, n_rec, t, y, mode)
         if not t1 > t:
             continue
-        h = first_step(y, hp, mode, stuck, K, rtol, atol)
+        h = first_step(model, y, hp, mode, stuck, K, rtol, atol)
         err_old = 1e-4
         rejected = False
         ts = math.inf
@@ -88,7 +89,7 @@ def trace_stretches(method, hp, seg_t0, seg_t1, seg_y, seg_mode, seg_stuck, seg_
         while True:
             target = min(t1, ts)
             st, h_try, h_next, err_old, rejected, steps = advance(
-                method, y, t, target, h, hp, mode, stuck, armed, K, ytmp, ynew, rtol, atol,
+                method, model, y, t, target, h, hp, mode, stuck, armed, K, ytmp, ynew, rtol, atol,
                 ctl, err_old, rejected, steps, max_steps)  # fmt: skip
             if st == ADV_REACHED:  # a sample within rounding of t
                 t = target

@@ -7,9 +7,11 @@ import math
 
 import numpy as np
 import pytest
+from newton_euler import newton_euler as _newton_euler
 from scipy.integrate import solve_ivp
 
 from engine.kernels import cone, layouts, model
+from engine.kernels.model import CONE
 from engine.kernels.sliding import (
     MODE_ROLLING,
     MODE_SLIDING,
@@ -60,7 +62,7 @@ def test_sliding_energy_balance_on_random_states(stuck):
         y[2:7] = rng.uniform(-3.0, 3.0, 5)
         if stuck:
             y[6] = 0.0
-        d = sliding_rates.py_func(y[0], y[2], y[3], y[4], y[5], y[6], stuck, hp)
+        d = sliding_rates.py_func(CONE, y[0], y[2], y[3], y[4], y[5], y[6], stuck, hp)
         powers = _powers(hp, y, mu_k, c_rr, c_spin, stuck)
         dE = _energy_rate(hp, y, d)
         scale = hp[layouts.P_M] * (9.81 * y[0] + np.sum(y[2:7] ** 2)) / y[0] + sum(powers)
@@ -78,7 +80,7 @@ def test_rolling_mode_is_the_rolling_model_plus_spin_couple():
         hp = _hp(alpha, c_rr=c_rr, c_spin=c_spin)
         p = hp[: model.N_PARAMS]
         r, u, v, w = rng.uniform(0.05, 5.0), *rng.uniform(-3, 3, 3)
-        d = rolling_rates.py_func(r, u, v, w, False, hp)
+        d = rolling_rates.py_func(CONE, r, u, v, w, False, hp)
         ref = cone.motion_rates.py_func(r, u, v, w, p, model.ROLLING_RESISTANCE)
         N = hp[layouts.P_M] * (9.81 * math.sin(alpha) + v * v / (r * math.tan(alpha)))
         spin = -c_spin * N * math.copysign(1.0, w) / (0.4 * hp[layouts.P_M])
@@ -109,7 +111,7 @@ def _slide_on_flat(u0, p2_0, k, mu_k):
     out = np.empty(N_HYBRID)
 
     def f(t, y):
-        hybrid_rhs(y, hp, MODE_SLIDING, False, out)
+        hybrid_rhs(CONE, y, hp, MODE_SLIDING, False, out)
         return out.copy()
 
     def stop(t, y):
@@ -148,7 +150,7 @@ def test_spin_friction_alone_stops_the_spin():
     out = np.empty(N_HYBRID)
 
     def f(t, y):
-        hybrid_rhs(y, hp, MODE_ROLLING, False, out)
+        hybrid_rhs(CONE, y, hp, MODE_ROLLING, False, out)
         return out.copy()
 
     def stop(t, y):
@@ -173,38 +175,6 @@ MERIDIANS = {
                           0.6 - 1.2 * t),
 }  # fmt: skip
 SPOTS = {"bowl": (0.2, 1.3), "funnel": (0.3, 2.0), "profile": (0.2, 1.4)}
-
-
-def _newton_euler(meridian, t, theta, u, v, P, f, T, M, k, g, a):
-    """The rates (du/dt, dv/dt, dp1/dt, dp2/dt, dw/dt) and N of a sphere whose centre moves on
-    the surface of revolution of ``meridian`` at (t, theta) with speeds (u, v) along (e1, e2),
-    angular velocity a omega = P (fixed frame), under gravity, the contact force f (fixed
-    frame) plus N nu, and the couple a T: Newton for the centre with its constraint to the
-    surface solved as a 3x3 linear system, Euler about the centre, the frame's turning by the
-    derivatives of its vectors. No formula of the engine is used."""
-    rho, z, rt, zt, rtt, ztt = meridian(t)
-    c, s = math.cos(theta), math.sin(theta)
-    sig = math.hypot(rt, zt)
-    X_t = np.array([rt * c, rt * s, zt])
-    X_th = np.array([-rho * s, rho * c, 0.0])
-    X_tt = np.array([rtt * c, rtt * s, ztt])
-    X_tth = np.array([-rt * s, rt * c, 0.0])
-    X_thth = np.array([-rho * c, -rho * s, 0.0])
-    e1, e2 = X_t / sig, np.array([-s, c, 0.0])
-    nu = np.cross(e1, e2)
-    td, thd = u / sig, v / rho
-    known = M * (X_tt * td * td + 2.0 * X_tth * td * thd + X_thth * thd * thd)
-    rhs = np.array([0.0, 0.0, -M * g]) + f - known
-    tdd, thdd, N = np.linalg.solve(np.column_stack([M * X_t, M * X_th, -nu]), rhs)
-    sig_t = (rt * rtt + zt * ztt) / sig
-    udot = sig_t * td * td + sig * tdd
-    vdot = rt * td * thd + rho * thdd
-    Pdot = (np.cross(-a * nu, f) + a * T) / (k * M * a)  # a domega/dt
-    e1dot = (X_tt * sig - X_t * sig_t) / sig**2 * td + X_tth / sig * thd
-    e2dot = np.array([-c, -s, 0.0]) * thd
-    nudot = np.cross(e1dot, e2) + np.cross(e1, e2dot)
-    rates = (udot, vdot, Pdot @ e1 + P @ e1dot, Pdot @ e2 + P @ e2dot, Pdot @ nu + P @ nudot)
-    return rates, N, (e1, e2, nu)
 
 
 @pytest.mark.parametrize("name", sorted(MERIDIANS))
@@ -258,9 +228,10 @@ def test_the_cones_frame_is_its_meridian_seen_as_any_surface():
         hp = _hp(alpha, M=M, k=k, g=g, mu_k=0.0)
         r, u, v = rng.uniform(0.05, 3.0), *rng.uniform(-2.0, 2.0, 2)
         sa, ca = math.sin(alpha), math.cos(alpha)
-        thd, N, gt, c, kappa, kp = cone.contact_frame.py_func(r, u, v, hp)
+        thd, N, gt, c, kappa, kp, drds = cone.contact_frame.py_func(r, u, v, hp)
         assert (thd, c, kappa) == pytest.approx((v / (r * sa), 1.0 / r, 0.0), rel=1e-14)
         assert (gt, kp) == pytest.approx((g * ca, ca / (sa * r)), rel=1e-14)
+        assert drds == 1.0  # r is the arc length
         line = _straight(sa, ca)
         _, N_want, _ = _newton_euler(line, r, 0.4, u, v, np.zeros(3), np.zeros(3),
                                      np.zeros(3), M, k, g, 0.02)  # fmt: skip
