@@ -23,7 +23,7 @@ from .kernels.hybrid import (
 )
 from .kernels.lanes_hybrid import hybrid_fate_points_lanes
 from .kernels.layouts import P_THETA_MAX
-from .kernels.model import model_of_key
+from .kernels.model import CONE, model_of_key, scene_key
 from .kernels.protocol import LITERAL as RUN_LITERAL
 from .kernels.sliding import HYBRID_STATE  # the components of an event's ``state``
 from .scene import Scene
@@ -40,16 +40,19 @@ LITERAL = (*RUN_LITERAL, "model", "spin")
 MAX_STEPS = 10_000_000
 
 
-def hybrid_setup(scene: Scene, theta_max: float) -> tuple[np.ndarray, int, int]:
+def hybrid_setup(
+    scene: Scene, theta_max: float, params: np.ndarray | None = None, model: int = CONE
+) -> tuple[np.ndarray, int, int]:
     """(params, the rolling scene's literal effects, the spin literal) of a hybrid run of
-    ``scene`` with the horizon ``theta_max`` [rad] (inf: none)."""
+    ``scene`` with the horizon ``theta_max`` [rad] (inf: none), on the cone or on the model
+    ``model`` with its parameter array ``params``."""
     check_scene(scene, sliding=True)
-    params = scene.params()
+    params = scene.params() if params is None else params
     params[P_THETA_MAX] = theta_max
     effects = (scene.effects_mask & ROLLING_EFFECTS) | (
         REVOLUTIONS if math.isfinite(theta_max) else 0
     )
-    return params, effects, 1 if scene.c_spin > 0 else 0
+    return params, scene_key(model, effects), 1 if scene.c_spin > 0 else 0
 
 
 def whole_story(
@@ -58,16 +61,14 @@ def whole_story(
     effects: int,
     spin: int,
     scene: Scene,
-    energy: float,
-    h: float,
-    Lz: float,
-    launch: tuple[float, float, float, float],
+    start: tuple[float, ...],
     rtol: float,
     t_horizon: float,
     max_steps: int = MAX_STEPS,
     capacity: int = 64,
 ) -> tuple:
-    """:func:`.kernels.hybrid.hybrid_story` of one launch (``launch`` = (r_start, u0, slip_u,
+    """:func:`.kernels.hybrid.hybrid_story` of one launch (``start``: the model's launch tuple,
+    :func:`.kernels.contact.story_start`; the cone's (calE, h, L_z, r_start, u0, slip_u,
     slip_v)) with every event and mark it records: a story with more than ``capacity`` of them
     counts them all (kernels/protocol ``push_event``) and is told again with room for that
     count (the story is deterministic: the same events again). Returns the kernel's tuple
@@ -75,9 +76,8 @@ def whole_story(
     cap = max(int(capacity), 1)
     while True:
         res = hybrid_story(method_id, effects, model_of_key(effects), spin, params,
-                           float(scene.mu_k), float(scene.c_spin), float(energy), float(h),
-                           float(Lz), *map(float, launch), float(rtol), float(t_horizon),
-                           int(max_steps), cap)  # fmt: skip
+                           float(scene.mu_k), float(scene.c_spin), *map(float, start),
+                           float(rtol), float(t_horizon), int(max_steps), cap)  # fmt: skip
         if res[3] <= cap:
             break
         cap = int(res[3])

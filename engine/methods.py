@@ -103,12 +103,17 @@ class Method:
         refused = dict(self.refuses)
         return [e for e in scene.effects if e in refused]
 
-    def model_refusals(self, model: Model, scene: Scene | None = None) -> list[str]:
+    def model_refusals(
+        self, model: Model, scene: Scene | None = None, story: bool = False
+    ) -> list[str]:
         """Why this method cannot serve ``model`` (with ``scene``'s effects): the model's
-        reasons for lacking what the method (or the scene's sliding contact) needs."""
+        reasons for lacking what the method (or the scene's sliding contact) needs; a sliding
+        scene needs "sliding maps" too unless it is one launch's ``story``."""
         needs = list(self.model_needs)
         if scene is not None and any("sliding contact" in BY_NAME[e].needs for e in scene.effects):
             needs.append("sliding contact")
+            if not story:
+                needs.append("sliding maps")
         lacks = dict(model.lacks)
         return [f"{need}: {lacks[need]}" for need in needs if need in lacks]
 
@@ -187,12 +192,14 @@ def check_kernel_ids(methods: dict[str, Method]) -> None:
 check_kernel_ids(METHODS)
 
 
-def check_model(method: Method, model: Model, scene: Scene | None = None) -> None:
-    """Refuse (ValueError) a method that cannot serve ``model``, with the model's reasons and
-    the methods that can."""
-    why = method.model_refusals(model, scene)
+def check_model(
+    method: Method, model: Model, scene: Scene | None = None, story: bool = False
+) -> None:
+    """Refuse (ValueError) a method that cannot serve ``model`` (in one launch's ``story``, or
+    a map), with the model's reasons and the methods that can."""
+    why = method.model_refusals(model, scene, story)
     if why:
-        able = [m.name for m in METHODS.values() if not m.model_refusals(model, scene)]
+        able = [m.name for m in METHODS.values() if not m.model_refusals(model, scene, story)]
         raise ValueError(
             f"method {method.name!r} cannot serve the {model.name} model ({'; '.join(why)}); "
             f"methods that can: {', '.join(able) or 'none'}"

@@ -170,8 +170,8 @@ def hybrid_trajectory(
     """The trajectory of :func:`engine.simulate` on a scene with ``mu_k`` (validated inputs)."""
     params, effects, spin = hybrid_setup(scene, math.inf)
     set_alpha(params, alpha)
-    res = whole_story(method_id, params, effects, spin, scene, energy, h, Lz,
-                      (r0, u0, slip_u, slip_v), rtol, t_end, max_steps)  # fmt: skip
+    res = whole_story(method_id, params, effects, spin, scene,
+                      (energy, h, Lz, r0, u0, slip_u, slip_v), rtol, t_end, max_steps)  # fmt: skip
     fate_id, f, story_steps, n_ev, ev_t, ev_kind, ev_y = res
     fate = HYBRID_FATE_NAMES[fate_id]
     if fate == "no_orbit":

@@ -182,10 +182,23 @@ def height_energy(r, p):
 
 
 @kernel
-def rest_spin_rate(c_spin, p):
-    """|dw/dt| [m s-2] of a sphere at rest spinning against spin friction, c_spin N/(k M) with
-    N = M g sin(alpha)."""
+def rest_spin_rate(c_spin, r, p):
+    """|dw/dt| [m s-2] of a sphere at rest (anywhere on the cone: r is not needed) spinning
+    against spin friction, c_spin N/(k M) with N = M g sin(alpha)."""
     return c_spin * p[P_G] * p[P_SIN] / p[P_K]
+
+
+@kernel
+def rolling_orbit(r, u, v, w, p):
+    """(calE [J], h [m/s], L_z) of the rolling state (r, u, v, w): the orbit a story reports."""
+    E, Lz, h = rolling_invariants_of(r, u, v, w, p)
+    return radial_energy(E, h, p[P_M], p[P_K]), h, Lz
+
+
+@kernel
+def rolling_energy(r, u, v, w, p):
+    """E [J] of the rolling state (r, u, v, w)."""
+    return rolling_invariants_of(r, u, v, w, p)[0]
 
 
 #: Inside a cone N = M (g sin(alpha) + kappa v^2) > 0 (:func:`normal_force`): the sphere never

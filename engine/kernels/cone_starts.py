@@ -9,9 +9,11 @@ map (the radius it starts from at rest radially: its r_min, or a launch's radius
   of each component on the orbit (its absolute tolerances);
 - :func:`period_start` where a one-period run starts (its r_min), :func:`fate_start` where a
   fate run does (the rim, the vertex region, a radial orbit's way out of it);
-- :func:`holds_at_rest` whether rolling resistance holds a sphere at rest on this slope.
+- :func:`holds_at_rest` whether rolling resistance holds a sphere at rest on this slope;
+- :func:`story_start` and :func:`resume_rolling`: a story's rolling start from its launch, and
+  a rolling stretch's after a slip (the hybrid model's, :mod:`.contact`).
 
-The drivers call these through the model interface (:mod:`.model`).
+The drivers call these through the model interface (:mod:`.model`, :mod:`.contact`).
 """
 
 from __future__ import annotations
@@ -28,7 +30,9 @@ from .cone import (
     P_GC,
     P_SIN,
     coefficients,
+    invariants,
     motion_rates,
+    radial_energy,
     set_alpha,
 )
 from .effects import DISSIPATIVE, EFFECT_BITS
@@ -192,6 +196,62 @@ def fate_start(effects, p, X, i, rtol):
     p[P_V_REST] = REST_SPEED * rtol * max(sc[Y_U], abs(y0[Y_V]))
     atol = sc * rtol
     return RUNS, math.nan, y0, t0, work0, atol, orbit
+
+
+@kernel
+def story_start(effects, p, start, rtol, out, y0, atol):
+    """A story's rolling start (:func:`.contact.story_start`): ``start`` = (calE [J], h [m/s],
+    L_z, r_start [m], u0, slip_u, slip_v [m/s]); y0 on the orbit at r_start with radial speed
+    u0, its tolerances, the rest threshold in p (from the orbit's speeds and the slip's).
+    Returns (fate or -1, the energy scale [J] (the orbit's calE with u0's part), the speed
+    scale [m/s], the orbit (calE, h, L_z)); a start in the vertex region that does not leave
+    it ends there (its floats in ``out``)."""
+    energy, h, Lz, r_start, u0, slip_u, slip_v = start
+    orbit = (energy, h, Lz)
+    if not (r_start >= 0.0 and math.isfinite(energy) and math.isfinite(Lz)):
+        return NO_ORBIT, 0.0, 0.0, orbit
+    if r_start > p[P_RIM]:  # beyond the rim, as a fate map says
+        return NO_ORBIT, 0.0, 0.0, orbit
+    e_true = energy + 0.5 * p[P_M] * u0 * u0
+    ok, r1, r2, rc = orbit_start(p, e_true, h, Lz)
+    if not ok:
+        r1 = r_start
+        r2 = math.inf
+    yi = initial_state(p, effects, r_start, e_true, h, Lz)
+    yi[Y_U] = u0
+    if r_start <= p[P_R_VERTEX]:  # in the vertex region: it ends there unless it leaves it
+        leaves = u0 > 0.0 or (u0 == 0.0 and motion_rates(yi[Y_R], 0.0, yi[Y_V], yi[Y_W], p,
+                                                         effects)[2] > 0.0)  # fmt: skip
+        if r_start == 0.0 or not leaves:
+            out[0] = 0.0
+            out[1] = r_start
+            for j in range(2, 6):
+                out[j] = 0.0
+            return FATE_VERTEX, 0.0, 0.0, orbit
+    for j in range(yi.shape[0]):
+        y0[j] = yi[j]
+    sc = tolerance_scales(p, effects, y0, e_true, h, Lz, min(r1, r_start), r2, rc)
+    p[P_V_REST] = REST_SPEED * rtol * max(max(sc[Y_U], abs(y0[Y_V])), max(abs(slip_u), abs(slip_v)))
+    for j in range(y0.shape[0]):
+        atol[j] = sc[j] * rtol
+    vel = max(max(sc[Y_U], sc[Y_V]), max(sc[Y_W], max(abs(slip_u), abs(slip_v))))
+    return -1, e_true, vel, orbit
+
+
+@kernel
+def resume_rolling(effects, p, yr, rtol, ra):
+    """A rolling stretch from yr (after a slip; :func:`.contact.resume_rolling`): its orbit
+    (calE, h, L_z) from yr's invariants, its tolerances into ra from that orbit's scales."""
+    E1, Lz1, h1 = invariants(yr, p)
+    e1 = radial_energy(E1, h1, p[P_M], p[P_K])
+    ok1, q1, q2, qc = orbit_start(p, e1, h1, Lz1)
+    if not ok1:
+        q1 = yr[Y_R]
+        q2 = math.inf
+    sc = tolerance_scales(p, effects, yr, e1, h1, Lz1, min(q1, yr[Y_R]), q2, qc)
+    for j in range(yr.shape[0]):
+        ra[j] = sc[j] * rtol
+    return e1, h1, Lz1
 
 
 @kernel

@@ -17,6 +17,25 @@ kernels are their own compiled specialisations, the call resolved at compile tim
 the others nothing). In plain Python (the ``.py_func`` of a hybrid kernel, as
 ``engine.simulate_hybrid`` and the tests run them) the call goes to the model's kernel's
 ``.py_func`` by the model id's value.
+
+What a story asks of a model besides its frame (:mod:`.story_parts`, :mod:`.story_switches`):
+
+- :func:`story_start` ``(model, effects, p, start, rtol, out, y0, atol)``: a launch's rolling
+  start state y0, its tolerances and the rest threshold (in p) from the model's ``start``
+  tuple (the cone's: radial energy, h, L_z, r_start, u0, slip_u, slip_v; a surface's: the
+  centre's distance from the axis rho0 (the cylinder: its height), v0, w0, unused, u0,
+  slip_u, slip_v); returns (the fate where it ends at its start or -1, the energy scale [J],
+  the speed scale [m/s], the rolling orbit's constants (:func:`rolling_orbit`'s));
+- :func:`resume_rolling` ``(model, effects, p, yr, rtol, ra)``: the tolerances of a rolling
+  stretch that starts at yr (after a slip), and its orbit's constants;
+- :func:`rolling_orbit` ``(model, r, u, v, w, p)``: the constants a story reports for a rolling
+  state (the cone's (calE, h, L_z); a surface's (E, NaN, NaN): its two linear integrals need
+  the surface's table, ``engine.routh``), and :func:`rolling_energy`, its energy E [J];
+- :func:`rest_spin_rate` ``(model, c_spin, r, p)``: |dw/dt| of a sphere at rest at r spinning
+  against spin friction, and :func:`holds_at_rest` ``(model, p, y)``: whether rolling
+  resistance holds a sphere at rest at y;
+- :func:`leaves_contact` ``(model)``: whether the model's normal force can fall to zero
+  (then its stories watch for lift-off).
 """
 
 from __future__ import annotations
@@ -28,7 +47,9 @@ from numba.extending import overload
 
 from .model import MODEL_ROWS, MODELS, Model
 
-__all__ = ["CONTACT", "check_contact", "contact_frame", "height_energy"]
+__all__ = ["CONTACT", "check_contact", "contact_frame", "height_energy", "holds_at_rest",
+           "leaves_contact", "rest_spin_rate", "resume_rolling", "rolling_energy",
+           "rolling_orbit", "story_start"]  # fmt: skip
 
 _OPTS = {"error_model": "numpy", "fastmath": False, "nogil": True}
 
@@ -39,10 +60,10 @@ def _row(model) -> Model:
     return MODEL_ROWS[model]
 
 
-def _interface(stub):
-    """Make ``stub`` (first parameter ``model``) call the model's physics kernel of the same name
-    with the other arguments: picked at compile time from the literal ``model`` in a kernel, by
-    its value in plain Python."""
+def _interface(stub, part: str = "physics"):
+    """Make ``stub`` (first parameter ``model``) call the model's kernel of the same name in its
+    ``part`` module ("physics" or "starts") with the other arguments: picked at compile time
+    from the literal ``model`` in a kernel, by its value in plain Python."""
     names = list(inspect.signature(stub).parameters)
     args = ", ".join(names)
     rest = ", ".join(names[1:])
@@ -53,7 +74,7 @@ def _interface(stub):
             raise errors.TypingError("model must be a numba literal here (use numba.literally)")
         if model.literal_value not in MODEL_ROWS:
             raise errors.TypingError(f"no model with id {model.literal_value}")
-        namespace = {"f": getattr(MODEL_ROWS[model.literal_value].physics, stub.__name__)}
+        namespace = {"f": getattr(getattr(MODEL_ROWS[model.literal_value], part), stub.__name__)}
         exec(compile(body, f"<conesurvey contact {stub.__name__}>", "exec"), namespace)  # noqa: S102
         return namespace["impl"]
 
@@ -64,20 +85,70 @@ def _interface(stub):
     return stub
 
 
-@_interface
 def contact_frame(model, r, u, v, p):
     """The meridian frame at the centre (module docstring)."""
     return _row(model).physics.contact_frame.py_func(r, u, v, p)
 
 
-@_interface
 def height_energy(model, r, p):
     """M g z [J] of the centre at the meridian coordinate r."""
     return _row(model).physics.height_energy.py_func(r, p)
 
 
-#: The kernels a model with sliding contact provides.
-CONTACT = ("contact_frame", "height_energy")
+def rolling_orbit(model, r, u, v, w, p):
+    """The constants a story reports for the rolling state (r, u, v, w) (module docstring)."""
+    return _row(model).physics.rolling_orbit.py_func(r, u, v, w, p)
+
+
+def rolling_energy(model, r, u, v, w, p):
+    """E [J] of the rolling state (r, u, v, w)."""
+    return _row(model).physics.rolling_energy.py_func(r, u, v, w, p)
+
+
+def rest_spin_rate(model, c_spin, r, p):
+    """|dw/dt| [m s-2] of a sphere at rest at r spinning against spin friction."""
+    return _row(model).physics.rest_spin_rate.py_func(c_spin, r, p)
+
+
+def holds_at_rest(model, p, y):
+    """Whether rolling resistance holds a sphere at rest at the state y."""
+    return _row(model).starts.holds_at_rest.py_func(p, y)
+
+
+def story_start(model, effects, p, start, rtol, out, y0, atol):
+    """A launch's rolling start (module docstring)."""
+    return _row(model).starts.story_start.py_func(effects, p, start, rtol, out, y0, atol)
+
+
+def resume_rolling(model, effects, p, yr, rtol, ra):
+    """A rolling stretch's tolerances into ra and its orbit's constants (module docstring)."""
+    return _row(model).starts.resume_rolling.py_func(effects, p, yr, rtol, ra)
+
+
+for _stub in (contact_frame, height_energy, rolling_orbit, rolling_energy, rest_spin_rate):
+    _interface(_stub)
+for _stub in (holds_at_rest, story_start, resume_rolling):
+    _interface(_stub, "starts")
+
+#: The kernels a model with sliding contact provides: (module part, name).
+CONTACT = (("physics", "contact_frame"), ("physics", "height_energy"),
+           ("physics", "rolling_orbit"), ("physics", "rolling_energy"),
+           ("physics", "rest_spin_rate"), ("physics", "LEAVES"), ("starts", "holds_at_rest"),
+           ("starts", "story_start"), ("starts", "resume_rolling"))  # fmt: skip
+
+
+def leaves_contact(model) -> bool:
+    """Whether the model's normal force can fall to zero (its physics' ``LEAVES``). Folds to a
+    constant in a kernel (``model`` literal)."""
+    return bool(_row(model).physics.LEAVES)
+
+
+@overload(leaves_contact, jit_options=_OPTS)
+def _leaves_contact(model):
+    if not isinstance(model, types.IntegerLiteral):
+        raise errors.TypingError("model must be a numba literal here (use numba.literally)")
+    value = bool(MODEL_ROWS[model.literal_value].physics.LEAVES)
+    return lambda model: value
 
 
 def check_contact(models: tuple[Model, ...]) -> None:
@@ -86,7 +157,8 @@ def check_contact(models: tuple[Model, ...]) -> None:
     for m in models:
         if "sliding contact" not in m.offers:
             continue
-        missing = [name for name in CONTACT if not hasattr(m.physics, name)]
+        missing = [f"{part}.{name}" for part, name in CONTACT
+                   if not hasattr(getattr(m, part), name)]  # fmt: skip
         if missing:
             raise ValueError(f"model {m.name!r} offers sliding contact but lacks {missing}")
 

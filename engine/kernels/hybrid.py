@@ -99,14 +99,14 @@ def hybrid_fate_of(method, effects, model, spin, p, mu_k, c_spin, energy, h, Lz,
         if hi[HI_FATE] >= 0:
             break
         if hi[HI_MODE] == MODE_ROLLING and spin == 0:
-            orb = rolling_stretch(effects, p, y, y0, atol, rtol, hs, hi, yr, ra)
+            orb = rolling_stretch(effects, model, p, y, y0, atol, rtol, hs, hi, yr, ra)
             f, dt, yf, st = fate_run(method, effects, p, yr, orb, rtol, ra, t_horizon - hs[HS_T],
                                      max_steps - hi[HI_STEPS])  # fmt: skip
             rolled(effects, f, dt, yf, st, y, hs, hi, ev_t, ev_kind, ev_y)
             continue
         hybrid_stretch(method, model, p, y, hp, rtol, hatol, t_horizon, max_steps, K, ytmp, ynew,
                        yev, hs, hi, ev_t, ev_kind, ev_y)  # fmt: skip
-    fate = story_result(model, spin, p, y, y0, hp, hs, hi, out)
+    fate = story_result(effects, model, spin, p, y, y0, hp, hs, hi, out)
     return fate, out, hi[HI_STEPS], hi[HI_NEV]
 
 

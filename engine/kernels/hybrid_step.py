@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 
 from .._jit import kernel
-from .cone import radial_energy, rolling_invariants_of
+from .contact import contact_frame, leaves_contact
 from .hybrid_rk import (
     ADV_OK,
     ADV_REACHED,
@@ -36,7 +36,7 @@ from .hybrid_rk import (
     stalled_rot,
     step_controller,
 )
-from .layouts import P_CRR, P_K, P_M, P_MU, P_R_VERTEX, P_RIM, P_THETA_MAX, P_V_REST
+from .layouts import P_CRR, P_MU, P_R_VERTEX, P_RIM, P_THETA_MAX, P_V_REST
 from .rk_codegen import tableau
 from .sliding import (
     H_C_SPIN,
@@ -75,25 +75,28 @@ EV_STICK = 4
 EV_SPIN_STOP = 5
 EV_SPIN_GO = 6
 EV_REST = 7
+#: The normal force falls to zero: the sphere leaves the surface (only on a model whose normal
+#: force can vanish, :func:`.contact.leaves_contact`; the cone's cannot).
+EV_LIFTOFF = 8
 #: The tangential spin (p1, p2) stopped while sliding (rolling resistance holds it at zero from
 #: there: docs/physics.md "Rolling resistance while sliding"). Located like the others, but
 #: not one of the story's events (:data:`HYBRID_EVENT_NAMES`): it is recorded for the sampled
 #: trajectory, which splits its stretches there, and left out of what the story reports.
-EV_ROT_STOP = 8
-N_EVENTS = 9
+EV_ROT_STOP = 9
+N_EVENTS = 10
 #: Recorded, never located: the slip reached the return threshold but static friction could
 #: not hold the rolling, so the sphere slides on (its return disarmed). Not a ``roll``: left
 #: out of the story's events like :data:`EV_ROT_STOP`.
-EV_NO_HOLD = 9
+EV_NO_HOLD = 10
 HYBRID_EVENT_NAMES = ("spill", "vertex", "horizon", "slip", "roll", "spin_stop", "spin_go",
-                      "rest")  # fmt: skip
+                      "rest", "liftoff")  # fmt: skip
 #: The bits of ``armed`` (:data:`.hybrid_rk.ARMED_ROLL`, ``ARMED_SPIN``, ``ARMED_ROT``) that each
 #: event kind keeps for the stretch after it: a slip or a return to rolling disarms the return
 #: (and the tangential spin's stop, a sliding rule), a spin's stop or release the spin's stop,
 #: the tangential spin's stop itself, a return that does not hold the return (each is armed
 #: again by :func:`.hybrid_rk.arm`), a restart from rest keeps them all (the ends keep nothing).
 ARMED_KEPT = (0, 0, 0, ARMED_SPIN, ARMED_SPIN, ARMED_ROLL | ARMED_ROT, ARMED_ROLL | ARMED_ROT,
-              ARMED_ROLL | ARMED_SPIN | ARMED_ROT, ARMED_ROLL | ARMED_SPIN,
+              ARMED_ROLL | ARMED_SPIN | ARMED_ROT, 0, ARMED_ROLL | ARMED_SPIN,
               ARMED_SPIN | ARMED_ROT)  # fmt: skip
 #: Largest number of function evaluations (re-steps) to locate one event.
 LOCATE_ITERATIONS = 60
@@ -133,6 +136,10 @@ def event_value(model, kind, y, hp, mode, stuck, armed, ref):
         if y[YH_U] * u0 + y[YH_V] * v0 <= 0.0:  # turned back through zero: the stop was on the way
             return hp[P_V_REST]  # (as .protocol.rest_value)
         return hp[P_V_REST] - math.sqrt(y[YH_U] * y[YH_U] + y[YH_V] * y[YH_V])
+    if kind == EV_LIFTOFF:
+        if not leaves_contact(model):
+            return off
+        return -contact_frame(model, y[YH_R], y[YH_U], y[YH_V], hp)[1]
     if kind == EV_ROT_STOP:
         if mode != MODE_SLIDING or not armed & ARMED_ROT:
             return off
@@ -143,7 +150,7 @@ def event_value(model, kind, y, hp, mode, stuck, armed, ref):
 @kernel
 def fired(kind, g0, g1):
     """Whether event ``kind`` happened in a step whose start and end give g0 and g1."""
-    if kind == EV_SLIP or kind == EV_SPIN_GO:
+    if kind == EV_SLIP or kind == EV_SPIN_GO or kind == EV_LIFTOFF:  # lift-off: N < 0
         return g0 <= 0.0 and g1 > 0.0
     return g0 < 0.0 and g1 >= 0.0
 
@@ -271,13 +278,6 @@ def segment(method, model, y, hp, mode, stuck, armed, t, t_end, rtol, atol, max_
         armed = arm(y, hp, mode, stuck, armed)
         if t >= t_end:
             return SEG_TIME, t, steps, t - t0, armed
-
-
-@kernel
-def rolling_invariants(y, hp):
-    """(calE [J], h [m/s], L_z) of the rolling hybrid state y."""
-    E, Lz, h = rolling_invariants_of(y[YH_R], y[YH_U], y[YH_V], y[YH_W], hp)
-    return radial_energy(E, h, hp[P_M], hp[P_K]), h, Lz
 
 
 @kernel

@@ -170,7 +170,8 @@ def _lane_story(method, effects, model, spin, l, rtol, t_horizon, max_steps, st,
         if hi[HI_FATE] >= 0:
             break
         if hi[HI_MODE] == MODE_ROLLING and spin == 0:
-            rolling_stretch(effects, p, y, st[ST_LY0][l], st[ST_LAT][l], rtol, hs, hi, yr, ra)
+            rolling_stretch(effects, model, p, y, st[ST_LY0][l], st[ST_LAT][l], rtol, hs, hi, yr,
+                            ra)  # fmt: skip
             ended, status = starts_at_rest(effects, yr, p)  # as fate_run starts
             if ended:
                 rolled(effects, fate_of_status(status), 0.0, yr, 0, y, hs, hi, hev_t, hev_kind,
@@ -194,7 +195,8 @@ def _lane_story(method, effects, model, spin, l, rtol, t_horizon, max_steps, st,
         hybrid_stretch(method, model, p, y, st[ST_LHP][l], rtol, st[ST_LHAT][l], t_horizon,
                        max_steps, sc[SC_HK], hw[0], hw[1], hw[2], hs, hi, hev_t, hev_kind,
                        hev_y)  # fmt: skip
-    fate = story_result(model, spin, p, y, st[ST_LY0][l], st[ST_LHP][l], hs, hi, st[ST_ROW])
+    fate = story_result(effects, model, spin, p, y, st[ST_LY0][l], st[ST_LHP][l], hs, hi,
+                        st[ST_ROW])  # fmt: skip
     _store(out, I[l, ORBIT], fate, st[ST_ROW], hi[HI_STEPS])
     I[l, ORBIT] = -1
     W[ly.ACTIVE * L + l] = 0.0

@@ -67,7 +67,10 @@ MODEL_CAPABILITIES: dict[str, str] = {
     "integrals), a surface's reduction to its meridian (Routh's integrals and quadrature)",
     "invariant grids": "maps over (alpha, E, h, L_z): an orbit identified by its invariants",
     "separable split": "a separable radial Hamiltonian (the symplectic integrator's split)",
-    "sliding contact": "the sliding model: a slip becomes a transition (mu_k, c_spin)",
+    "sliding contact": "the sliding model: a slip becomes a transition (mu_k, c_spin), one "
+    "launch's whole story",
+    "sliding maps": "sliding scenes in maps and sampled trajectories: many stories at once on "
+    "the SIMD lanes, a story's trajectory sampled",
 }
 
 
@@ -93,7 +96,7 @@ MODELS: tuple[Model, ...] = (
         1,
         surface,
         surface_starts,
-        ("exact maps",),
+        ("exact maps", "sliding contact"),
         (
             (
                 "invariant grids",
@@ -106,10 +109,10 @@ MODELS: tuple[Model, ...] = (
                 "meridian has no such split",
             ),
             (
-                "sliding contact",
-                "the whole story (rolling, sliding, rolling again) on a surface is not built "
-                "yet: the sliding equations take a surface's frame, but a story's start and its "
-                "rolling stretches still use the cone's invariants (E, h, L_z)",
+                "sliding maps",
+                "on a surface one launch's story is followed (engine.story(surface=...)); the "
+                "maps' launches and the sampled trajectory of a sliding scene are written for "
+                "the cone's orbits (alpha, E, h, L_z)",
             ),
         ),
     ),

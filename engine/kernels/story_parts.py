@@ -18,24 +18,22 @@ from __future__ import annotations
 import math
 
 from .._jit import kernel
-from .cone import invariants, radial_energy, rolling_invariants_of
-from .cone_starts import initial_state, orbit_start, tolerance_scales
+from .contact import holds_at_rest, resume_rolling, rolling_energy, rolling_orbit, story_start
 from .fate import (
     FAILED,
+    FATE_LIFTED_OFF,
     FATE_REST,
     FATE_SLIPPED,
     FATE_SPILLED,
     FATE_VERTEX,
     MAX_RESTARTS,
-    NO_ORBIT,
-    REST_SPEED,
     ROLLING,
-    holds_at_rest,
 )
 from .hybrid_step import (
     ARMED_ROLL,
     ARMED_ROT,
     ARMED_SPIN,
+    EV_LIFTOFF,
     EV_NO_HOLD,
     EV_REST,
     EV_RIM,
@@ -49,11 +47,10 @@ from .hybrid_step import (
     SEG_FAILED,
     SEG_TIME,
     release_spin,
-    rolling_invariants,
     segment,
 )
-from .layouts import P_CRR, P_K, P_M, P_R_VERTEX, P_RIM, P_V_REST, Y_R, Y_THETA, Y_U, Y_V, Y_W
-from .model import ROLLING_RESISTANCE, kinetic_energy, motion_rates
+from .layouts import P_CRR, P_K, P_M, P_V_REST, Y_R, Y_THETA, Y_U, Y_V, Y_W
+from .model import ROLLING_RESISTANCE, energy, kinetic_energy
 from .protocol import push_event
 from .sliding import (
     MODE_ROLLING,
@@ -82,7 +79,8 @@ from .sliding import (
 SLIDING = 7
 SPINNING = 8
 HYBRID_FATE_NAMES = ("no_orbit", "rolling", "spilled", "slipped", "rest", "vertex", "failed",
-                     "sliding", "spinning")  # fmt: skip
+                     "sliding", "spinning", "lifted_off")  # fmt: skip
+assert HYBRID_FATE_NAMES.index("lifted_off") == FATE_LIFTED_OFF  # one code, one fate
 #: A hybrid fate map's launches travel as one tuple of arrays (numba's own type: see
 #: docs/architecture.md's kernel contract), a column at each of these places: the rolling
 #: orbit's cone, radial energy [J], spin invariant h [m/s] and L_z, where it starts [m], its
@@ -101,7 +99,7 @@ def mode_energy(model, y, hp, mode):
     """E [J] of the hybrid state: the rolling formula while rolling (as a fate map computes
     it), the sliding one otherwise."""
     if mode == MODE_ROLLING:
-        return rolling_invariants_of(y[YH_R], y[YH_U], y[YH_V], y[YH_W], hp)[0]
+        return rolling_energy(model, y[YH_R], y[YH_U], y[YH_V], y[YH_W], hp)
     return hybrid_energy(model, y[YH_R], y[YH_U], y[YH_V], y[YH_P1], y[YH_P2], y[YH_W], hp)
 
 
@@ -118,40 +116,18 @@ N_HI = 8
 @kernel
 def story_begin(effects, model, spin, p, mu_k, c_spin, start, rtol, out, y0, atol, hp, y, hatol, hs,
                 hi):  # fmt: skip
-    """Set up the story of a launch (``start``: its radial energy [J], h [m/s], L_z, r_start
-    [m], u0, slip_u and slip_v [m/s]; :func:`hybrid_fate_of`'s arguments): the rest threshold
-    in p, the rolling start state y0 and its tolerances atol (length ``state_size(effects)``),
-    the hybrid parameters hp, state y and tolerances hatol, and the story's state hs, hi.
-    Returns the fate where the launch ends at its start (``out`` then holds its floats), else
-    -1."""
-    energy, h, Lz, r_start, u0, slip_u, slip_v = start
-    if not (r_start >= 0.0 and math.isfinite(energy) and math.isfinite(Lz)):
-        return NO_ORBIT
-    if r_start > p[P_RIM]:  # beyond the rim, as a fate map says
-        return NO_ORBIT
+    """Set up the story of a launch (``start``: the model's launch tuple,
+    :func:`.contact.story_start`; its last two are the slip velocity (slip_u, slip_v) [m/s]):
+    the rest threshold in p, the rolling start state y0 and its tolerances atol (length
+    ``state_size(effects)``), the hybrid parameters hp, state y and tolerances hatol, and the
+    story's state hs, hi. Returns the fate where the launch ends at its start (``out`` then
+    holds its floats), else -1."""
+    slip_u = start[5]
+    slip_v = start[6]
     M = p[P_M]
-    e_true = energy + 0.5 * M * u0 * u0
-    ok, r1, r2, rc = orbit_start(p, e_true, h, Lz)
-    if not ok:
-        r1 = r_start
-        r2 = math.inf
-    yi = initial_state(p, effects, r_start, e_true, h, Lz)
-    yi[Y_U] = u0
-    if r_start <= p[P_R_VERTEX]:  # in the vertex region: it ends there unless it leaves it
-        leaves = u0 > 0.0 or (u0 == 0.0 and motion_rates(yi[Y_R], 0.0, yi[Y_V], yi[Y_W], p,
-                                                         effects)[2] > 0.0)  # fmt: skip
-        if r_start == 0.0 or not leaves:
-            out[0] = 0.0
-            out[1] = r_start
-            for j in range(2, 6):
-                out[j] = 0.0
-            return FATE_VERTEX
-    for j in range(yi.shape[0]):
-        y0[j] = yi[j]
-    sc = tolerance_scales(p, effects, y0, e_true, h, Lz, min(r1, r_start), r2, rc)
-    p[P_V_REST] = REST_SPEED * rtol * max(max(sc[Y_U], abs(y0[Y_V])), max(abs(slip_u), abs(slip_v)))
-    for j in range(y0.shape[0]):
-        atol[j] = sc[j] * rtol
+    fate, e_true, vel, orbit = story_start(model, effects, p, start, rtol, out, y0, atol)
+    if fate >= 0:
+        return fate
     hq = hybrid_params(p, mu_k, c_spin)
     for j in range(hq.shape[0]):
         hp[j] = hq[j]
@@ -163,7 +139,6 @@ def story_begin(effects, model, spin, p, mu_k, c_spin, start, rtol, out, y0, ato
     y[YH_P1] = slip_v - y0[Y_V]
     y[YH_P2] = y0[Y_U] - slip_u
     y[YH_W] = y0[Y_W]
-    vel = max(max(sc[Y_U], sc[Y_V]), max(sc[Y_W], max(abs(slip_u), abs(slip_v))))
     hatol[YH_R] = atol[Y_R]
     hatol[YH_THETA] = rtol
     hatol[YH_U] = atol[Y_U]
@@ -177,7 +152,7 @@ def story_begin(effects, model, spin, p, mu_k, c_spin, start, rtol, out, y0, ato
     hatol[YH_WORK_SPIN] = rtol * e_scale
     mode = MODE_SLIDING if (slip_u != 0.0 or slip_v != 0.0) else MODE_ROLLING
     if mode == MODE_ROLLING:
-        E0 = invariants(y0, p)[0]
+        E0 = energy(y0, p, effects)
         scale = max(abs(E0), kinetic_energy(y0, p))
     else:
         E0 = hybrid_energy(model, y[YH_R], y[YH_U], y[YH_V], y[YH_P1], y[YH_P2], y[YH_W], hp)
@@ -199,12 +174,12 @@ def story_begin(effects, model, spin, p, mu_k, c_spin, start, rtol, out, y0, ato
     hs[HS_FH] = math.nan
     hs[HS_FL] = math.nan
     if mode == MODE_ROLLING:
-        hs[HS_FE] = energy
-        hs[HS_FH] = h
-        hs[HS_FL] = Lz
-    hs[HS_ENERGY] = energy
-    hs[HS_H] = h
-    hs[HS_LZ] = Lz
+        hs[HS_FE] = orbit[0]
+        hs[HS_FH] = orbit[1]
+        hs[HS_FL] = orbit[2]
+    hs[HS_ENERGY] = orbit[0]
+    hs[HS_H] = orbit[1]
+    hs[HS_LZ] = orbit[2]
     return -1
 
 
@@ -218,7 +193,7 @@ def story_runs_out(max_steps, hi):
 
 
 @kernel
-def rolling_stretch(effects, p, y, y0, atol, rtol, hs, hi, yr, ra):
+def rolling_stretch(effects, model, p, y, y0, atol, rtol, hs, hi, yr, ra):
     """The start of the story's next rolling stretch without spin friction, a fate run
     (:func:`.fate.fate_run`): its state into yr, its tolerances into ra (the launch's own where
     it has not slipped yet). Returns the stretch's orbit (calE, h, L_z)."""
@@ -237,16 +212,7 @@ def rolling_stretch(effects, p, y, y0, atol, rtol, hs, hi, yr, ra):
     yr[Y_W] = y[YH_W]
     if effects & ROLLING_RESISTANCE:
         yr[nr - 1] = y[YH_WORK_RR]
-    E1, Lz1, h1 = invariants(yr, p)
-    e1 = radial_energy(E1, h1, p[P_M], p[P_K])
-    ok1, q1, q2, qc = orbit_start(p, e1, h1, Lz1)
-    if not ok1:
-        q1 = yr[Y_R]
-        q2 = math.inf
-    sc = tolerance_scales(p, effects, yr, e1, h1, Lz1, min(q1, yr[Y_R]), q2, qc)
-    for j in range(nr):
-        ra[j] = sc[j] * rtol
-    return e1, h1, Lz1
+    return resume_rolling(model, effects, p, yr, rtol, ra)
 
 
 @kernel
@@ -272,6 +238,8 @@ def rolled(effects, f, dt, yr, st, y, hs, hi, ev_t, ev_kind, ev_y):
             hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_RIM, y)
         elif f == FATE_VERTEX:
             hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_VERTEX, y)
+        elif f == FATE_LIFTED_OFF:
+            hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_LIFTOFF, y)
         elif f == FATE_REST:
             hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_REST, y)
             if y[YH_W] != 0.0:  # the centre is held at rest, the sphere spins on in place
@@ -316,12 +284,12 @@ def hybrid_stretch(method, model, p, y, hp, rtol, hatol, t_horizon, max_steps, K
         yt = y.copy()
         stick(yt, hp)
         speed = math.sqrt(yt[YH_U] * yt[YH_U] + yt[YH_V] * yt[YH_V])
-        stops = hp[P_CRR] > 0.0 and holds_at_rest(p) and speed <= hp[P_V_REST]
+        stops = hp[P_CRR] > 0.0 and holds_at_rest(model, p, yt) and speed <= hp[P_V_REST]
         if stops or hold_margin(model, yt, hp) <= 0.0:
             stick(y, hp)
             hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_STICK, y)
             hi[HI_MODE] = MODE_ROLLING
-            fe, fh, fl = rolling_invariants(y, hp)
+            fe, fh, fl = rolling_orbit(model, y[YH_R], y[YH_U], y[YH_V], y[YH_W], hp)
             hs[HS_FE] = fe
             hs[HS_FH] = fh
             hs[HS_FL] = fl
@@ -340,6 +308,8 @@ def hybrid_stretch(method, model, p, y, hp, rtol, hatol, t_horizon, max_steps, K
     hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, end, y)
     if end == EV_RIM:
         hi[HI_FATE] = FATE_SPILLED
+    elif end == EV_LIFTOFF:
+        hi[HI_FATE] = FATE_LIFTED_OFF
     elif end == EV_VERTEX:
         hi[HI_FATE] = FATE_VERTEX
     elif end == EV_SLIP:
@@ -358,7 +328,7 @@ def hybrid_stretch(method, model, p, y, hp, rtol, hatol, t_horizon, max_steps, K
 
 
 @kernel
-def story_result(model, spin, p, y, y0, hp, hs, hi, out):
+def story_result(effects, model, spin, p, y, y0, hp, hs, hi, out):
     """The rows :data:`HYBRID_ROWS` of the ended story into ``out``; returns its fate."""
     mode = hi[HI_MODE]
     episodes = hi[HI_EPISODES]
@@ -376,9 +346,9 @@ def story_result(model, spin, p, y, y0, hp, hs, hi, out):
         yr[Y_U] = y[YH_U]
         yr[Y_V] = y[YH_V]
         yr[Y_W] = y[YH_W]
-        E1 = invariants(yr, p)[0]
+        E1 = energy(yr, p, effects)
     if hi[HI_FATE] == FATE_REST or hi[HI_FATE] == SPINNING:  # its state at rest
-        fe, fh, fl = rolling_invariants(y, hp)
+        fe, fh, fl = rolling_orbit(model, y[YH_R], y[YH_U], y[YH_V], y[YH_W], hp)
     E0 = hs[HS_E0]
     work = y[YH_WORK_RR] + y[YH_WORK_SLIDE] + y[YH_WORK_SPIN]
     out[0] = hs[HS_T]

@@ -10,18 +10,18 @@ from __future__ import annotations
 import math
 
 from .._jit import kernel
-from .cone import rest_spin_rate
-from .fate import FATE_REST, ROLLING, holds_at_rest
+from .contact import contact_frame, holds_at_rest, leaves_contact, rest_spin_rate, rolling_orbit
+from .fate import FATE_LIFTED_OFF, FATE_REST, ROLLING
 from .hybrid_step import (
     ARMED_ROLL,
     ARMED_ROT,
     ARMED_SPIN,
+    EV_LIFTOFF,
     EV_REST,
     EV_SLIP,
     EV_SPIN_GO,
     EV_SPIN_STOP,
     release_spin,
-    rolling_invariants,
 )
 from .layouts import P_CRR, P_K, P_M, P_MU, P_V_REST
 from .protocol import push_event
@@ -104,7 +104,7 @@ def story_rest(model, p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y):
         y[YH_WORK_RR] += e_moving - mode_energy(model, y, hp, MODE_ROLLING) - w_spin
         hs[HS_T] += dt
     t = hs[HS_T]
-    if not holds_at_rest(p):  # it starts again from rest
+    if not holds_at_rest(model, p, y):  # it starts again from rest (y[YH_R] is its Y_R)
         hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_REST, y)
         hi[HI_RESTARTS] += 1
         return
@@ -118,7 +118,7 @@ def story_rest(model, p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y):
         return
     hi[HI_FATE] = FATE_REST
     if w != 0.0:  # spin friction stops the spin in place at a constant rate
-        rate = rest_spin_rate(hp[H_C_SPIN], hp)
+        rate = rest_spin_rate(model, hp[H_C_SPIN], y[YH_R], hp)
         kM = hp[P_K] * hp[P_M]
         t_stop = t + abs(w) / rate
         if t_stop > t_horizon:  # still spinning down at the horizon
@@ -132,7 +132,8 @@ def story_rest(model, p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y):
             y[YH_W] = 0.0
             hs[HS_T] = t_stop
             hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t_stop, EV_SPIN_STOP, y)
-    fe, fh, fl = rolling_invariants(y, hp)  # the sphere at rest: its last rolling state
+    # the sphere at rest: its last rolling state
+    fe, fh, fl = rolling_orbit(model, y[YH_R], y[YH_U], y[YH_V], y[YH_W], hp)
     hs[HS_FE] = fe
     hs[HS_FH] = fh
     hs[HS_FL] = fl
@@ -145,13 +146,19 @@ def stretch_start(model, p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y):
     rolling with rolling resistance within the rest threshold is the stop (:func:`story_rest`;
     a sphere exactly at rest only where the resistance holds it: elsewhere it moves off, as a
     restart from rest does); rolling where static friction cannot hold the rolling is a slip
-    at once; a stuck spin whose holding couple exceeds its limit is released at once. The same
-    for the scalar kernel and the lanes (the loop of :func:`.hybrid.hybrid_fate_of` calls it
-    before every stretch), in every effect set."""
+    at once; a stuck spin whose holding couple exceeds its limit is released at once; on a
+    model whose normal force can vanish, a state without it (N < 0) has left the surface. The
+    same for the scalar kernel and the lanes (the loop of :func:`.hybrid.hybrid_fate_of` calls
+    it before every stretch), in every effect set."""
     t = hs[HS_T]
+    if leaves_contact(model) and contact_frame(model, y[YH_R], y[YH_U], y[YH_V], hp)[1] < 0.0:
+        hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, EV_LIFTOFF, y)
+        hi[HI_FATE] = FATE_LIFTED_OFF
+        return
     if hi[HI_MODE] == MODE_ROLLING:
         speed = math.sqrt(y[YH_U] * y[YH_U] + y[YH_V] * y[YH_V])
-        if hp[P_CRR] > 0.0 and speed <= hp[P_V_REST] and (speed > 0.0 or holds_at_rest(p)):
+        rests = speed > 0.0 or holds_at_rest(model, p, y)
+        if hp[P_CRR] > 0.0 and speed <= hp[P_V_REST] and rests:
             story_rest(model, p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y)
             return
         if hp[P_MU] < math.inf and hold_margin(model, y, hp) > 0.0:

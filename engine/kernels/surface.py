@@ -93,6 +93,29 @@ def height_energy(q, p):
 
 
 @kernel
+def rolling_energy(q, u, v, w, p):
+    """E [J] of the rolling state (q, u, v, w)."""
+    M = p[P_M]
+    k = p[P_K]
+    z = centre(p, q)[1]
+    return 0.5 * (1.0 + k) * M * (u * u + v * v) + 0.5 * k * M * w * w + M * p[P_G] * z
+
+
+@kernel
+def rolling_orbit(q, u, v, w, p):
+    """(E [J], NaN, NaN): what a story reports for a rolling state; the orbit's two linear
+    integrals need the surface's table (``engine.routh``), which the kernels do not hold."""
+    return rolling_energy(q, u, v, w, p), math.nan, math.nan
+
+
+@kernel
+def rest_spin_rate(c_spin, q, p):
+    """|dw/dt| [m s-2] of a sphere at rest at q spinning against spin friction, c_spin N/(k M)
+    with N = M g cos(b) (at rest the normal force is the weight's part)."""
+    return c_spin * p[P_G] * centre(p, q)[2] / p[P_K]
+
+
+@kernel
 def lift_margin(y, p):
     """Event function of lift-off: -N [N] (>= 0: the sphere leaves the surface)."""
     return -normal_force(y[Y_R], y[Y_U], y[Y_V], p)

@@ -11,7 +11,9 @@ speed u0 [m/s] along the meridian (0: a turning point, where a one-period run st
   the surface's curvature stops the sphere fitting) and the rim (``Scene.rim``: the edge's
   distance from the axis; the cylinder's height; the cone's slant length);
 - :func:`launch_q` the meridian parameter of the launch position;
-- :func:`period_start`, :func:`fate_start` where the runs start.
+- :func:`period_start`, :func:`fate_start` where the runs start; :func:`story_start` and
+  :func:`resume_rolling` a story's rolling start and a rolling stretch's after a slip (the
+  hybrid model's, :mod:`.contact`).
 """
 
 from __future__ import annotations
@@ -57,7 +59,7 @@ from .meridian import (
     PROFILE,
     centre,
 )
-from .surface import motion_rates
+from .surface import motion_rates, rolling_energy
 
 #: Columns of the points array.
 X_SHAPE1, X_SHAPE2, X_POS, X_V, X_W, X_U = 0, 1, 2, 3, 4, 5
@@ -258,6 +260,45 @@ def fate_start(effects, p, X, i, rtol):
     sc = tolerance_scales(effects, p, y0)
     p[P_V_REST] = REST_SPEED * rtol * max(sc[Y_U], abs(y0[Y_V]))
     return RUNS, math.nan, y0, 0.0, 0.0, sc * rtol, nan
+
+
+@kernel
+def story_start(effects, p, start, rtol, out, y0, atol):
+    """A story's rolling start (:func:`.contact.story_start`): ``start`` = (rho0 [m] (the
+    cylinder: z0), v0, w0, unused, u0, slip_u, slip_v [m/s]); y0 at the launch (theta = 0), its
+    tolerances, the rest threshold in p. Returns (fate or -1, the energy scale [J], the speed
+    scale [m/s], (NaN, NaN, NaN): no orbit constants); no orbit where the launch is not on the
+    surface or beyond the rim."""
+    pos, v0, w0, _, u0, slip_u, slip_v = start
+    orbit = (math.nan, math.nan, math.nan)
+    q0 = launch_q(p, pos)
+    if not (math.isfinite(q0) and math.isfinite(v0) and math.isfinite(w0) and math.isfinite(u0)):
+        return NO_ORBIT, 0.0, 0.0, orbit
+    if q0 > p[P_RIM]:
+        return NO_ORBIT, 0.0, 0.0, orbit
+    for j in range(y0.shape[0]):
+        y0[j] = 0.0
+    y0[Y_R] = q0
+    y0[Y_U] = u0
+    y0[Y_V] = v0
+    y0[Y_W] = w0
+    sc = tolerance_scales(effects, p, y0)
+    slip = max(abs(slip_u), abs(slip_v))
+    p[P_V_REST] = REST_SPEED * rtol * max(max(sc[Y_U], abs(v0)), slip)
+    for j in range(y0.shape[0]):
+        atol[j] = sc[j] * rtol
+    vel = max(max(sc[Y_U], sc[Y_V]), max(sc[Y_W], slip))
+    return -1, abs(rolling_energy(q0, u0, v0, w0, p)), vel, orbit
+
+
+@kernel
+def resume_rolling(effects, p, yr, rtol, ra):
+    """A rolling stretch from yr (after a slip; :func:`.contact.resume_rolling`): its
+    tolerances into ra (:func:`tolerance_scales`); no orbit constants (NaN)."""
+    sc = tolerance_scales(effects, p, yr)
+    for j in range(yr.shape[0]):
+        ra[j] = sc[j] * rtol
+    return math.nan, math.nan, math.nan
 
 
 @kernel
