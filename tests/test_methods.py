@@ -31,7 +31,9 @@ def test_kernel_ids_are_checked():
 
 def test_methods_refuse_a_model_that_lacks_what_they_need():
     """On a surface the closed form serves (Routh's reduction), the symplectic method does not
-    (no separable split), the Runge-Kutta pairs do; a sliding scene needs the sliding model."""
+    (no separable split), the Runge-Kutta pairs do; a sliding scene is served in one launch's
+    story (the sliding model), not in maps or sampled trajectories (they need "sliding
+    maps")."""
     surface = MODEL_BY_NAME["surface"]
     for name in ("exact", "rk45", "dop853"):
         check_model(METHODS[name], surface)
@@ -39,7 +41,10 @@ def test_methods_refuse_a_model_that_lacks_what_they_need():
         check_model(METHODS["symplectic"], surface)
     assert "methods that can: exact, rk45, dop853" in str(err.value)
     sliding = Scene(mu=0.5, mu_k=0.4)
-    with pytest.raises(ValueError, match="sliding model"):
+    with pytest.raises(ValueError, match="sliding maps: on a surface one launch's story"):
         check_model(METHODS["rk45"], surface, sliding)
+    check_model(METHODS["rk45"], surface, sliding, story=True)
+    with pytest.raises(ValueError, match="separable split"):
+        check_model(METHODS["symplectic"], surface, sliding, story=True)
     for method in METHODS.values():  # the cone offers everything
         check_model(method, MODELS[0], sliding)

@@ -47,7 +47,8 @@ from numba.extending import overload
 
 from .model import MODEL_ROWS, MODELS, Model
 
-__all__ = ["CONTACT", "check_contact", "contact_frame", "height_energy", "holds_at_rest",
+__all__ = ["CONTACT", "check_contact", "contact_frame", "domain_floor", "height_energy",
+           "holds_at_rest",
            "leaves_contact", "rest_spin_rate", "resume_rolling", "rolling_energy",
            "rolling_orbit", "story_start"]  # fmt: skip
 
@@ -110,6 +111,12 @@ def rest_spin_rate(model, c_spin, r, p):
     return _row(model).physics.rest_spin_rate.py_func(c_spin, r, p)
 
 
+def domain_floor(model, p):
+    """The meridian coordinate at or below which the model's state means nothing (a step that
+    ends there is rejected: :func:`.model.domain_floor`)."""
+    return _row(model).physics.domain_floor.py_func(p)
+
+
 def holds_at_rest(model, p, y):
     """Whether rolling resistance holds a sphere at rest at the state y."""
     return _row(model).starts.holds_at_rest.py_func(p, y)
@@ -125,7 +132,14 @@ def resume_rolling(model, effects, p, yr, rtol, ra):
     return _row(model).starts.resume_rolling.py_func(effects, p, yr, rtol, ra)
 
 
-for _stub in (contact_frame, height_energy, rolling_orbit, rolling_energy, rest_spin_rate):
+for _stub in (
+    contact_frame,
+    height_energy,
+    rolling_orbit,
+    rolling_energy,
+    rest_spin_rate,
+    domain_floor,
+):
     _interface(_stub)
 for _stub in (holds_at_rest, story_start, resume_rolling):
     _interface(_stub, "starts")
@@ -133,7 +147,7 @@ for _stub in (holds_at_rest, story_start, resume_rolling):
 #: The kernels a model with sliding contact provides: (module part, name).
 CONTACT = (("physics", "contact_frame"), ("physics", "height_energy"),
            ("physics", "rolling_orbit"), ("physics", "rolling_energy"),
-           ("physics", "rest_spin_rate"), ("physics", "LEAVES"), ("starts", "holds_at_rest"),
+           ("physics", "rest_spin_rate"), ("physics", "domain_floor"), ("physics", "LEAVES"), ("starts", "holds_at_rest"),
            ("starts", "story_start"), ("starts", "resume_rolling"))  # fmt: skip
 
 

@@ -13,13 +13,13 @@ from __future__ import annotations
 import math
 
 from .._jit import kernel
+from .contact import domain_floor
 from .layouts import P_CRR, P_V_REST
 from .protocol import EPS
 from .rk import step_decide, step_error
 from .rk_codegen import controller, tableau
 from .sliding import (
     H_C_SPIN,
-    H_MU_K,
     MODE_SLIDING,
     YH_P1,
     YH_P2,
@@ -208,7 +208,8 @@ def advance(method, model, y, t, t_end, h, hp, mode, stuck, armed, K, ytmp, ynew
             h = h_kink
             rejected = True
             continue
-        accepted, h_used, h_next, err_old, rejected = decide(err, ynew[YH_R], h_try, err_old,
+        inside = ynew[YH_R] - domain_floor(model, hp)  # > 0: in the model's domain
+        accepted, h_used, h_next, err_old, rejected = decide(err, inside, h_try, err_old,
                                                              rejected, ctl)  # fmt: skip
         if accepted:
             return ADV_OK, h_try, h_next, err_old, rejected, steps
@@ -234,10 +235,12 @@ def arm(y, hp, mode, stuck, armed):
 @kernel
 def rot_stops(hp):
     """Whether rolling resistance can stop and hold the tangential spin (p1, p2) while sliding:
-    its couple c_rr N a exceeds the most kinetic friction's couple can be, mu_k N a (then the
-    spin stops in finite time and stays at zero; otherwise it passes through zero at once:
-    docs/physics.md "Rolling resistance while sliding")."""
-    return hp[P_CRR] > hp[H_MU_K]
+    wherever there is rolling resistance. Where the couple that holds (p1, p2) at zero (kinetic
+    friction's, at most mu_k N a, with the frame's turning) is within c_rr N a the spin stops
+    and stays at zero, even with c_rr < mu_k (on a curved meridian the frame's terms can cancel
+    friction's); otherwise it leaves zero at once (docs/physics.md "Rolling resistance while
+    sliding")."""
+    return hp[P_CRR] > 0.0
 
 
 @kernel

@@ -206,7 +206,10 @@ def first_event(method, model, y0, y1, h, hp, mode, stuck, armed, K, ytmp, yout,
            y0[YH_P2] * iql, y0[YH_U], y0[YH_V])  # fmt: skip
     best = -1
     best_th = 2.0
-    for kind in range(N_EVENTS):
+    for j in range(N_EVENTS):
+        # lift-off first: where N reaches zero the couples and limits proportional to N do
+        # too (a spin held by c_spin N lets go there), and the ball has left: its event wins
+        kind = EV_LIFTOFF if j == 0 else (j - 1 if j <= EV_LIFTOFF else j)
         g0 = event_value(model, kind, y0, hp, mode, stuck, armed, ref)
         if g0 == -math.inf:
             continue

@@ -302,9 +302,10 @@ def rolling_friction(model, y, hp):
 
 @kernel
 def hold_margin(model, y, hp):
-    """|f_roll| - mu N [N]: > 0 where static friction cannot hold the rolling motion."""
+    """|f_roll| - mu N [N]: > 0 where static friction cannot hold the rolling motion (N < 0
+    counts as 0: the ball leaving the surface is the lift-off, not a slip)."""
     f1, f2, N = rolling_friction(model, y, hp)
-    return math.sqrt(f1 * f1 + f2 * f2) - hp[P_MU] * N
+    return math.sqrt(f1 * f1 + f2 * f2) - hp[P_MU] * (0.0 if N < 0.0 else N)
 
 
 @kernel
@@ -313,7 +314,7 @@ def spin_hold_margin(model, y, hp):
     stay stuck). The band keeps a spin whose needed couple grazes the limit from sticking and
     unsticking without end (docs/physics.md "Spin stick")."""
     frame = contact_frame(model, y[YH_R], y[YH_U], y[YH_V], hp)
-    cs = hp[H_C_SPIN] * frame[1]
+    cs = hp[H_C_SPIN] * (0.0 if frame[1] < 0.0 else frame[1])  # N < 0: the lift-off's
     kM = hp[P_K] * hp[P_M]
     hold = spin_hold(frame, y[YH_U], y[YH_V], y[YH_P1], y[YH_P2], kM)
     return abs(hold) - cs * (1.0 + SPIN_BAND)

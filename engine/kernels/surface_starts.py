@@ -214,8 +214,10 @@ def launch_state(effects, p, X, i):
 def tolerance_scales(effects, p, y0):
     """Characteristic size of each state component (atol_i = rtol * scale_i): q: its own size
     (1 for the cylinder's height and the bowl's angle below 1); theta: 1 rad; the velocities:
-    the launch's speed with the speed the drop from the launch height to the inner end can add,
-    each floored at sqrt(eps) of it; the work of the effects: the energy scale."""
+    the launch's speed with the speed the drop from the launch height to the inner end can add
+    (for a launch at rest with no inner end below it, the speed of a fall through the ball's
+    radius, sqrt(g a)), each floored at sqrt(eps) of it; the work of the effects: the energy
+    scale."""
     n = y0.shape[0]
     sc = np.ones(n)
     rho, z, cb, sb, kappa, sigma, fit = centre(p, y0[Y_R])
@@ -223,6 +225,8 @@ def tolerance_scales(effects, p, y0):
     drop = max(z - z_in, 0.0)
     speed = math.sqrt(y0[Y_U] ** 2 + y0[Y_V] ** 2 + y0[Y_W] ** 2)
     vel = max(speed, math.sqrt(2.0 * p[P_G] * drop / (1.0 + p[P_K])))
+    if vel == 0.0:  # at rest with nothing below it to fall to (a cylinder's wall): the speed
+        vel = math.sqrt(p[P_G] * p[P_RADIUS])  # it gains falling its own radius
     floor = SQRT_EPS * vel
     sc[Y_R] = max(abs(y0[Y_R]), 1.0) if p[P_KIND] == CYLINDER else max(abs(y0[Y_R]), floor)
     sc[Y_U] = max(vel, floor)
