@@ -163,8 +163,9 @@ RESULTS: dict[str, Variable] = {
 #: The closed form's variables (every map holds them).
 CLOSED_FORM = ("orbit_class", "r_min", "r_max", "r_circ", "period", "apsidal_angle",
                "precession_rate", "mu_required")  # fmt: skip
-#: The ``fate`` of a fate map of the sliding model (a slip is a transition, not an end).
-_CODES = tuple(i for i, n in enumerate(HYBRID_FATE_NAMES) if n != "slipped")
+#: The ``fate`` of a fate map of the sliding model (a slip is a transition, not an end; such
+#: maps run on the cone, whose normal force never vanishes: no lifted_off).
+_CODES = tuple(i for i, n in enumerate(HYBRID_FATE_NAMES) if n not in ("slipped", "lifted_off"))
 SLIDING_FATE = Variable("int8", None, "what happened to the sphere (rolling, sliding, ...)",
                         tuple(HYBRID_FATE_NAMES[i] for i in _CODES), _CODES)  # fmt: skip
 #: The ``fate`` of a fate map on a surface of revolution: the cone's fates, and lifting off.
