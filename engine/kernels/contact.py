@@ -147,8 +147,9 @@ for _stub in (holds_at_rest, story_start, resume_rolling):
 #: The kernels a model with sliding contact provides: (module part, name).
 CONTACT = (("physics", "contact_frame"), ("physics", "height_energy"),
            ("physics", "rolling_orbit"), ("physics", "rolling_energy"),
-           ("physics", "rest_spin_rate"), ("physics", "domain_floor"), ("physics", "LEAVES"), ("starts", "holds_at_rest"),
-           ("starts", "story_start"), ("starts", "resume_rolling"))  # fmt: skip
+           ("physics", "rest_spin_rate"), ("physics", "domain_floor"), ("physics", "LEAVES"),
+           ("starts", "holds_at_rest"), ("starts", "story_start"),
+           ("starts", "resume_rolling"))  # fmt: skip
 
 
 def leaves_contact(model) -> bool:
