@@ -223,6 +223,7 @@ def test_ctrl_c_inside_code_that_swallows_exceptions_still_interrupts(where: str
         capture_output=True,
         text=True,
         timeout=300,
+        preexec_fn=as_in_a_terminal,  # SIGINT as a terminal leaves it (an xdist worker ignores it)
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert proc.stdout == "interrupted\n", proc.stderr[-3000:]
