@@ -20,7 +20,6 @@ from .checks import (
     check_release,
     check_rtol,
     check_scene,
-    check_surface,
 )
 from .kernels.cone import (
     coefficients,
@@ -47,7 +46,7 @@ from .methods import DEFAULT_RTOL, MODEL_BY_NAME, check_model
 from .scene import Scene
 from .schema import TRAJECTORY, effect_variables
 from .simulate_hybrid import hybrid_trajectory
-from .simulate_surface import simulate_surface
+from .simulate_surface import check_surface_launch, simulate_surface
 from .surfaces import Surface
 from .trajectory_run import TrajectoryRun
 
@@ -258,25 +257,9 @@ def simulate(
 def _on_surface(surface, orbit, launch, scene, method, rtol, t_end, periods, dt_out,
                 max_steps) -> xr.Dataset:  # fmt: skip
     """:func:`simulate` on a surface: its inputs checked, then :func:`simulate_surface`."""
-    if surface is None:
-        raise PlanError("surface", "rho0 or z0 give a launch on a surface: name it "
-                        "(surface=engine.surfaces.Bowl(0.5), ...)")  # fmt: skip
-    surface = check_surface(surface)
-    for name, value in orbit.items():
-        if value is not None:
-            raise PlanError(name, "is the cone's orbit; on a surface the start is a launch "
-                            f"({surface.position}, v0, w0, u0)", value)  # fmt: skip
-    other = "z0" if surface.position == "rho0" else "rho0"
-    if launch[other] is not None:
-        raise PlanError(other, f"the {surface.kind}'s launch position is {surface.position}",
-                        launch[other])  # fmt: skip
-    values = {"position": launch[surface.position], "v0": launch["v0"], "w0": launch["w0"],
-              "u0": launch["u0"]}  # fmt: skip
-    for name, value in values.items():
-        field = surface.position if name == "position" else name
-        if value is None:
-            raise PlanError(field, "is needed: the launch on the surface")
-        values[name] = check_number(field, value)
+    why = "is the cone's orbit; on a surface the start is a launch"
+    surface, values = check_surface_launch(surface, orbit, why, launch)
+    values["u0"] = check_number("u0", launch["u0"])
     m = check_method(method, scene, integrator=True)
     check_model(m, MODEL_BY_NAME["surface"], scene)
     rtol = check_rtol(rtol, m)

@@ -16,6 +16,7 @@ import numpy as np
 import xarray as xr
 
 from ._version import __version__
+from .checks import PlanError, check_number, check_surface
 from .kernels.fate_codes import REST_SPEED
 from .kernels.layouts import ATTITUDE, P_V_REST
 from .kernels.meridian import centre
@@ -38,10 +39,37 @@ from .surface_maps import surface_params, surface_points
 from .surfaces import Surface
 from .trajectory_run import TrajectoryRun
 
-__all__ = ["simulate_surface"]
+__all__ = ["check_surface_launch", "simulate_surface"]
 
 #: Recorded states and events a run starts with room for (grown as needed).
 START_ROOM = 4096
+
+
+def check_surface_launch(
+    surface: Any, cone: dict[str, Any], why: str, launch: dict[str, Any]
+) -> tuple[Surface, dict[str, float]]:
+    """A launch on a surface (:func:`engine.simulate`, :func:`engine.story.story`): the surface
+    named and checked, none of the cone's fields ``cone`` given (``why`` says what they are),
+    the position the surface takes (rho0; z0 on the cylinder) and v0, w0 given, each a number.
+    Returns (the surface, {"position", "v0", "w0"})."""
+    if surface is None:
+        raise PlanError("surface", "rho0 or z0 give a launch on a surface: name it "
+                        "(surface=engine.surfaces.Bowl(0.5), ...)")  # fmt: skip
+    surface = check_surface(surface)
+    for name, value in cone.items():
+        if value is not None:
+            raise PlanError(name, f"{why} ({surface.position}, v0, w0, u0)", value)
+    other = "z0" if surface.position == "rho0" else "rho0"
+    if launch[other] is not None:
+        raise PlanError(other, f"the {surface.kind}'s launch position is {surface.position}",
+                        launch[other])  # fmt: skip
+    values = {"position": launch[surface.position], "v0": launch["v0"], "w0": launch["w0"]}
+    for name, value in values.items():
+        field = surface.position if name == "position" else name
+        if value is None:
+            raise PlanError(field, "is needed: the launch on the surface")
+        values[name] = check_number(field, value)
+    return surface, values
 
 
 def simulate_surface(

@@ -18,7 +18,6 @@ from .checks import (
     check_release,
     check_rtol,
     check_scene,
-    check_surface,
     check_surface_fits,
 )
 from .fates import Horizon, require_horizon
@@ -32,6 +31,7 @@ from .kernels.surface_starts import set_point
 from .launch import invariants
 from .methods import MODEL_BY_NAME, check_model
 from .scene import Scene
+from .simulate_surface import check_surface_launch
 from .surface_maps import surface_params, surface_points
 from .surfaces import Surface
 
@@ -165,24 +165,8 @@ def _told(res: tuple, max_events: int, where: Any = None) -> dict[str, Any]:
 
 def _on_surface(surface, cone, launch, slips, scene, m, rtol, t_max, theta_max, max_events):
     """:func:`story` on a surface: its launch checked, then the surface model's story."""
-    if surface is None:
-        raise PlanError("surface", "rho0 or z0 give a launch on a surface: name it "
-                        "(surface=engine.surfaces.Bowl(0.5), ...)")  # fmt: skip
-    surface = check_surface(surface)
-    for name, value in cone.items():
-        if value is not None:
-            raise PlanError(name, "is a launch on the cone; on a surface the launch is "
-                            f"({surface.position}, v0, w0, u0)", value)  # fmt: skip
-    other = "z0" if surface.position == "rho0" else "rho0"
-    if launch[other] is not None:
-        raise PlanError(other, f"the {surface.kind}'s launch position is {surface.position}",
-                        launch[other])  # fmt: skip
-    values = {surface.position: launch[surface.position], "v0": launch["v0"],
-              "w0": launch["w0"]}  # fmt: skip
-    for name, value in values.items():
-        if value is None:
-            raise PlanError(name, "is needed: the launch on the surface")
-        values[name] = check_number(name, value)
+    why = "is a launch on the cone; on a surface the launch is"
+    surface, values = check_surface_launch(surface, cone, why, launch)
     for name, value in slips.items():
         values[name] = check_number(name, value)
         check_release(name, np.asarray(values[name]), scene)
