@@ -15,6 +15,7 @@ import numpy as np
 
 from ._jit import call_specialized
 from .checks import check_method, check_scene
+from .kernels.contact import contact_key
 from .kernels.effects import REVOLUTIONS, ROLLING_EFFECTS
 from .kernels.hybrid import (
     HYBRID_ROWS,
@@ -32,9 +33,9 @@ __all__ = ["HYBRID_VARIABLES", "HYBRID_STATE", "hybrid_fates", "hybrid_setup", "
 
 #: Variables a fate map of a sliding scene adds to today's fate variables.
 HYBRID_VARIABLES = HYBRID_ROWS[6:]
-#: The hybrid kernels' literal parameters (:func:`._jit.call_specialized`): a run's, the model
-#: whose contact frame the hybrid steps read (:mod:`.kernels.contact`), and whether spin
-#: friction is on.
+#: The hybrid kernels' literal parameters (:func:`._jit.call_specialized`): a run's, the
+#: contact key (the model whose contact frame the hybrid steps read and the applied effects:
+#: :func:`hybrid_model`), and whether spin friction is on.
 LITERAL = (*RUN_LITERAL, "model", "spin")
 #: Step budget of one launch (accepted + rejected steps, both modes).
 MAX_STEPS = 10_000_000
@@ -53,6 +54,13 @@ def hybrid_setup(
         REVOLUTIONS if math.isfinite(theta_max) else 0
     )
     return params, scene_key(model, effects), 1 if scene.c_spin > 0 else 0
+
+
+def hybrid_model(effects: int) -> int:
+    """The hybrid kernels' literal ``model`` of a rolling scene's ``effects`` literal: its model
+    and the applied effects the sliding equations ask of the effects' terms
+    (:func:`.kernels.contact.contact_key`)."""
+    return contact_key(model_of_key(effects), effects)
 
 
 def whole_story(
@@ -75,7 +83,7 @@ def whole_story(
     (fate, floats, steps, n_events, times, kinds, states), the arrays cut to n_events."""
     cap = max(int(capacity), 1)
     while True:
-        res = hybrid_story(method_id, effects, model_of_key(effects), spin, params,
+        res = hybrid_story(method_id, effects, hybrid_model(effects), spin, params,
                            float(scene.mu_k), float(scene.c_spin), *map(float, start),
                            float(rtol), float(t_horizon), int(max_steps), cap)  # fmt: skip
         if res[3] <= cap:
@@ -128,7 +136,7 @@ def hybrid_fates(
     out_n = np.zeros(n, np.int64)
     if n:
         args = (launch, params, float(scene.mu_k), float(scene.c_spin), m.kernel_id, effects,
-                model_of_key(effects), spin, float(rtol), float(t_max),
+                hybrid_model(effects), spin, float(rtol), float(t_max),
                 int(max_steps))  # fmt: skip
         if lanes and m.family == "runge-kutta" and spin == 0:
             args += (numba.get_num_threads(), out_fate, out_f, out_n)

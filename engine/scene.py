@@ -20,7 +20,6 @@ from .kernels.cone import set_alpha
 from .kernels.effects import EFFECTS, mask_of
 from .kernels.layouts import SLOTS
 from .kernels.model import make_params
-from .kernels.sliding import FORCE_TERMS as SLIDING_FORCE_TERMS
 
 __all__ = ["Scene"]
 
@@ -129,17 +128,6 @@ class Scene:
                 )
             if self.attitude:
                 raise ValueError("Scene.mu_k cannot be combined with attitude = true (yet)")
-            for effect in EFFECTS:
-                if (
-                    effect.forces
-                    and effect.name not in SLIDING_FORCE_TERMS
-                    and _switched_on(effect.switch, getattr(self, effect.scene_field))
-                ):
-                    raise ValueError(
-                        f"Scene.{effect.scene_field} ({effect.name}) cannot be combined with "
-                        "Scene.mu_k (yet): the sliding model has no terms for it, and a ball "
-                        "sliding without it would be silently wrong"
-                    )
         if self.c_spin > 0 and self.mu_k is None:
             raise ValueError(
                 f"Scene.c_spin = {self.c_spin!r} needs Scene.mu_k (spin friction is part of "

@@ -16,12 +16,12 @@ import xarray as xr
 
 from ._jit import call_specialized
 from ._version import __version__
-from .hybrid import HYBRID_STATE, hybrid_setup, whole_story
+from .hybrid import HYBRID_STATE, hybrid_model, hybrid_setup, whole_story
 from .kernels.cone import set_alpha
 from .kernels.hybrid import HYBRID_FATE_NAMES
 from .kernels.hybrid_step import ARMED_KEPT, EV_NO_HOLD, EV_ROT_STOP, HYBRID_EVENT_NAMES
 from .kernels.layouts import P_K, P_M
-from .kernels.model import CONE, N_PARAMS
+from .kernels.model import N_PARAMS
 from .kernels.protocol import (
     AT_VERTEX,
     BUFFER_FULL,
@@ -59,7 +59,8 @@ _EV = {name: i for i, name in enumerate(HYBRID_EVENT_NAMES)}
 _KIND_NAMES = (*HYBRID_EVENT_NAMES, "rot_stop", "no_hold")
 assert (_KIND_NAMES.index("rot_stop"), _KIND_NAMES.index("no_hold")) == (EV_ROT_STOP, EV_NO_HOLD)
 _WORK = {
-    "W_rolling_resistance": "work done against rolling resistance since the start",
+    "W_effects": "work the effects acting through forces took since the start (rolling "
+    "resistance and any applied effect of the scene)",
     "W_sliding_friction": "work done against sliding friction since the start (sticking "
     "impulses included)",
     "W_spin_friction": "work done against spin friction since the start",
@@ -82,7 +83,7 @@ HYBRID_TRAJECTORY: dict[str, Variable] = {
     **{name: _f("J", text) for name, text in _WORK.items()},
     "balance_drift": _f(
         "J",
-        "E + W_rolling_resistance + W_sliding_friction + W_spin_friction "
+        "E + W_effects + W_sliding_friction + W_spin_friction "
         "- E(0): the energy balance, 0 up to the integration error",
     ),  # fmt: skip
     "event_kind": Variable("int8", None, "event kind", HYBRID_EVENT_KINDS),
@@ -111,11 +112,12 @@ def _start(alpha, energy, h, Lz, r0, u0, slip_u, slip_v, scene):
     return y
 
 
-def _stretches(y, mode, stuck, spin, hp, fate, ev_t, ev_kind, ev_y, t_last):
+def _stretches(key, y, mode, stuck, spin, hp, fate, ev_t, ev_kind, ev_y, t_last):
     """(t0, t1, start state, mode, stuck, the armed bits kept) of each stretch between the
     story's mode changes: the state after each change follows the story's rules
     (docs/physics.md "Switching between rolling and sliding", "Spin stick"), and so does the
-    arming of the stops (:func:`.kernels.hybrid.hybrid_fate_of`)."""
+    arming of the stops (:func:`.kernels.hybrid.hybrid_fate_of`); ``key`` the hybrid kernels'
+    literal ``model`` (:func:`.hybrid.hybrid_model`)."""
     t0s, t1s, ys, modes, stucks, keeps = [], [], [], [], [], []
     t, keep = 0.0, 0
     for i in range(len(ev_t)):
@@ -136,7 +138,7 @@ def _stretches(y, mode, stuck, spin, hp, fate, ev_t, ev_kind, ev_y, t_last):
         elif kind == "spin_stop":  # the rest of the spin goes to spin friction
             y[9] += 0.5 * hp[P_K] * hp[P_M] * y[6] * y[6]
             y[6] = 0.0
-            stuck = spin_hold_margin.py_func(CONE, y, hp) <= 0.0
+            stuck = spin_hold_margin.py_func(key, y, hp) <= 0.0
         elif kind == "spin_go":
             y[6] = 0.0
             stuck = False
@@ -181,23 +183,24 @@ def hybrid_trajectory(
     hp[H_MU_K], hp[H_C_SPIN] = scene.mu_k, scene.c_spin
     y0 = _start(alpha, energy, h, Lz, r0, u0, slip_u, slip_v, scene)
     mode = MODE_SLIDING if (slip_u != 0.0 or slip_v != 0.0) else MODE_ROLLING
-    stuck = bool(spin and y0[6] == 0.0 and spin_hold_margin.py_func(CONE, y0, hp) <= 0.0)
+    key = hybrid_model(effects)
+    stuck = bool(spin and y0[6] == 0.0 and spin_hold_margin.py_func(key, y0, hp) <= 0.0)
     if fate == "vertex" and n_ev == 0:  # it starts in the vertex region, moving in
         ev_t, ev_kind, ev_y = np.zeros(1), np.array([_EV["vertex"]], np.int8), y0[None].copy()
     t_last = float(f[0]) if math.isfinite(f[0]) else 0.0
-    t0, t1, ys, modes, stucks, keeps = _stretches(y0, mode, stuck, spin, hp, fate, ev_t, ev_kind,
-                                           ev_y, t_last)  # fmt: skip
+    t0, t1, ys, modes, stucks, keeps = _stretches(key, y0, mode, stuck, spin, hp, fate, ev_t,
+                                                  ev_kind, ev_y, t_last)  # fmt: skip
     told = ev_kind < len(HYBRID_EVENT_NAMES)  # the story's events, without the kernel's marks
     ev_t, ev_kind, ev_y, n_ev = ev_t[told], ev_kind[told], ev_y[told], int(told.sum())
     states = np.vstack([y0[None], ev_y])
     atol = rtol * np.maximum(np.abs(states).max(axis=0), 1e-300)
     vel = float(np.abs(states[:, 2:7]).max())
-    E0 = float(hybrid_energy.py_func(CONE, *y0[[0, 2, 3, 4, 5, 6]], hp))
+    E0 = float(hybrid_energy.py_func(key, *y0[[0, 2, 3, 4, 5, 6]], hp))
     atol[0] = rtol * r0
     atol[1] = rtol
     atol[2:7] = rtol * vel
     atol[7:] = rtol * max(abs(E0), 0.5 * scene.M * vel * vel)
-    args_head = (method_id, CONE, hp, np.array(t0), np.array(t1), np.array(ys),
+    args_head = (method_id, key, hp, np.array(t0), np.array(t1), np.array(ys),
                  np.array(modes, np.int64), np.array(stucks, np.bool_),
                  np.array(keeps, np.int64), rtol, atol,
                  float(dt_out or 0.0), int(max_steps))  # fmt: skip
@@ -226,16 +229,17 @@ def hybrid_trajectory(
         Y[-1] = ev_y[-1]
     return _dataset(scene, alpha, energy, h, Lz, u0, slip_u, slip_v, method, rtol, orbit_class,
                     fate, status, int(story_steps) + int(trace_steps), t, Y, modes_t, ev_t,
-                    ev_kind, ev_y, hp, E0)  # fmt: skip
+                    ev_kind, ev_y, hp, key, E0)  # fmt: skip
 
 
 def _dataset(scene, alpha, energy, h, Lz, u0, slip_u, slip_v, method, rtol, orbit_class, fate,
-             status, n_steps, t, Y, modes, ev_t, ev_kind, ev_y, hp, E0) -> xr.Dataset:  # fmt: skip
+             status, n_steps, t, Y, modes, ev_t, ev_kind, ev_y, hp, key,
+             E0) -> xr.Dataset:  # fmt: skip
     s, c = math.sin(alpha), math.cos(alpha)
     col = dict(zip(HYBRID_STATE, Y.T, strict=True))
     r, th = col["r"], col["theta"]
-    E = hybrid_energy.py_func(CONE, r, col["u"], col["v"], col["p1"], col["p2"], col["w"], hp)
-    work = col["W_rolling_resistance"] + col["W_sliding_friction"] + col["W_spin_friction"]
+    E = hybrid_energy.py_func(key, r, col["u"], col["v"], col["p1"], col["p2"], col["w"], hp)
+    work = col["W_effects"] + col["W_sliding_friction"] + col["W_spin_friction"]
     columns: dict[str, Any] = {
         "mode": modes.astype(np.int8),
         **{n: col[n] for n in ("r", "theta", "u", "v", "w", "p1", "p2")},

@@ -130,7 +130,11 @@ RESULTS: dict[str, Variable] = {
     "final_energy": _f("J", "radial energy calE of the last rolling orbit (NaN: none)"),
     "final_h": _f("m s-1", "spin invariant h of the last rolling orbit (NaN: none)"),
     "final_Lz": _f("kg m2 s-1", "L_z of the last rolling orbit (NaN: none)"),
-    "lost_rolling_resistance": _f("J", "energy lost to rolling resistance (both modes)"),
+    "lost_effects": _f(
+        "J",
+        "energy lost to the effects acting through forces: rolling resistance and any "
+        "applied effect (both modes)",
+    ),
     "lost_sliding_friction": _f("J", "energy lost to kinetic friction (and sticking)"),
     "lost_spin_friction": _f("J", "energy lost to spin friction (both modes)"),
     # surveys with an energy axis relative to V_min: calE = V_min + energy |V_min|

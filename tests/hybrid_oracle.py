@@ -25,7 +25,9 @@ scipy's solve_ivp (DOP853, rtol 1e-12) with events: the slip (needed friction re
 return to rolling (slip speed down to 1e-9 of the speed scale, then the sticking impulse: a
 return only if static friction then holds the rolling, or the sphere is then at rest), the spin
 reaching zero (spin_stop, whether or not it then sticks), the stuck spin's release (spin_go),
-the stop (rest), the rim (spill) and the vertex region (r below a/100). What a state decides
+the stop (rest), the rim (spill) and the vertex region (r below a/100). ``drag`` > 0 adds a
+linear air drag on the centre, -drag M (1 + k) V (tangent to the cone of the centre's
+positions, so N is unchanged): the recipe of docs/architecture.md's toy effect. What a state decides
 at the start of a stretch (rolling beyond the friction limit: a slip; within the stop threshold:
 the stop) is decided before the stretch runs. A return or a stop of Omega_t is armed again only
 once its quantity has exceeded twice its threshold.
@@ -44,8 +46,10 @@ EPS = 1e-9
 
 
 class Oracle:
-    def __init__(self, alpha, M, g, a, k, mu, mu_k, c_rr=0.0, c_spin=0.0, rim_centre=math.inf):
+    def __init__(self, alpha, M, g, a, k, mu, mu_k, c_rr=0.0, c_spin=0.0, rim_centre=math.inf,
+                 drag=0.0):  # fmt: skip
         self.s, self.c = math.sin(alpha), math.cos(alpha)
+        self.drag = drag
         self.M, self.g, self.a, self.k = M, g, a, k
         self.mu, self.mu_k, self.c_rr, self.c_spin = mu, mu_k, c_rr, c_spin
         self.rim = rim_centre
@@ -120,7 +124,7 @@ class Oracle:
     def accelerations(self, X, V, W, f, spin=1, tangential=None):
         n = self.normal(X)
         N = self.normal_force(X, V)
-        A = -self.g * ZHAT + (N * n + f) / self.M
+        A = -self.g * ZHAT + (N * n + f) / self.M - self.drag * (1.0 + self.k) * V
         tau = np.cross(-self.a * n, f) + self.couples(X, V, W, N, spin, f, tangential)
         return A, tau / self.I
 

@@ -84,7 +84,7 @@ def test_losses_add_up_to_the_energy_drop_and_energy_never_increases():
     res = launch_fates(alpha, r0, v0, w0, u0=u0, slip_u=su, slip_v=sv, scene=sc, rtol=1e-11,
                        horizon_time=2.0)  # fmt: skip
     assert not (res["fate_name"] == "failed").any(), res["fate_name"]
-    losses = res["lost_rolling_resistance"] + res["lost_sliding_friction"]
+    losses = res["lost_effects"] + res["lost_sliding_friction"]
     losses = losses + res["lost_spin_friction"]
     inv = launch.invariants(alpha, r0, u0, v0, w0, sc)
     scale = np.abs(inv["E"]) + 0.5 * (u0**2 + v0**2 + w0**2 + su**2 + sv**2)
@@ -178,7 +178,7 @@ def test_a_slip_friction_stops_returns_to_rolling_within_a_modest_step_budget(c_
         names = [HYBRID_FATE_NAMES[f] for f in res["fate"]]
         assert set(names) <= {"rolling", "sliding"}, names  # to the horizon, no failure
         assert (res["slip_episodes"] >= 1).all() and (res["n_steps"] < 20_000).all()
-        parts = sum(res[n] for n in ("lost_rolling_resistance", "lost_sliding_friction",
+        parts = sum(res[n] for n in ("lost_effects", "lost_sliding_friction",
                                      "lost_spin_friction"))  # fmt: skip
         assert (np.abs(parts - res["energy_lost"]) <= 1e-9 * np.abs(inv["E"])).all()
         lost.append(res["energy_lost"])

@@ -10,7 +10,9 @@ for it, with the lines the doc gives, and that the copy ran it:
   right-hand side (the force and the power it dissipates), its parameter slot and its Scene
   field; the copy must take it in survey files and ``conesurvey validate``, refuse it in the
   methods that cannot follow dissipative forces, follow it to each orbit's fate in a written
-  survey, and list the fate map's variables in the schema;
+  survey, list the fate map's variables in the schema, and honour it while sliding (a
+  sliding launch's story is the rigid-body model's with the drag, its energy balance closed
+  with the drag's work booked);
 - a new output variable: ``apsidal_degrees``, the one-period map's apsidal angle in degrees,
   declared in the schema and written by the kernel's row; a survey file's results hold it,
   with its units, equal to the apsidal angle in degrees;
@@ -395,12 +397,50 @@ with section("effect"):
         raise AssertionError("a negative c_drag was taken")
     except ValueError as exc:
         assert "Scene.c_drag" in str(exc), exc
-    # the sliding model writes its own forces: a sliding scene with the drag is refused
-    try:
-        engine.Scene(c_drag=0.5, mu=0.5, mu_k=0.3)
-        raise AssertionError("a sliding scene took air drag")
-    except ValueError as exc:
-        assert "Scene.c_drag (air_drag)" in str(exc) and "sliding model" in str(exc), exc
+    # the sliding model asks the drag's terms too: a sliding launch tells the rigid-body
+    # model's story with the drag (tests/hybrid_oracle.py, Cartesian Newton-Euler, scipy
+    # DOP853 at rtol 1e-12), keeps its energy balance and books the drag's work
+    from engine.story import launch_fates, story
+
+    sys.path.insert(0, sys.argv[2])
+    from hybrid_oracle import Oracle, polar, start_state
+
+    a = 0.01
+    stories = []
+    for alpha, r0, u0, v0, w0, su, sv in ((0.6, 0.3, 1.0, 0.5, 1.0, 1.0, 0.5),
+                                          (1.0, 0.4, -1.0, 0.7, -1.0, -1.0, 0.7)):
+        told = {}
+        for drag in (0.0, 0.5):
+            sc = engine.Scene(M=1.0, a=a, k=0.4, rim=1.0, mu=0.6, mu_k=0.5, c_drag=drag)
+            told[drag] = story(alpha, r0, v0, w0, u0=u0, slip_u=su, slip_v=sv, scene=sc,
+                               rtol=1e-11, horizon_time=0.5)
+        out = told[0.5]
+        stories.append(out["lost_effects"])
+        assert out["invariant_drift"] < 1e-9, out["invariant_drift"]
+        assert told[0.0]["lost_effects"] == 0.0 and out["lost_effects"] > 0.0, out
+        split = out["lost_effects"] + out["lost_sliding_friction"] + out["lost_spin_friction"]
+        assert abs(split - out["energy_lost"]) <= 1e-9 * out["energy_lost"], out
+        assert out["events"][0]["t"] != told[0.0]["events"][0]["t"]  # the slide feels it
+        oracle = Oracle(alpha, 1.0, sc.g, a, 0.4, sc.mu, sc.mu_k,
+                        rim_centre=1.0 - a / np.tan(alpha), drag=0.5)
+        speed = max(abs(u0), abs(v0), abs(w0), abs(su), abs(sv))
+        y0 = start_state(alpha, r0, u0, v0, w0, su, sv, a)
+        ev, y_end, _ = oracle.run(y0, "sliding", 0.5, speed)
+        assert [e["kind"] for e in out["events"]] == [e[0] for e in ev], (out["events"], ev)
+        for e, (kind, t, y) in zip(out["events"], ev, strict=True):
+            assert abs(e["t"] - t) <= 1e-7 * t + 1e-9, (kind, e["t"], t)
+            assert abs(e["state"]["r"] - polar(y, alpha)[0]) <= 1e-7 * r0, kind
+        lost = oracle.energy(y0) - oracle.energy(y_end)
+        scale = 0.5 * speed**2 + sc.g * r0
+        assert abs(out["energy_lost"] - lost) <= 1e-8 * scale, (out["energy_lost"], lost)
+        print(f"sliding with air_drag: {[e[0] for e in ev]}, drag took "
+              f"{out['lost_effects']:.6f} J", flush=True)
+    # and a map of sliding launches (the lanes' stories) books the same work as the stories
+    fates = launch_fates([0.6, 1.0], [0.3, 0.4], [0.5, 0.7], [1.0, -1.0], u0=[1.0, -1.0],
+                         slip_u=[1.0, -1.0], slip_v=[0.5, 0.7], scene=sc, rtol=1e-11,
+                         horizon_time=0.5)  # fmt: skip
+    assert np.all(fates["invariant_drift"] < 1e-9), fates["invariant_drift"]
+    np.testing.assert_allclose(fates["lost_effects"], stories, rtol=1e-9)
     # refusals: the closed form and the symplectic method cannot follow dissipative forces
     for name, why in (("exact", "lossless"), ("symplectic", "conservative")):
         try:
@@ -503,7 +543,11 @@ def applied(tmp_path_factory):
     env = dict(os.environ, PYTHONPATH=str(tmp), CONESURVEY_CACHE_DIR=str(copy_cache(tmp, "all")))
     env["NUMBA_NUM_THREADS"] = "1"
     res = subprocess.run(
-        [sys.executable, "-c", CHECK, str(tmp)], env=env, cwd=tmp, capture_output=True, text=True
+        [sys.executable, "-c", CHECK, str(tmp), str(ROOT / "tests")],
+        env=env,
+        cwd=tmp,
+        capture_output=True,
+        text=True,
     )
     return stats, res
 
@@ -520,11 +564,12 @@ def _ran(res: subprocess.CompletedProcess, section: str) -> None:
 
 def test_recipe_new_effect(applied):
     """One row, its right-hand-side terms, its parameter slot and Scene field: the effect reaches
-    survey files, validate, fate maps, refusals and the schema."""
+    survey files, validate, fate maps, refusals, the schema and the sliding model."""
     stats, res = applied
     _touched_as_documented(stats, "A new effect")
     _ran(res, "effect")
     assert "effect air_drag: honoured by rk45, dop853" in res.stdout
+    assert res.stdout.count("sliding with air_drag") == 2, res.stdout
 
 
 def test_recipe_new_output_variable(applied):

@@ -23,7 +23,7 @@ NEVER_SLIPS = Scene(mu=50.0, mu_k=0.3, rim=1.0)
 SHARED = ("orbit_class", "r_min", "r_max", "r_circ", "period", "apsidal_angle",
           "precession_rate", "mu_required", "fate", "fate_time", "fate_r", "fate_theta",
           "revolutions", "energy_lost", "invariant_drift", "n_steps")  # fmt: skip
-LOSSES = ("lost_rolling_resistance", "lost_sliding_friction", "lost_spin_friction")
+LOSSES = ("lost_effects", "lost_sliding_friction", "lost_spin_friction")
 
 
 def test_a_scene_that_never_slips_maps_as_today_bit_for_bit():

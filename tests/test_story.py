@@ -50,7 +50,7 @@ def test_thrown_ball_slides_rolls_and_comes_to_rest_on_a_flat_cone(w0):
         assert stop["t"] == pytest.approx(K * w0 / (C_SPIN * G), rel=1e-6)
     lost_slide = MU_K * G * u0 * t1 / 2
     assert out["lost_sliding_friction"] == pytest.approx(lost_slide, rel=1e-4)
-    assert out["lost_rolling_resistance"] == pytest.approx(u0**2 / 2 - lost_slide, rel=1e-4)
+    assert out["lost_effects"] == pytest.approx(u0**2 / 2 - lost_slide, rel=1e-4)
     assert out["lost_spin_friction"] == pytest.approx(K * w0**2 / 2, rel=1e-6, abs=1e-15)
     assert out["energy_lost"] == pytest.approx((u0**2 + K * w0**2) / 2, rel=1e-4)
 
@@ -164,7 +164,7 @@ def test_strong_rolling_resistance_a_thrown_ball_slides_to_rest_without_turning(
     assert t - 3e-9 < out["slide_time"] <= t and out["n_steps"] < 200
     height = G * c * u0 * t / 2
     assert out["lost_sliding_friction"] == pytest.approx(u0**2 / 2 - height, rel=1e-8)
-    assert out["lost_rolling_resistance"] == pytest.approx(0.0, abs=1e-12)
+    assert out["lost_effects"] == pytest.approx(0.0, abs=1e-12)
 
 
 def test_strong_rolling_resistance_a_ball_released_at_rest_slides_to_the_vertex():

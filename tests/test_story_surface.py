@@ -90,7 +90,7 @@ def test_a_cone_as_a_surface_tells_the_cones_story(launch):
         for name in ("u", "v", "p1", "p2", "w"):
             assert a["state"][name] == pytest.approx(b["state"][name], rel=1e-6, abs=1e-8)
     assert surf["fate_time"] == pytest.approx(cone["fate_time"], rel=1e-7)
-    for name in ("lost_rolling_resistance", "lost_sliding_friction", "lost_spin_friction"):
+    for name in ("lost_effects", "lost_sliding_friction", "lost_spin_friction"):
         assert surf[name] == pytest.approx(cone[name], rel=1e-6, abs=1e-10)
     assert surf["invariant_drift"] < 1e-9
 

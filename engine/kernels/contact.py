@@ -12,11 +12,13 @@ the centre (:func:`.sliding.frame_rates`); a model gives that frame and the heig
   the arc (the cone's r is its arc: 1);
 - :func:`height_energy` ``(model, r, p)``: M g z [J] of the centre at r.
 
-``model`` is a model id (:data:`.model.MODELS`), a numba literal in a kernel: each model's hybrid
-kernels are their own compiled specialisations, the call resolved at compile time (a model costs
-the others nothing). In plain Python (the ``.py_func`` of a hybrid kernel, as
-``engine.simulate_hybrid`` and the tests run them) the call goes to the model's kernel's
-``.py_func`` by the model id's value.
+``model`` is the contact key (:func:`contact_key`: the model id and the scene's applied
+effects, :data:`APPLIED`, as a scene key), a numba literal in a kernel: each model's hybrid
+kernels are their own compiled specialisations, the call resolved at compile time by
+:func:`.model.interface`, the model interface's one dispatch (a model costs the others
+nothing), and the sliding equations ask :func:`.forces.effect_terms` of the applied effects
+alone. In plain Python (the ``.py_func`` of a hybrid kernel, as ``engine.simulate_hybrid`` and
+the tests run them) the call goes to the model's kernel's ``.py_func`` by the key's value.
 
 What a story asks of a model besides its frame (:mod:`.story_parts`, :mod:`.story_switches`):
 
@@ -40,50 +42,48 @@ What a story asks of a model besides its frame (:mod:`.story_parts`, :mod:`.stor
 
 from __future__ import annotations
 
-import inspect
-
-from numba.core import errors, types
 from numba.extending import overload
 
-from .model import MODEL_ROWS, MODELS, Model
+from .effects import EFFECT_BITS, FORCE_EFFECTS
+from .model import (
+    MODEL_ROWS,
+    MODEL_SHIFT,
+    MODELS,
+    Model,
+    interface,
+    literal_row,
+    model_of_key,
+    scene_key,
+)
 
-__all__ = ["CONTACT", "check_contact", "contact_frame", "domain_floor", "height_energy",
-           "holds_at_rest",
-           "leaves_contact", "rest_spin_rate", "resume_rolling", "rolling_energy",
-           "rolling_orbit", "story_start"]  # fmt: skip
+__all__ = ["APPLIED", "CONTACT", "check_contact", "contact_frame", "contact_key", "domain_floor",
+           "height_energy", "holds_at_rest", "leaves_contact", "rest_spin_rate",
+           "resume_rolling", "rolling_energy", "rolling_orbit", "story_start"]  # fmt: skip
 
 _OPTS = {"error_model": "numpy", "fastmath": False, "nogil": True}
 
+#: The effects the hybrid model asks of :func:`.forces.effect_terms` in both modes: every
+#: effect acting through forces but rolling resistance, whose rules at zero tangential spin
+#: the hybrid model writes itself (static while sliding, docs/physics.md "Rolling resistance
+#: while sliding"). A recipe's new force effect is one of them.
+APPLIED = FORCE_EFFECTS & ~EFFECT_BITS["rolling_resistance"]
+
+
+def contact_key(model: int, effects: int) -> int:
+    """The hybrid kernels' literal ``model``: the model id and the scene's :data:`APPLIED`
+    effects, as a scene key (``model.scene_key``; the cone without them: 0). The hybrid
+    kernels compile once per model and applied effect set, whatever the scene's other effects."""
+    return scene_key(model, int(effects) & APPLIED)
+
 
 def _row(model) -> Model:
-    if model not in MODEL_ROWS:
-        raise ValueError(f"no model with id {model}")
-    return MODEL_ROWS[model]
-
-
-def _interface(stub, part: str = "physics"):
-    """Make ``stub`` (first parameter ``model``) call the model's kernel of the same name in its
-    ``part`` module ("physics" or "starts") with the other arguments: picked at compile time
-    from the literal ``model`` in a kernel, by its value in plain Python."""
-    names = list(inspect.signature(stub).parameters)
-    args = ", ".join(names)
-    rest = ", ".join(names[1:])
-    body = f"def impl({args}):\n    return f({rest})\n"
-
-    def typer(model, *rest):
-        if not isinstance(model, types.IntegerLiteral):
-            raise errors.TypingError("model must be a numba literal here (use numba.literally)")
-        if model.literal_value not in MODEL_ROWS:
-            raise errors.TypingError(f"no model with id {model.literal_value}")
-        namespace = {"f": getattr(getattr(MODEL_ROWS[model.literal_value], part), stub.__name__)}
-        exec(compile(body, f"<conesurvey contact {stub.__name__}>", "exec"), namespace)  # noqa: S102
-        return namespace["impl"]
-
-    src = f"def typer_named({args}):\n    return typer({args})\n"
-    namespace = {"typer": typer}
-    exec(compile(src, f"<conesurvey contact {stub.__name__} typer>", "exec"), namespace)  # noqa: S102
-    overload(stub, jit_options=_OPTS)(namespace["typer_named"])
-    return stub
+    key = int(model)
+    if key & ((1 << MODEL_SHIFT) - 1) & ~APPLIED:
+        raise ValueError(f"{key} is not a contact key (a model id and applied effects)")
+    row = MODEL_ROWS.get(model_of_key(key))
+    if row is None:
+        raise ValueError(f"no model with id {model_of_key(key)}")
+    return row
 
 
 def contact_frame(model, r, u, v, p):
@@ -140,9 +140,9 @@ for _stub in (
     rest_spin_rate,
     domain_floor,
 ):
-    _interface(_stub)
+    interface(_stub, "physics", takes_effects=False, key="model")
 for _stub in (holds_at_rest, story_start, resume_rolling):
-    _interface(_stub, "starts")
+    interface(_stub, "starts", takes_effects=False, key="model")
 
 #: The kernels a model with sliding contact provides: (module part, name).
 CONTACT = (("physics", "contact_frame"), ("physics", "height_energy"),
@@ -160,9 +160,7 @@ def leaves_contact(model) -> bool:
 
 @overload(leaves_contact, jit_options=_OPTS)
 def _leaves_contact(model):
-    if not isinstance(model, types.IntegerLiteral):
-        raise errors.TypingError("model must be a numba literal here (use numba.literally)")
-    value = bool(MODEL_ROWS[model.literal_value].physics.LEAVES)
+    value = bool(literal_row(model).physics.LEAVES)
     return lambda model: value
 
 

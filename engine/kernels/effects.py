@@ -13,7 +13,7 @@ the :data:`CAPABILITIES` it has; an effect needing one it lacks is refused with 
 reason for lacking it).
 
 A new effect is one row here (its parameter slots named here, laid out by :mod:`.layouts`), its
-forces and couples in :mod:`.forces` (every model asks them while rolling) and its
+forces and couples in :mod:`.forces` (every model asks them, rolling and sliding) and its
 :class:`engine.Scene` field; docs/architecture.md "A new effect".
 
 Gravity (g = 0 is free fall) and the spin coupling (k = 0) are parameters, not effects. This
@@ -55,8 +55,7 @@ class Effect(NamedTuple):
     #: fills (None -> +inf).
     params: tuple[str, ...]
     #: Acts through a force on the centre or a couple on the sphere: its terms are in
-    #: :mod:`.forces`, which every model asks while rolling (the sliding model writes its own:
-    #: ``sliding.FORCE_TERMS``; ``engine.Scene`` refuses the others with kinetic friction).
+    #: :mod:`.forces`, which every model asks in every mode (rolling and sliding).
     forces: bool
     #: Does work on the sphere: the state carries the work done (the last component), the energy
     #: balance E + W is checked, and an integrator follows each orbit to its fate.
@@ -151,7 +150,7 @@ EFFECTS: tuple[Effect, ...] = (
                     "final_energy",
                     "final_h",
                     "final_Lz",
-                    "lost_rolling_resistance",
+                    "lost_effects",
                     "lost_sliding_friction",
                     "lost_spin_friction",
                     "fate_spin",

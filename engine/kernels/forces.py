@@ -1,10 +1,10 @@
 """The effects' forces and couples: what each effect of the effects table does to the sphere.
 
 An effect acts through a force f on the centre and a couple T on the sphere. Every model asks
-the same function of the effects while rolling, and turns the answer into its rates
-(docs/physics.md "Effects as forces and couples"); its arguments take a sliding sphere's state
-too, but the sliding model (:mod:`.sliding`) still writes its own terms (``FORCE_TERMS``), and
-``engine.Scene`` refuses kinetic friction with an effect it has none for:
+the same function of the effects in every mode, rolling or sliding, and turns the answer into
+its rates (docs/physics.md "Effects as forces and couples"); the hybrid model
+(:mod:`.sliding`) asks it of every such effect but rolling resistance, whose rules at zero
+tangential spin it writes itself (``contact.APPLIED``):
 
     (f1, f2, t1, t2, t3) = effect_terms(effects, p, u, v, p1, p2, w, N, pull_u, pull_v)
 
@@ -18,9 +18,10 @@ at rest holds against it). A rolling sphere then moves by
 
 a sliding one by udot += f1 / M, vdot += f2 / M, (p1, p2, w)dot += (t1, t2, t3) / (k M). The
 power the effects take from the sphere, -(f1 u + f2 v + t1 p1 + t2 p2 + t3 w) [W], is the rate
-of the work state whatever the effects are (:func:`taken_power`), so the work of every effect
-is booked. A new effect is one row of the effects table, its terms here under its bit (its
-parameters read by slot, :mod:`.layouts`) and its Scene field.
+of the work state whatever the effects are (:func:`taken_power`; the hybrid state's
+``W_effects`` in both modes), so the work of every effect is booked. A new effect is one row
+of the effects table, its terms here under its bit (its parameters read by slot,
+:mod:`.layouts`) and its Scene field.
 
 ``effects`` reaches these kernels as a numba literal: an effect that is off costs nothing.
 """

@@ -194,30 +194,32 @@ _JIT_ONLY = "runs inside numba kernels only"
 _OPTS = {"error_model": "numpy", "fastmath": False, "nogil": True}
 
 
-def _model(effects) -> Model:
+def literal_row(effects) -> Model:
+    """The model row of a scene key typed as a numba literal (compile time)."""
     if not isinstance(effects, types.IntegerLiteral):
-        raise errors.TypingError("effects must be a numba literal here (use numba.literally)")
+        raise errors.TypingError("a scene key must be a numba literal here (use numba.literally)")
     model = int(effects.literal_value) >> MODEL_SHIFT
     if model not in MODEL_ROWS:
         raise errors.TypingError(f"no model with id {model}")
     return MODEL_ROWS[model]
 
 
-def _interface(stub, part: str, takes_effects: bool = True):
-    """Make ``stub`` (a function of the interface, jit-only) call the model's own kernel of
-    the same name, picked at compile time from the literal ``effects``: the model row's
-    ``part`` module ("physics" or "starts"); without ``takes_effects`` the model's kernel does
-    not take the ``effects`` argument. A model module that lacks the kernel fails at import
-    (:func:`check_models`)."""
+def interface(stub, part: str, takes_effects: bool = True, key: str = "effects"):
+    """Make ``stub`` (a function of the interface) call the model's own kernel of the same name
+    inside kernels, picked at compile time from its literal parameter ``key`` (a scene key,
+    :func:`scene_key`: ``effects`` here, the contact key ``model`` in :mod:`.contact`): the
+    model row's ``part`` module ("physics" or "starts"); without ``takes_effects`` the model's
+    kernel does not take the key. A model module that lacks the kernel fails at import
+    (:func:`check_interface`, ``contact.check_contact``)."""
     names = list(inspect.signature(stub).parameters)
     args = ", ".join(names)
-    call = ", ".join(n for n in names if takes_effects or n != "effects")
-    at = names.index("effects")
+    call = ", ".join(n for n in names if takes_effects or n != key)
+    at = names.index(key)
     src = f"def typer({args}):\n    return pick(({args})[{at}])\n"
     body = f"def impl({args}):\n    return f({call})\n"
 
     def pick(effects):
-        namespace = {"f": getattr(getattr(_model(effects), part), stub.__name__)}
+        namespace = {"f": getattr(getattr(literal_row(effects), part), stub.__name__)}
         exec(compile(body, f"<conesurvey model {stub.__name__}>", "exec"), namespace)  # noqa: S102
         return namespace["impl"]
 
@@ -297,18 +299,18 @@ def starts_inner(effects, p, y0):
     raise NotImplementedError(_JIT_ONLY)
 
 
-_interface(motion_rates, "physics")
-_interface(dissipated_power, "physics")
-_interface(omega_fixed, "physics", takes_effects=False)
-_interface(invariants, "physics", takes_effects=False)
-_interface(slip_margin, "physics")
-_interface(lift_margin, "physics", takes_effects=False)
-_interface(domain_floor, "physics", takes_effects=False)
-_interface(set_point, "starts", takes_effects=False)
-_interface(period_start, "starts")
-_interface(fate_start, "starts")
-_interface(holds_at_rest, "starts", takes_effects=False)
-_interface(starts_inner, "starts")
+interface(motion_rates, "physics")
+interface(dissipated_power, "physics")
+interface(omega_fixed, "physics", takes_effects=False)
+interface(invariants, "physics", takes_effects=False)
+interface(slip_margin, "physics")
+interface(lift_margin, "physics", takes_effects=False)
+interface(domain_floor, "physics", takes_effects=False)
+interface(set_point, "starts", takes_effects=False)
+interface(period_start, "starts")
+interface(fate_start, "starts")
+interface(holds_at_rest, "starts", takes_effects=False)
+interface(starts_inner, "starts")
 
 #: The kernels each model provides: (module part, name).
 INTERFACE = tuple(
@@ -357,7 +359,7 @@ def leaves(effects) -> bool:
 
 @overload(leaves, jit_options=_OPTS)
 def _leaves(effects):
-    value = bool(_model(effects).physics.LEAVES)
+    value = bool(literal_row(effects).physics.LEAVES)
     return lambda effects: value
 
 

@@ -19,6 +19,7 @@ import math
 
 from .._jit import kernel
 from .contact import holds_at_rest, resume_rolling, rolling_energy, rolling_orbit, story_start
+from .effects import DISSIPATIVE
 from .fate import (
     FAILED,
     FATE_LIFTED_OFF,
@@ -50,7 +51,7 @@ from .hybrid_step import (
     segment,
 )
 from .layouts import P_CRR, P_K, P_M, P_V_REST, Y_R, Y_THETA, Y_U, Y_V, Y_W
-from .model import ROLLING_RESISTANCE, energy, kinetic_energy
+from .model import energy, kinetic_energy
 from .protocol import push_event
 from .sliding import (
     MODE_ROLLING,
@@ -63,7 +64,7 @@ from .sliding import (
     YH_U,
     YH_V,
     YH_W,
-    YH_WORK_RR,
+    YH_WORK_EFFECTS,
     YH_WORK_SLIDE,
     YH_WORK_SPIN,
     hold_margin,
@@ -90,7 +91,7 @@ L_ALPHA, L_ENERGY, L_H, L_LZ, L_R_START, L_U0, L_SLIP_U, L_SLIP_V = range(len(LA
 #: Rows of the float output of :func:`hybrid_fate_points`.
 HYBRID_ROWS = ("fate_time", "fate_r", "fate_theta", "revolutions", "energy_lost",
                "invariant_drift", "slide_time", "slip_episodes", "fate_speed", "final_energy",
-               "final_h", "final_Lz", "lost_rolling_resistance", "lost_sliding_friction",
+               "final_h", "final_Lz", "lost_effects", "lost_sliding_friction",
                "lost_spin_friction", "fate_spin")  # fmt: skip
 
 
@@ -147,7 +148,7 @@ def story_begin(effects, model, spin, p, mu_k, c_spin, start, rtol, out, y0, ato
     hatol[YH_P2] = rtol * vel
     hatol[YH_W] = atol[Y_W]
     e_scale = max(abs(e_true), 0.5 * M * vel * vel)
-    hatol[YH_WORK_RR] = rtol * e_scale
+    hatol[YH_WORK_EFFECTS] = rtol * e_scale
     hatol[YH_WORK_SLIDE] = rtol * e_scale
     hatol[YH_WORK_SPIN] = rtol * e_scale
     mode = MODE_SLIDING if (slip_u != 0.0 or slip_v != 0.0) else MODE_ROLLING
@@ -210,8 +211,8 @@ def rolling_stretch(effects, model, p, y, y0, atol, rtol, hs, hi, yr, ra):
     yr[Y_U] = y[YH_U]
     yr[Y_V] = y[YH_V]
     yr[Y_W] = y[YH_W]
-    if effects & ROLLING_RESISTANCE:
-        yr[nr - 1] = y[YH_WORK_RR]
+    if effects & DISSIPATIVE:  # the rolling state's work: the effects' forces'
+        yr[nr - 1] = y[YH_WORK_EFFECTS]
     return resume_rolling(model, effects, p, yr, rtol, ra)
 
 
@@ -229,8 +230,8 @@ def rolled(effects, f, dt, yr, st, y, hs, hi, ev_t, ev_kind, ev_y):
     y[YH_P1] = -yr[Y_V]
     y[YH_P2] = yr[Y_U]
     y[YH_W] = yr[Y_W]
-    if effects & ROLLING_RESISTANCE:
-        y[YH_WORK_RR] = yr[nr - 1]
+    if effects & DISSIPATIVE:  # the rolling state's work: the effects' forces'
+        y[YH_WORK_EFFECTS] = yr[nr - 1]
     t = hs[HS_T]
     if f != FATE_SLIPPED:
         hi[HI_FATE] = f
@@ -299,7 +300,7 @@ def hybrid_stretch(method, model, p, y, hp, rtol, hatol, t_horizon, max_steps, K
             hi[HI_ARMED] &= ARMED_SPIN | ARMED_ROT
         return
     if end == EV_ROT_STOP:  # (p1, p2) down to the threshold: the rest of it to the resistance
-        y[YH_WORK_RR] += 0.5 * hp[P_K] * hp[P_M] * (y[YH_P1] * y[YH_P1] + y[YH_P2] * y[YH_P2])
+        y[YH_WORK_EFFECTS] += 0.5 * hp[P_K] * hp[P_M] * (y[YH_P1] * y[YH_P1] + y[YH_P2] * y[YH_P2])
         y[YH_P1] = 0.0
         y[YH_P2] = 0.0
         hi[HI_NEV] = push_event(ev_t, ev_kind, ev_y, hi[HI_NEV], t, end, y)  # (the state after)
@@ -350,7 +351,7 @@ def story_result(effects, model, spin, p, y, y0, hp, hs, hi, out):
     if hi[HI_FATE] == FATE_REST or hi[HI_FATE] == SPINNING:  # its state at rest
         fe, fh, fl = rolling_orbit(model, y[YH_R], y[YH_U], y[YH_V], y[YH_W], hp)
     E0 = hs[HS_E0]
-    work = y[YH_WORK_RR] + y[YH_WORK_SLIDE] + y[YH_WORK_SPIN]
+    work = y[YH_WORK_EFFECTS] + y[YH_WORK_SLIDE] + y[YH_WORK_SPIN]
     out[0] = hs[HS_T]
     out[1] = y[YH_R]
     out[2] = y[YH_THETA]
@@ -363,7 +364,7 @@ def story_result(effects, model, spin, p, y, y0, hp, hs, hi, out):
     out[9] = fe
     out[10] = fh
     out[11] = fl
-    out[12] = y[YH_WORK_RR]
+    out[12] = y[YH_WORK_EFFECTS]
     out[13] = y[YH_WORK_SLIDE]
     out[14] = y[YH_WORK_SPIN]
     out[15] = y[YH_W]

@@ -36,7 +36,7 @@ from .sliding import (
     YH_U,
     YH_V,
     YH_W,
-    YH_WORK_RR,
+    YH_WORK_EFFECTS,
     YH_WORK_SPIN,
     hold_margin,
     rolling_rates,
@@ -101,7 +101,7 @@ def story_rest(model, p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y):
         y[YH_V] = 0.0
         y[YH_P1] = 0.0
         y[YH_P2] = 0.0
-        y[YH_WORK_RR] += e_moving - mode_energy(model, y, hp, MODE_ROLLING) - w_spin
+        y[YH_WORK_EFFECTS] += e_moving - mode_energy(model, y, hp, MODE_ROLLING) - w_spin
         hs[HS_T] += dt
     t = hs[HS_T]
     if not holds_at_rest(model, p, y):  # it starts again from rest (y[YH_R] is its Y_R)

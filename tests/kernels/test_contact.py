@@ -22,12 +22,16 @@ import pytest
 from newton_euler import newton_euler
 
 from engine.kernels import contact
+from engine.kernels.contact import contact_key
 from engine.kernels.meridian import P_SHAPE1, P_SHAPE2
-from engine.kernels.model import CONE, MODELS, SURFACE, Model
+from engine.kernels.model import CONE, MODEL_SHIFT, MODELS, SURFACE, Model
 from engine.kernels.sliding import hybrid_energy, hybrid_params, sliding_rates
 from engine.scene import Scene
 from engine.surface_maps import surface_params
 from engine.surfaces import Bowl, Cylinder, Funnel, Paraboloid, PowerLaw
+
+#: The surface model's contact key without applied effects (the hybrid kernels' ``model``).
+SURFACE_KEY = contact_key(SURFACE, 0)
 
 M, K, G, A = 1.3, 0.4, 9.81, 0.02
 
@@ -45,20 +49,20 @@ def test_the_bowls_frame_is_the_centres_sphere():
     rng = np.random.default_rng(3)
     for _ in range(40):
         q, u, v = rng.uniform(0.05, 1.4), *rng.uniform(-2.0, 2.0, 2)
-        thd, N, gsb, cr, kappa, sr, dqds = contact.contact_frame(SURFACE, q, u, v, hp)
+        thd, N, gsb, cr, kappa, sr, dqds = contact.contact_frame(SURFACE_KEY, q, u, v, hp)
         rho = rc * math.sin(q)
         want = (v / rho, M * (G * math.cos(q) + (u * u + v * v) / rc), G * math.sin(q),
                 math.cos(q) / rho, 1.0 / rc, math.sin(q) / rho, 1.0 / rc)  # fmt: skip
         assert (thd, N, gsb, cr, kappa, sr, dqds) == pytest.approx(want, rel=1e-13)
         z = R - rc * math.cos(q)  # the centre's height, the bowl's bottom at z = 0
-        assert contact.height_energy(SURFACE, q, hp) == pytest.approx(M * G * z, rel=1e-13)
+        assert contact.height_energy(SURFACE_KEY, q, hp) == pytest.approx(M * G * z, rel=1e-13)
 
 
 def test_the_cylinders_frame():
     R = 0.5
     hp = _hp(Cylinder(R))
     for q, u, v in ((0.3, 0.5, 1.2), (-2.0, -1.0, 0.4), (4.0, 0.0, -3.0)):
-        frame = contact.contact_frame(SURFACE, q, u, v, hp)
+        frame = contact.contact_frame(SURFACE_KEY, q, u, v, hp)
         rc = R - A
         assert frame == pytest.approx((v / rc, M * v * v / rc, G, 0.0, 0.0, 1.0 / rc, 1.0),
                                       rel=1e-14, abs=1e-15)  # fmt: skip
@@ -119,7 +123,7 @@ def test_sliding_on_a_surface_is_newton_and_euler(name):
         f = -mu_k * N * S / np.linalg.norm(S)
         T = -c_spin * N * math.copysign(1.0, w) * nu
         want, N2, _ = newton_euler(meridian, t, theta, u, v, P, f, T, M, K, G, A)
-        got = sliding_rates.py_func(SURFACE, t, u, v, p1, p2, w, False, hp)
+        got = sliding_rates.py_func(SURFACE_KEY, t, u, v, p1, p2, w, False, hp)
         sig = math.hypot(rt, zt)
         assert got[0] == pytest.approx(u / sig, rel=1e-12)  # dq/dt
         assert got[1] == pytest.approx(v / rho, rel=1e-12)
@@ -127,7 +131,7 @@ def test_sliding_on_a_surface_is_newton_and_euler(name):
         assert got[9] == pytest.approx(c_spin * N2 * abs(w), rel=1e-11)
         scale = G + 3.0 / rho + 3.0 / (K * M)
         worst = max(worst, max(abs(x - y) for x, y in zip(got[2:7], want, strict=True)) / scale)
-        E = hybrid_energy.py_func(SURFACE, t, u, v, p1, p2, w, hp)
+        E = hybrid_energy.py_func(SURFACE_KEY, t, u, v, p1, p2, w, hp)
         E_want = 0.5 * M * (u * u + v * v) + 0.5 * K * M * (p1 * p1 + p2 * p2 + w * w) + M * G * z
         assert E == pytest.approx(E_want, rel=1e-12, abs=1e-12 * M * G)
     assert worst < 1e-10  # mpmath's derivatives to ~1e-20; the rest is float64 rounding
@@ -136,8 +140,26 @@ def test_sliding_on_a_surface_is_newton_and_euler(name):
 def test_a_model_id_that_does_not_exist_is_refused():
     hp = _hp(Bowl(1.0))
     with pytest.raises(ValueError, match="no model with id 7"):
-        contact.contact_frame(7, 0.3, 0.0, 0.0, hp)
+        contact.contact_frame(7 << MODEL_SHIFT, 0.3, 0.0, 0.0, hp)
     assert contact.contact_frame(CONE, 0.3, 0.0, 0.0, Scene().params(0.5)) is not None
+
+
+def test_the_contact_key_holds_the_model_and_the_applied_effects_only():
+    """The hybrid kernels compile once per model and applied effect set: the contact key drops
+    the scene's other effects (rolling resistance's rules are the hybrid model's own), and a
+    number that is not a contact key (a bare effect mask, a model id below its place) is
+    refused rather than read as the cone."""
+    from engine.kernels.effects import ALL_EFFECTS, EFFECT_BITS, FORCE_EFFECTS
+    from engine.kernels.model import model_of_key, scene_key
+
+    assert contact.APPLIED == FORCE_EFFECTS & ~EFFECT_BITS["rolling_resistance"]
+    assert contact.contact_key(SURFACE, ALL_EFFECTS) == scene_key(SURFACE, contact.APPLIED)
+    assert contact.contact_key(CONE, EFFECT_BITS["rolling_resistance"]) == CONE
+    assert model_of_key(SURFACE_KEY) == SURFACE
+    hp = _hp(Bowl(1.0))
+    with pytest.raises(ValueError, match="not a contact key"):
+        contact.contact_frame(SURFACE, 0.3, 0.0, 0.0, hp)  # the id, not its key
+    assert contact.contact_frame(SURFACE_KEY, 0.3, 0.0, 0.0, hp)[1] > 0.0
 
 
 def test_a_model_offering_sliding_contact_must_give_its_frame():
@@ -148,7 +170,7 @@ def test_a_model_offering_sliding_contact_must_give_its_frame():
     contact.check_contact(MODELS)
 
 
-@pytest.mark.parametrize("model", [CONE, SURFACE])
+@pytest.mark.parametrize("model", [CONE, SURFACE_KEY])
 def test_the_compiled_call_picks_the_models_frame(model):
     """The hybrid right-hand side compiled for each model (the literal model id) gives what the
     plain-Python call to that model's frame gives."""
@@ -160,7 +182,7 @@ def test_the_compiled_call_picks_the_models_frame(model):
         rolling_rates,
     )
 
-    hp = _hp(Paraboloid(0.7), 0.3, 0.02) if model == SURFACE else hybrid_params(
+    hp = _hp(Paraboloid(0.7), 0.3, 0.02) if model == SURFACE_KEY else hybrid_params(
         Scene(M=M, g=G, k=K, a=A, mu=0.5).params(0.6), 0.3, 0.02)  # fmt: skip
     y = np.array([0.4, 0.1, 0.3, -0.7, 0.2, 0.5, -0.4, 0.0, 0.0, 0.0])
     out = np.empty(N_HYBRID)
@@ -186,7 +208,7 @@ def test_rolling_on_the_hybrid_steps_is_the_surface_models_rolling(surface):
     for _ in range(20):
         q = rng.uniform(0.3, 0.9)
         u, v, w = rng.uniform(-1.5, 1.5, 3)
-        got = rolling_rates.py_func(SURFACE, q, u, v, w, False, hp)
+        got = rolling_rates.py_func(SURFACE_KEY, q, u, v, w, False, hp)
         want = surface_model.motion_rates.py_func(q, u, v, w, hp, 0)
         assert (got[0], got[1], got[2], got[3], got[6]) == pytest.approx(want, rel=1e-13, abs=1e-13)
         assert (got[4], got[5]) == (-got[3], got[2])
