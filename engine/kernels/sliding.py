@@ -198,17 +198,12 @@ def sliding_rates(model, r, u, v, p1, p2, w, stuck, hp):
     if sl > 0.0:
         f1 = -fk * s1 / sl
         f2 = -fk * s2 / sl
-    elif static_rr:  # at rest: the slip starts along the centre's pull ((p1, p2) held at 0)
-        d1 = v * v * frame[3] - frame[2]
-        d2 = -u * v * frame[3]
-        if model & APPLIED:
-            d1 += e1 / M
-            d2 += e2 / M
-        dl = math.sqrt(d1 * d1 + d2 * d2)
-        f1 = -fk * d1 / dl if dl > 0.0 else 0.0
-        f2 = -fk * d2 / dl if dl > 0.0 else 0.0
     else:  # the slip starts along D (physics "Switching between rolling and sliding")
-        d1, d2 = free_slip_rate(frame, u, v, p1, p2, w, t1, t2, kM)
+        if static_rr:  # at rest: along the centre's pull ((p1, p2) held at 0)
+            d1 = v * v * frame[3] - frame[2]
+            d2 = -u * v * frame[3]
+        else:
+            d1, d2 = free_slip_rate(frame, u, v, p1, p2, w, t1, t2, kM)
         if model & APPLIED:
             d1 += e1 / M
             d2 += e2 / M
