@@ -29,7 +29,8 @@ from .kernels.protocol import LITERAL as RUN_LITERAL
 from .kernels.sliding import HYBRID_STATE  # the components of an event's ``state``
 from .scene import Scene
 
-__all__ = ["HYBRID_VARIABLES", "HYBRID_STATE", "hybrid_fates", "hybrid_setup", "whole_story"]
+__all__ = ["HYBRID_VARIABLES", "HYBRID_STATE", "hybrid_fates", "hybrid_model", "hybrid_setup",
+           "whole_story"]  # fmt: skip
 
 #: Variables a fate map of a sliding scene adds to today's fate variables.
 HYBRID_VARIABLES = HYBRID_ROWS[6:]

@@ -27,7 +27,9 @@ return only if static friction then holds the rolling, or the sphere is then at 
 reaching zero (spin_stop, whether or not it then sticks), the stuck spin's release (spin_go),
 the stop (rest), the rim (spill) and the vertex region (r below a/100). ``drag`` > 0 adds a
 linear air drag on the centre, -drag M (1 + k) V (tangent to the cone of the centre's
-positions, so N is unchanged): the recipe of docs/architecture.md's toy effect. What a state decides
+positions, so N is unchanged): the recipe of docs/architecture.md's toy effect; ``twist`` > 0 a
+couple -twist M a^2 Omega against the whole angular velocity (a test's toy effect with a couple:
+it vanishes where a spin is held at zero, so the holds need no change). What a state decides
 at the start of a stretch (rolling beyond the friction limit: a slip; within the stop threshold:
 the stop) is decided before the stretch runs. A return or a stop of Omega_t is armed again only
 once its quantity has exceeded twice its threshold.
@@ -47,9 +49,9 @@ EPS = 1e-9
 
 class Oracle:
     def __init__(self, alpha, M, g, a, k, mu, mu_k, c_rr=0.0, c_spin=0.0, rim_centre=math.inf,
-                 drag=0.0):  # fmt: skip
+                 drag=0.0, twist=0.0):  # fmt: skip
         self.s, self.c = math.sin(alpha), math.cos(alpha)
-        self.drag = drag
+        self.drag, self.twist = drag, twist
         self.M, self.g, self.a, self.k = M, g, a, k
         self.mu, self.mu_k, self.c_rr, self.c_spin = mu, mu_k, c_rr, c_spin
         self.rim = rim_centre
@@ -126,6 +128,7 @@ class Oracle:
         N = self.normal_force(X, V)
         A = -self.g * ZHAT + (N * n + f) / self.M - self.drag * (1.0 + self.k) * V
         tau = np.cross(-self.a * n, f) + self.couples(X, V, W, N, spin, f, tangential)
+        tau = tau - self.twist * self.M * self.a**2 * W
         return A, tau / self.I
 
     def slip_rate(self, X, V, W, f):

@@ -13,6 +13,8 @@ for it, with the lines the doc gives, and that the copy ran it:
   survey, list the fate map's variables in the schema, and honour it while sliding (a
   sliding launch's story is the rigid-body model's with the drag, its energy balance closed
   with the drag's work booked);
+- not a recipe: a second toy effect with a couple against the sphere's angular velocity, in the
+  same copy, so that the sliding model is checked on an effect's couples as on its forces;
 - a new output variable: ``apsidal_degrees``, the one-period map's apsidal angle in degrees,
   declared in the schema and written by the kernel's row; a survey file's results hold it,
   with its units, equal to the apsidal angle in degrees;
@@ -82,6 +84,42 @@ EFFECT_EDITS = [
     ),
 ]
 
+
+#: Not a recipe: a second toy effect, with a couple, that the check applies to the same copy
+#: after the recipes (the sliding model must honour couples as it honours forces): a couple
+#: -c_twist M a^2 omega against the sphere's whole angular velocity, T/a = -c_twist M (p1, p2, w).
+TWIST_ROW = """
+    Effect(
+        name="twist",
+        bit=128,
+        scene_field="c_twist",
+        switch="coefficient",
+        params=("c_twist",),
+        forces=True,
+        dissipative=True,
+        events=("rest", "vertex"),
+        needs=("dissipative forces",),
+        variables=(("period", ("energy_loss",)),),
+        doc="a couple against the spin: omega decays at the rate c_twist / k",
+    ),"""
+TWIST_TERMS = """
+    if effects & TWIST:
+        twist = p[P_TWIST] * p[P_MASS]
+        t1 -= twist * p1
+        t2 -= twist * p2
+        t3 -= twist * w"""
+_DRAG_ROW_END = 'the rate c_drag",\n    ),'
+TWIST_EDITS = [
+    ("kernels/effects.py", _DRAG_ROW_END, _DRAG_ROW_END + TWIST_ROW),
+    (
+        "kernels/forces.py",
+        _DRAG_NAMES,
+        _DRAG_NAMES + '\nTWIST = EFFECT_BITS["twist"]\nP_TWIST = SLOTS["c_twist"]\n'
+        'P_MASS = SLOTS["M"]',
+    ),
+    ("kernels/forces.py", _RETURN, TWIST_TERMS.lstrip("\n") + "\n" + _RETURN),
+    ("scene.py", "    c_drag: float = 0.0", "    c_drag: float = 0.0\n    c_twist: float = 0.0"),
+]
 
 #: The recipe "a new output variable": its row in the schema, the map kind's lists that hold it,
 #: and the kernel row that computes it.
@@ -400,13 +438,12 @@ with section("effect"):
     # the sliding model asks the drag's terms too: a sliding launch tells the rigid-body
     # model's story with the drag (tests/hybrid_oracle.py, Cartesian Newton-Euler, scipy
     # DOP853 at rtol 1e-12), keeps its energy balance and books the drag's work
-    from engine.story import launch_fates, story
+    from engine.story import story
 
     sys.path.insert(0, sys.argv[2])
     from hybrid_oracle import Oracle, polar, start_state
 
     a = 0.01
-    stories = []
     for alpha, r0, u0, v0, w0, su, sv in ((0.6, 0.3, 1.0, 0.5, 1.0, 1.0, 0.5),
                                           (1.0, 0.4, -1.0, 0.7, -1.0, -1.0, 0.7)):
         told = {}
@@ -415,7 +452,6 @@ with section("effect"):
             told[drag] = story(alpha, r0, v0, w0, u0=u0, slip_u=su, slip_v=sv, scene=sc,
                                rtol=1e-11, horizon_time=0.5)
         out = told[0.5]
-        stories.append(out["lost_effects"])
         assert out["invariant_drift"] < 1e-9, out["invariant_drift"]
         assert told[0.0]["lost_effects"] == 0.0 and out["lost_effects"] > 0.0, out
         split = out["lost_effects"] + out["lost_sliding_friction"] + out["lost_spin_friction"]
@@ -435,12 +471,6 @@ with section("effect"):
         assert abs(out["energy_lost"] - lost) <= 1e-8 * scale, (out["energy_lost"], lost)
         print(f"sliding with air_drag: {[e[0] for e in ev]}, drag took "
               f"{out['lost_effects']:.6f} J", flush=True)
-    # and a map of sliding launches (the lanes' stories) books the same work as the stories
-    fates = launch_fates([0.6, 1.0], [0.3, 0.4], [0.5, 0.7], [1.0, -1.0], u0=[1.0, -1.0],
-                         slip_u=[1.0, -1.0], slip_v=[0.5, 0.7], scene=sc, rtol=1e-11,
-                         horizon_time=0.5)  # fmt: skip
-    assert np.all(fates["invariant_drift"] < 1e-9), fates["invariant_drift"]
-    np.testing.assert_allclose(fates["lost_effects"], stories, rtol=1e-9)
     # refusals: the closed form and the symplectic method cannot follow dissipative forces
     for name, why in (("exact", "lossless"), ("symplectic", "conservative")):
         try:
@@ -486,6 +516,39 @@ values = [0.0]
         # the work the drag term's power integrates matches the energy the drag force took
         drift = ds.invariant_drift.values.ravel()
         assert np.all(drift < 1e-6), drift
+
+with section("couple"):
+    # a test's toy effect with a couple (TWIST_EDITS), not a documented recipe: a couple
+    # against the whole angular velocity, honoured by the rolling constraint, the sliding
+    # equations, the friction rolling needs and the spin's hold alike; with spin friction every
+    # stretch runs on the hybrid steps (rolling too)
+    from engine.story import story
+
+    sys.path.insert(0, sys.argv[2])
+    from hybrid_oracle import Oracle, polar, start_state
+
+    a = 0.01
+    alpha, r0, u0, v0, w0, su, sv = 0.6, 0.3, 1.0, 0.5, 1.0, 1.0, 0.5
+    sc = engine.Scene(M=1.0, a=a, k=0.4, rim=1.0, mu=0.6, mu_k=0.5, c_spin=0.01, c_twist=2.0)
+    assert sc.effects == ("rim", "slip_check", "twist", "sliding", "spin_friction"), sc.effects
+    out = story(alpha, r0, v0, w0, u0=u0, slip_u=su, slip_v=sv, scene=sc, rtol=1e-11,
+                horizon_time=0.5)  # fmt: skip
+    oracle = Oracle(alpha, 1.0, sc.g, a, 0.4, sc.mu, sc.mu_k, c_spin=sc.c_spin,
+                    rim_centre=1.0 - a / np.tan(alpha), twist=2.0)  # fmt: skip
+    speed = max(abs(u0), abs(v0), abs(w0), abs(su), abs(sv))
+    y0 = start_state(alpha, r0, u0, v0, w0, su, sv, a)
+    ev, y_end, _ = oracle.run(y0, "sliding", 0.5, speed)
+    # it rolls, the couple makes rolling need more than mu N (a slip), and it rolls again
+    assert [e[0] for e in ev] == ["roll", "slip", "roll"], ev
+    assert [e["kind"] for e in out["events"]] == [e[0] for e in ev], (out["events"], ev)
+    for e, (kind, t, y) in zip(out["events"], ev, strict=True):
+        assert abs(e["t"] - t) <= 1e-7 * t + 1e-9, (kind, e["t"], t)
+        assert abs(e["state"]["r"] - polar(y, alpha)[0]) <= 1e-7 * r0, kind
+    lost = oracle.energy(y0) - oracle.energy(y_end)
+    scale = 0.5 * speed**2 + sc.g * r0
+    assert abs(out["energy_lost"] - lost) <= 1e-8 * scale, (out["energy_lost"], lost)
+    assert out["invariant_drift"] < 1e-9 and out["lost_effects"] > 0.0, out
+    print(f"couple: {[e[0] for e in ev]}, the couple took {out['lost_effects']:.6f} J", flush=True)
 
 with section("model"):
     from engine.kernels.model import MODELS
@@ -540,6 +603,7 @@ def applied(tmp_path_factory):
     copy = tmp / "engine"
     shutil.copytree(PKG, copy, ignore=shutil.ignore_patterns("__pycache__"))
     stats = {title: _apply(copy, edits) for title, edits in RECIPES.items()}
+    _apply(copy, TWIST_EDITS)  # not a recipe: the check's toy couple
     env = dict(os.environ, PYTHONPATH=str(tmp), CONESURVEY_CACHE_DIR=str(copy_cache(tmp, "all")))
     env["NUMBA_NUM_THREADS"] = "1"
     res = subprocess.run(
@@ -570,6 +634,14 @@ def test_recipe_new_effect(applied):
     _ran(res, "effect")
     assert "effect air_drag: honoured by rk45, dop853" in res.stdout
     assert res.stdout.count("sliding with air_drag") == 2, res.stdout
+
+
+def test_the_sliding_model_honours_an_effects_couple(applied):
+    """A toy effect with a couple (not a recipe; applied to the same copy): a sliding launch
+    with spin friction, every stretch on the hybrid steps, tells the rigid-body model's story
+    with the same couple, its energy balance closed with the couple's work booked."""
+    _, res = applied
+    _ran(res, "couple")
 
 
 def test_recipe_new_output_variable(applied):
