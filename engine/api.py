@@ -10,10 +10,10 @@ import xarray as xr
 
 from .checks import (
     PlanError,
+    check_named_surface,
     check_numbers,
     check_release,
     check_scene,
-    check_surface,
     check_values,
 )
 from .evaluation import bad_inputs, evaluate_block, evaluate_flat
@@ -282,14 +282,9 @@ def launch_survey(
 def _surface_survey(surface, cone_args, launch, surface_axes, scene, method, *, progress,
                     **options) -> xr.Dataset:  # fmt: skip
     """:func:`launch_survey` on a surface of revolution (its arguments checked here)."""
-    if surface is None:
-        raise PlanError("surface", "rho0 or z0 give a launch on a surface: name it "
-                        "(surface=engine.surfaces.Bowl(0.5), ...)")  # fmt: skip
-    surface = check_surface(surface)
-    for name, value in cone_args.items():
-        if value is not None:
-            raise PlanError(name, "is the cone's launch; on a surface give rho0 (or z0), v0, w0",
-                            value)  # fmt: skip
+    surface = check_named_surface(
+        surface, cone_args, lambda s: "is the cone's launch; on a surface give rho0 (or z0), v0, w0"
+    )
     unknown = sorted(set(surface_axes) - set(surface.parameters))
     if unknown:
         has = ", ".join(surface.parameters) or "none"

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable
 from numbers import Integral, Real
 from pathlib import Path
 from typing import Any
@@ -89,6 +90,18 @@ def check_surface(surface: Any) -> Surface | None:
     if surface is not None and not isinstance(surface, Surface):
         raise PlanError("surface", "must be a surface of engine.surfaces (Bowl(0.5), ...)",
                         surface)  # fmt: skip
+    return surface
+
+
+def check_named_surface(surface: Any, cone: dict[str, Any], refusal: Callable) -> Surface:
+    """The surface a launch names, checked; a field of ``cone`` given: ``refusal(surface)``."""
+    if surface is None:
+        raise PlanError("surface", "rho0 or z0 give a launch on a surface: name it "
+                        "(surface=engine.surfaces.Bowl(0.5), ...)")  # fmt: skip
+    surface = check_surface(surface)
+    for name, value in cone.items():
+        if value is not None:
+            raise PlanError(name, refusal(surface), value)
     return surface
 
 

@@ -16,7 +16,7 @@ import numpy as np
 import xarray as xr
 
 from ._version import __version__
-from .checks import PlanError, check_number, check_surface
+from .checks import PlanError, check_named_surface, check_number
 from .kernels.fate_codes import REST_SPEED
 from .kernels.layouts import ATTITUDE, P_V_REST
 from .kernels.meridian import centre
@@ -52,13 +52,7 @@ def check_surface_launch(
     named and checked, none of the cone's fields ``cone`` given (``why`` says what they are),
     the position the surface takes (rho0; z0 on the cylinder) and v0, w0 given, each a number.
     Returns (the surface, {"position", "v0", "w0"})."""
-    if surface is None:
-        raise PlanError("surface", "rho0 or z0 give a launch on a surface: name it "
-                        "(surface=engine.surfaces.Bowl(0.5), ...)")  # fmt: skip
-    surface = check_surface(surface)
-    for name, value in cone.items():
-        if value is not None:
-            raise PlanError(name, f"{why} ({surface.position}, v0, w0, u0)", value)
+    surface = check_named_surface(surface, cone, lambda s: f"{why} ({s.position}, v0, w0, u0)")
     other = "z0" if surface.position == "rho0" else "rho0"
     if launch[other] is not None:
         raise PlanError(other, f"the {surface.kind}'s launch position is {surface.position}",
