@@ -146,11 +146,24 @@ def after_run(effects, status, y, p, t):
     the end (the run's status; at a stop by rolling resistance, RESTED where the sphere stays
     at rest, SLIPPED where friction cannot hold it), or a restart from rest (status OK). A
     stop is carried to zero speed in place (:func:`come_to_rest`). Returns (ended, status,
-    t [s]). The one rule of :func:`run_restarting` and the lanes (:mod:`.lanes_fate`)."""
+    t [s])."""
     if status != RESTED:
         return True, status, t
     dt, at_rest = come_to_rest(y, p, effects)
     return at_rest != OK, at_rest, t + dt
+
+
+@kernel
+def next_run(effects, status, y, p, t, restarts, steps, max_steps):
+    """What follows a run that ended with ``status`` at state y, t [s] since the start, after
+    ``restarts`` restarts and ``steps`` steps (:func:`after_run`), within the budget: a restart
+    when ``steps`` >= ``max_steps`` or beyond :data:`MAX_RESTARTS` ends with status MAX_STEPS.
+    Returns (ended, status, t [s]). The one restart rule of :func:`run_restarting` and of
+    every lane's run (:func:`.lanes_fate.lane_run_ended`)."""
+    ended, status, t = after_run(effects, status, y, p, t)
+    if not ended and (steps >= max_steps or restarts + 1 >= MAX_RESTARTS):
+        return True, MAX_STEPS, t
+    return ended, status, t
 
 
 @kernel
@@ -164,7 +177,8 @@ def run_restarting(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, 
     friction cannot hold it there (SLIPPED: the event becomes a slip); otherwise the sphere
     starts again from rest with time running on, recording on from the state at rest. Without
     recording only the last run's events are kept. A sphere that starts at rest where the
-    resistance holds it stays (or slips) at t = 0. Too many restarts: status MAX_STEPS.
+    resistance holds it stays (or slips) at t = 0. A restart beyond the budget (steps or
+    :data:`MAX_RESTARTS`, :func:`next_run`): status MAX_STEPS.
     """
     y = y0.copy()
     n_acc = 0
@@ -176,7 +190,8 @@ def run_restarting(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, 
     if ended:
         return status, 0, 0, 0.0, y, 0, 0
     keep = record != RECORD_NONE
-    for _ in range(MAX_RESTARTS):
+    restarts = 0
+    while True:
         first = n_tr - 1 if n_tr > 0 else 0  # a restart's first state: the one at rest
         rate = tr_rate[first:] if tr_rate.shape[0] > 0 else tr_rate
         res = run(method, effects, y, p, orbit, rtol, atol, t_end - t0, n_apsides,
@@ -196,7 +211,7 @@ def run_restarting(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, 
         n_ev += res[5]
         n_tr = first + res[6] if keep else 0
         stopped = status == RESTED
-        ended, status, t = after_run(effects, status, y, p, t)
+        ended, status, t = next_run(effects, status, y, p, t, restarts, n_acc + n_rej, max_steps)
         if stopped:  # the stop's event and last state, at zero speed
             if n_ev > 0:
                 ev_t[n_ev - 1] = t
@@ -211,11 +226,9 @@ def run_restarting(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, 
         if ended:
             return status, n_acc, n_rej, t, y, n_ev, n_tr
         t0 = t
+        restarts += 1
         if not keep:
             n_ev = 0
-        if n_acc + n_rej >= max_steps:
-            break
-    return MAX_STEPS, n_acc, n_rej, t0, y, n_ev, n_tr
 
 
 @kernel

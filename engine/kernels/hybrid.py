@@ -9,7 +9,8 @@ event of the mode it leaves (the slip, the return to rolling); each is recorded.
 
 ``spin`` (a literal: 0 or 1) compiles spin friction in; ``effects`` is the rolling scene's
 literal effect set (with :data:`.model.SLIP_CHECK`: the static friction limit). The pieces of a
-story are in :mod:`.story_parts`, shared with the lanes (:mod:`.lanes_hybrid`).
+story are in :mod:`.story_parts`, its loop up to each rolling stretch here
+(:func:`story_until_rolling`), both shared with the lanes (:mod:`.lanes_hybrid`).
 """
 
 from __future__ import annotations
@@ -58,6 +59,39 @@ __all__ = ["HYBRID_FATE_NAMES", "HYBRID_ROWS", "SLIDING", "hybrid_fate_of", "hyb
 
 
 @kernel
+def story_until_rolling(method, effects, model, spin, p, y, y0, atol, hp, hatol, rtol, t_horizon,
+                        max_steps, hw, rolling, hs, hi, events):  # fmt: skip
+    """Go on with a story until its next rolling stretch without spin friction, a fate run,
+    or its end: the story's loop, one description for the scalar kernel (which runs the
+    stretch with :func:`.fate.fate_run`) and the lanes (which run it on the vector step,
+    :mod:`.lanes_hybrid`); each takes the stretch's end with :func:`.story_parts.rolled`.
+
+    Each stretch starts with what its start decides (:func:`.story_switches.stretch_start`);
+    a story out of steps or restarts has failed (:func:`.story_parts.story_runs_out`); any
+    stretch but a rolling one without spin friction runs here on the hybrid steps
+    (:func:`.story_parts.hybrid_stretch`). ``hw``: the hybrid steps' scratch (stages K and
+    three states); ``rolling``: the stretch's start and tolerances (yr, ra), written where one
+    starts (:func:`.story_parts.rolling_stretch`); ``events``: the story's buffers (ev_t,
+    ev_kind, ev_y). Returns (True, the stretch's orbit (calE, h, L_z)) where a rolling
+    stretch starts, (False, NaNs) where the story has ended (its fate in ``hi``).
+    """
+    ev_t, ev_kind, ev_y = events
+    yr, ra = rolling
+    while hi[HI_FATE] < 0:
+        if story_runs_out(max_steps, hi):
+            break
+        stretch_start(model, p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y)  # at its start
+        if hi[HI_FATE] >= 0:
+            break
+        if hi[HI_MODE] == MODE_ROLLING and spin == 0:
+            return True, rolling_stretch(effects, model, p, y, y0, atol, rtol, hs, hi, yr, ra)
+        hybrid_stretch(method, model, p, y, hp, rtol, hatol, t_horizon, max_steps, hw[0], hw[1],
+                       hw[2], hw[3], hs, hi, ev_t, ev_kind, ev_y)  # fmt: skip
+    nan = math.nan
+    return False, (nan, nan, nan)
+
+
+@kernel
 def hybrid_fate_of(method, effects, model, spin, p, mu_k, c_spin, energy, h, Lz, r_start, u0,
                    slip_u, slip_v, rtol, t_horizon, max_steps, ev_t, ev_kind, ev_y):  # fmt: skip
     """The whole story of the launch at ``r_start`` [m] on the rolling orbit (calE, h, L_z) (its
@@ -66,10 +100,9 @@ def hybrid_fate_of(method, effects, model, spin, p, mu_k, c_spin, energy, h, Lz,
 
     Returns (fate, floats (the rows :data:`HYBRID_ROWS`), steps, events recorded); the events
     (kind of :data:`.hybrid_step.HYBRID_EVENT_NAMES`, time, hybrid state) go to the buffers.
-    The story is a loop of :func:`rolling_stretch` + :func:`.fate.fate_run` + :func:`rolled`
-    (rolling without spin friction) and :func:`hybrid_stretch` (the rest), each stretch after
-    what its start decides (:func:`.story_switches.stretch_start`), from :func:`story_begin`
-    to :func:`story_result`: the same pieces the lanes run (:mod:`.lanes_hybrid`).
+    The story runs from :func:`story_begin` to :func:`story_result`: the story's loop
+    (:func:`story_until_rolling`, the lanes' too) up to each rolling stretch without spin
+    friction, which :func:`.fate.fate_run` runs and :func:`rolled` ends.
     """
     out = np.full(len(HYBRID_ROWS), math.nan)
     nr = state_size(effects)
@@ -92,20 +125,17 @@ def hybrid_fate_of(method, effects, model, spin, p, mu_k, c_spin, energy, h, Lz,
     yev = np.empty(N_HYBRID)
     yr = np.empty(nr)
     ra = np.empty(nr)
-    while hi[HI_FATE] < 0:
-        if story_runs_out(max_steps, hi):
+    hw = (K, ytmp, ynew, yev)
+    events = (ev_t, ev_kind, ev_y)
+    while True:
+        rolls, orb = story_until_rolling(method, effects, model, spin, p, y, y0, atol, hp, hatol,
+                                         rtol, t_horizon, max_steps, hw, (yr, ra), hs, hi,
+                                         events)  # fmt: skip
+        if not rolls:
             break
-        stretch_start(model, p, y, hp, t_horizon, hs, hi, ev_t, ev_kind, ev_y)  # at its start
-        if hi[HI_FATE] >= 0:
-            break
-        if hi[HI_MODE] == MODE_ROLLING and spin == 0:
-            orb = rolling_stretch(effects, model, p, y, y0, atol, rtol, hs, hi, yr, ra)
-            f, dt, yf, st = fate_run(method, effects, p, yr, orb, rtol, ra, t_horizon - hs[HS_T],
-                                     max_steps - hi[HI_STEPS])  # fmt: skip
-            rolled(effects, f, dt, yf, st, y, hs, hi, ev_t, ev_kind, ev_y)
-            continue
-        hybrid_stretch(method, model, p, y, hp, rtol, hatol, t_horizon, max_steps, K, ytmp, ynew,
-                       yev, hs, hi, ev_t, ev_kind, ev_y)  # fmt: skip
+        f, dt, yf, st = fate_run(method, effects, p, yr, orb, rtol, ra, t_horizon - hs[HS_T],
+                                 max_steps - hi[HI_STEPS])  # fmt: skip
+        rolled(effects, f, dt, yf, st, y, hs, hi, ev_t, ev_kind, ev_y)
     fate = story_result(effects, model, spin, p, y, y0, hp, hs, hi, out)
     return fate, out, hi[HI_STEPS], hi[HI_NEV]
 

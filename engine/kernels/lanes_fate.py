@@ -6,8 +6,9 @@ pieces: its start (the model's :func:`.model.fate_start`: the rest threshold, a 
 orbit's way out of the vertex region), a start at rest (:func:`.fate.starts_at_rest`), runs as
 :func:`.rk.rk_run` takes them (:func:`.lanes.lane_begin`, the vectorised step and a step-size
 control that looks for no apsides and clips the last step to the horizon as rk_run clips it to
-t_end: :func:`.lanes_step.lanes_control_fate`), what follows a run (:func:`.fate.after_run`: a
-stop by rolling resistance ends the fate or restarts the run from rest in the same lane) and
+t_end: :func:`.lanes_step.lanes_control_fate`), what follows a run (:func:`.fate.next_run`,
+the one restart rule: a stop by rolling resistance ends the fate or restarts the run from rest
+in the same lane, :func:`lane_run_ended`) and
 the result (:func:`.fate.fate_result`). A lane whose orbit has its fate takes the next point
 from the queue the threads share (tests/kernels/test_lanes_fate.py checks every output
 against the scalar kernel's).
@@ -20,15 +21,14 @@ from numba import literally, prange
 
 from .._jit import kernel, parallel_kernel
 from .fate import (
-    MAX_RESTARTS,
-    after_run,
     ended_at_start,
     fate_of_status,
     fate_result,
+    next_run,
     starts_at_rest,
     store_fate,
 )
-from .fate_codes import FAILED, RUNS
+from .fate_codes import ROLLING, RUNS
 from .lanes import (
     ORBIT,
     lane_advance,
@@ -107,32 +107,45 @@ def _finish(method, effects, l, fate, t, y, steps, runs, LY0, p, out):
 
 
 @kernel(inline="always")
-def _run_ended(method, effects, l, status, t_run, y, rtol, max_steps, runs, LY0, p, at, out):
+def lane_run_ended(method, effects, l, status, t_run, y, rtol, max_steps, runs, p, at):
     """Lane l's run ended with ``status`` at state y (in place), t_run [s] into the run (p: its
-    parameters; ``at``: scratch for its tolerances): :func:`.fate.run_restarting`'s loop.
-    Returns True when the lane runs again (a restart from rest), False when its point is
-    written into ``out`` (the ``OUT_*`` tuple)."""
+    parameters; ``at``: scratch for its tolerances): what follows (:func:`.fate.next_run`, the
+    rule of :func:`.fate.run_restarting`), a restart from rest in the same lane, until a run
+    goes on or the lane's orbit ends. Returns (runs again, fate, t [s] since the run's first
+    start, steps); an ended lane is idle. Every fate-run lane's (here and in
+    :mod:`.lanes_hybrid`)."""
     ly = lanes_layout(method, effects)
     L = LANES
     W, I, F = runs[R_W], runs[R_I], runs[R_F]
     while True:
         steps = np.int64(W[ly.N_ACC * L + l] + W[ly.N_REJ * L + l])
-        ended, status, t = after_run(effects, status, y, p, F[l, F_T0] + t_run)
+        ended, status, t = next_run(effects, status, y, p, F[l, F_T0] + t_run, I[l, RESTARTS],
+                                    steps, max_steps)  # fmt: skip
         if ended:
-            _finish(method, effects, l, fate_of_status(status), t, y, steps, runs, LY0, p, out)
-            return False
+            W[ly.ACTIVE * L + l] = 0.0
+            W[ly.H * L + l] = 0.0
+            return False, fate_of_status(status), t, steps
         F[l, F_T0] = t
         I[l, RESTARTS] += 1
-        if steps >= max_steps or I[l, RESTARTS] >= MAX_RESTARTS:
-            _finish(method, effects, l, FAILED, t, y, steps, runs, LY0, p, out)
-            return False
         for j in range(ly.n):
             at[j] = W[(ly.ATOL + j) * L + l]
         status = lane_run_from(method, effects, l, y, F[l, F_HORIZON] - t, at, p, rtol, max_steps,
                                runs)  # fmt: skip
         if status == OK:
-            return True
+            return True, ROLLING, t, steps
         t_run = 0.0
+
+
+@kernel(inline="always")
+def _run_ended(method, effects, l, status, t_run, y, rtol, max_steps, runs, LY0, p, at, out):
+    """Lane l's run ended with ``status`` (:func:`lane_run_ended`). Returns True when the lane
+    runs again (a restart from rest), False when its point is written into ``out`` (the
+    ``OUT_*`` tuple)."""
+    again, fate, t, steps = lane_run_ended(method, effects, l, status, t_run, y, rtol, max_steps,
+                                           runs, p, at)  # fmt: skip
+    if not again:
+        _finish(method, effects, l, fate, t, y, steps, runs, LY0, p, out)
+    return again
 
 
 @kernel(inline="always")

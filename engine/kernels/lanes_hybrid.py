@@ -2,16 +2,17 @@
 methods, its results bit for bit.
 
 Each lane follows one launch's story the way :func:`.hybrid.hybrid_fate_of` does, with the
-same pieces (:mod:`.story_parts`): its start (:func:`.story_parts.story_begin`), the switches
-and what follows each stretch, its result. What a lane does between them depends on the
-stretch:
+same pieces (:mod:`.story_parts`: its start, the switches and what follows each stretch, its
+result) and the same loop (:func:`.hybrid.story_until_rolling`). What a lane does between them
+depends on the stretch:
 
 - a rolling stretch without spin friction is a fate run (:func:`.fate.fate_run`), so it runs
   on the vector step of the fate lanes (:mod:`.lanes_fate`): begun as
   :func:`.fate.run_restarting` begins a run (a start at rest, :func:`.lanes.lane_begin`), its
   steps taken LANES at a time with those of the other lanes, its end (the slip is one of the
-  terminal events) and restarts from rest in scalar code, as :func:`.fate.run_restarting`
-  takes them; its step count goes on from the story's, so the step budget is the scalar's;
+  terminal events) and restarts from rest in scalar code, by the one restart rule
+  (:func:`.lanes_fate.lane_run_ended`); its step count goes on from the story's, so the step
+  budget is the scalar's;
 - a stretch on the hybrid steps (sliding; rolling with spin friction) runs in scalar code in
   its lane, to its end (:func:`.story_parts.hybrid_stretch`), while the other lanes wait.
 
@@ -41,26 +42,29 @@ from numba import literally, prange
 
 from .._jit import kernel, parallel_kernel
 from .cone import set_alpha
-from .fate import FAILED, MAX_RESTARTS, after_run, fate_of_status, starts_at_rest
+from .fate import fate_of_status, starts_at_rest
+from .hybrid import story_until_rolling
 from .lanes import ORBIT, lane_params, lane_workspace
 from .lanes_fate import (
+    F_HORIZON,
+    F_T0,
     OUT_F,
     OUT_FATE,
     OUT_N,
     R_F,
     R_I,
     R_W,
+    RESTARTS,
     lane_flagged_run,
+    lane_run_ended,
     lane_run_from,
 )
 from .lanes_step import LANES, borrow, fetch_add, lanes_attempt, lanes_control_fate, lanes_layout
 from .model import N_PARAMS
 from .protocol import OK
 from .rk_codegen import tableau
-from .sliding import MODE_ROLLING, N_HYBRID, N_HYBRID_PARAMS
+from .sliding import N_HYBRID, N_HYBRID_PARAMS
 from .story_parts import (
-    HI_FATE,
-    HI_MODE,
     HI_STEPS,
     HS_T,
     HYBRID_ROWS,
@@ -74,21 +78,17 @@ from .story_parts import (
     L_U0,
     N_HI,
     N_HS,
-    hybrid_stretch,
     rolled,
-    rolling_stretch,
     story_begin,
     story_result,
-    story_runs_out,
 )
-from .story_switches import stretch_start
 
-#: Columns of a lane's floats: the time its rolling stretch's run started at (restarts), the
-#: stretch's horizon (from its start) and the story's steps before the stretch.
-F_T0, F_HORIZON, F_STEPS0 = 0, 1, 2
-#: Column of the int array after :data:`.lanes.ORBIT` ... :data:`.lanes.N_EV`: the stretch's
-#: restarts from rest.
-RESTARTS = 3
+#: Columns of a lane's floats: those of a fate-run lane (:mod:`.lanes_fate`: the time its
+#: rolling stretch's run started at, ``F_T0``, and the stretch's horizon from its start,
+#: ``F_HORIZON``), then the story's steps before the stretch. Its ints: a fate-run lane's (the
+#: stretch's restarts from rest, ``RESTARTS``).
+F_STEPS0 = 4
+N_FLOATS = F_STEPS0 + 1
 
 
 #: The lanes' stories travel as one tuple (numba's own type, as :mod:`.lanes_fate`'s runs), with
@@ -113,38 +113,18 @@ def _store(out, i, fate, row, steps):
 @kernel
 def _stretch_ended(method, effects, l, status, t_run, yv, rtol, max_steps, st, runs, at):
     """Lane l's run of a rolling stretch ended with ``status`` at state yv, t_run [s] into the
-    run: :func:`.fate.run_restarting`'s loop (``st``: the lanes' stories, the ``ST_*`` tuple;
-    ``runs``: their runs, :mod:`.lanes_fate`'s ``R_*`` tuple; ``at``: scratch). Returns True
-    when the lane runs again (a restart from rest), False when the stretch is over (its end
-    taken by :func:`.story_parts.rolled`)."""
-    W, I, F = runs[R_W], runs[R_I], runs[R_F]
-    ly = lanes_layout(method, effects)
-    L = LANES
-    p = st[ST_LP][l]
-    while True:
-        steps = np.int64(W[ly.N_ACC * L + l] + W[ly.N_REJ * L + l])
-        ended, status, t = after_run(effects, status, yv, p, F[l, F_T0] + t_run)
-        fate = fate_of_status(status)
-        if not ended:
-            F[l, F_T0] = t
-            I[l, RESTARTS] += 1
-            if steps >= max_steps or I[l, RESTARTS] >= MAX_RESTARTS:
-                ended = True
-                fate = FAILED
-        if ended:
-            W[ly.ACTIVE * L + l] = 0.0
-            W[ly.H * L + l] = 0.0
-            rolled(effects, fate, t, yv, steps - np.int64(F[l, F_STEPS0]), st[ST_LYH][l],
-                   st[ST_LHS][l], st[ST_LHI][l], st[ST_HEV_T], st[ST_HEV_KIND],
-                   st[ST_HEV_Y])  # fmt: skip
-            return False
-        for j in range(ly.n):
-            at[j] = W[(ly.ATOL + j) * L + l]
-        status = lane_run_from(method, effects, l, yv, F[l, F_HORIZON] - t, at, p, rtol,
-                               max_steps, runs)  # fmt: skip
-        if status == OK:
-            return True
-        t_run = 0.0
+    run: what follows, as in every fate-run lane (:func:`.lanes_fate.lane_run_ended`; ``st``:
+    the lanes' stories, the ``ST_*`` tuple; ``runs``: their runs, :mod:`.lanes_fate`'s ``R_*``
+    tuple; ``at``: scratch). Returns True when the lane runs again (a restart from rest), False
+    when the stretch is over (its end taken by :func:`.story_parts.rolled`)."""
+    F = runs[R_F]
+    again, fate, t, steps = lane_run_ended(method, effects, l, status, t_run, yv, rtol, max_steps,
+                                           runs, st[ST_LP][l], at)  # fmt: skip
+    if not again:
+        rolled(effects, fate, t, yv, steps - np.int64(F[l, F_STEPS0]), st[ST_LYH][l],
+               st[ST_LHS][l], st[ST_LHI][l], st[ST_HEV_T], st[ST_HEV_KIND],
+               st[ST_HEV_Y])  # fmt: skip
+    return again
 
 
 @kernel
@@ -160,41 +140,35 @@ def _lane_story(method, effects, model, spin, l, rtol, t_horizon, max_steps, st,
     y = st[ST_LYH][l]
     hs = st[ST_LHS][l]
     hi = st[ST_LHI][l]
-    hev_t, hev_kind, hev_y = st[ST_HEV_T], st[ST_HEV_KIND], st[ST_HEV_Y]
-    yr, ra, hw = sc[SC_YR], sc[SC_RA], sc[SC_HW]
-    while hi[HI_FATE] < 0:
-        if story_runs_out(max_steps, hi):
+    yr, ra = sc[SC_YR], sc[SC_RA]
+    hw = (sc[SC_HK], sc[SC_HW][0], sc[SC_HW][1], sc[SC_HW][2])
+    events = (st[ST_HEV_T], st[ST_HEV_KIND], st[ST_HEV_Y])
+    while True:
+        rolls, _ = story_until_rolling(method, effects, model, spin, p, y, st[ST_LY0][l],
+                                       st[ST_LAT][l], st[ST_LHP][l], st[ST_LHAT][l], rtol,
+                                       t_horizon, max_steps, hw, (yr, ra), hs, hi,
+                                       events)  # as the scalar kernel  # fmt: skip
+        if not rolls:
             break
-        stretch_start(model, p, y, st[ST_LHP][l], t_horizon, hs, hi, hev_t, hev_kind,
-                      hev_y)  # as the scalar kernel  # fmt: skip
-        if hi[HI_FATE] >= 0:
-            break
-        if hi[HI_MODE] == MODE_ROLLING and spin == 0:
-            rolling_stretch(effects, model, p, y, st[ST_LY0][l], st[ST_LAT][l], rtol, hs, hi, yr,
-                            ra)  # fmt: skip
-            ended, status = starts_at_rest(effects, yr, p)  # as fate_run starts
-            if ended:
-                rolled(effects, fate_of_status(status), 0.0, yr, 0, y, hs, hi, hev_t, hev_kind,
-                       hev_y)  # fmt: skip
-                continue
-            F[l, F_T0] = 0.0
-            F[l, F_HORIZON] = t_horizon - hs[HS_T]
-            F[l, F_STEPS0] = hi[HI_STEPS]
-            I[l, RESTARTS] = 0
-            W[ly.N_ACC * L + l] = hi[HI_STEPS]  # the budget is the story's
-            W[ly.N_REJ * L + l] = 0.0
-            W[ly.ACTIVE * L + l] = 0.0
-            status = lane_run_from(method, effects, l, yr, F[l, F_HORIZON] - 0.0, ra, p, rtol,
-                                   max_steps, runs)  # fmt: skip
-            if status == OK:
-                return True
-            if _stretch_ended(method, effects, l, status, 0.0, yr, rtol, max_steps, st, runs,
-                              sc[SC_AT]):  # fmt: skip
-                return True
+        ended, status = starts_at_rest(effects, yr, p)  # as fate_run starts
+        if ended:
+            rolled(effects, fate_of_status(status), 0.0, yr, 0, y, hs, hi, events[0], events[1],
+                   events[2])  # fmt: skip
             continue
-        hybrid_stretch(method, model, p, y, st[ST_LHP][l], rtol, st[ST_LHAT][l], t_horizon,
-                       max_steps, sc[SC_HK], hw[0], hw[1], hw[2], hs, hi, hev_t, hev_kind,
-                       hev_y)  # fmt: skip
+        F[l, F_T0] = 0.0
+        F[l, F_HORIZON] = t_horizon - hs[HS_T]
+        F[l, F_STEPS0] = hi[HI_STEPS]
+        I[l, RESTARTS] = 0
+        W[ly.N_ACC * L + l] = hi[HI_STEPS]  # the budget is the story's
+        W[ly.N_REJ * L + l] = 0.0
+        W[ly.ACTIVE * L + l] = 0.0
+        status = lane_run_from(method, effects, l, yr, F[l, F_HORIZON] - 0.0, ra, p, rtol,
+                               max_steps, runs)  # fmt: skip
+        if status == OK:
+            return True
+        if _stretch_ended(method, effects, l, status, 0.0, yr, rtol, max_steps, st, runs,
+                          sc[SC_AT]):  # fmt: skip
+            return True
     fate = story_result(effects, model, spin, p, y, st[ST_LY0][l], st[ST_LHP][l], hs, hi,
                         st[ST_ROW])  # fmt: skip
     _store(out, I[l, ORBIT], fate, st[ST_ROW], hi[HI_STEPS])
@@ -240,7 +214,7 @@ def lanes_hybrid_worker(method, effects, model, spin, launch, params, mu_k, c_sp
     L = LANES
     n = ly.n
     owners, W, LY0, LEV, pw, K, K2, V, brent, ev_t, ev_kind, ev_y, F, I, LEVK = lane_workspace(
-        method, effects, 7, 4, 3)  # fmt: skip
+        method, effects, 7, 4, N_FLOATS)  # fmt: skip
     ys, yn, yv, at, buf, yr, ra = V[0], V[1], V[2], V[3], V[4], V[5], V[6]
     st = (np.zeros((L, N_PARAMS)), LY0, np.zeros((L, n)), np.zeros((L, N_HYBRID_PARAMS)),
           np.zeros((L, N_HYBRID)), np.zeros((L, N_HYBRID)), np.zeros((L, N_HS)),
