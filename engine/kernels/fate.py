@@ -53,7 +53,7 @@ from .model import (
     slip_margin,
 )
 from .model import holds_at_rest as model_holds_at_rest
-from .orbit import run
+from .orbit import RUN_EVENTS, run
 from .protocol import (
     APOCENTRE,
     AT_VERTEX,
@@ -236,7 +236,7 @@ def fate_run(method, effects, p, y0, orbit, rtol, atol, t_horizon, max_steps):
     """Integrate from y0 at t = 0 to the first terminal event or ``t_horizon`` [s]:
     :func:`run_restarting` without recording. Returns (fate, t [s], final state, steps taken).
     """
-    ev_t, ev_kind, ev_y = event_buffers(4, y0.shape[0])
+    ev_t, ev_kind, ev_y = event_buffers(RUN_EVENTS, y0.shape[0])
     res = run_restarting(method, effects, y0, p, orbit, rtol, atol, t_horizon, np.int64(-1),
                          max_steps, np.int64(RECORD_NONE), 0.0, ev_t, ev_kind, ev_y, ev_t, ev_y,
                          ev_y)  # fmt: skip

@@ -7,8 +7,8 @@ line of the step is one vector instruction over the lanes (AVX2: 4 doubles): ~60
 and step. :mod:`.lanes_step` generates the vectorised step and step-size control; this module
 is the scalar rest, per lane and only where needed:
 
-- the start of an orbit (the model's :func:`.model.period_start`, :func:`.rk.initial_step`:
-  as :func:`.orbit.one_period`);
+- the start of an orbit (the model's :func:`.model.period_start`, then
+  :func:`.rk.run_begin`, the scalar run's start: as :func:`.orbit.one_period`);
 - the events of a step (:func:`.rk_events.step_events` on a scalar copy of the lane: apsides,
   rim, slip) and the result (:func:`.orbit.reduce_period`: half a period for a conservative
   scene, :func:`.orbit.period_apsides`);
@@ -39,6 +39,7 @@ from .lanes_step import (
 from .layouts import Y_U
 from .model import N_PARAMS, period_start, set_point
 from .orbit import (
+    RUN_EVENTS,
     period_apsides,
     reduce_period,
     store_period,
@@ -48,17 +49,15 @@ from .protocol import (
     NOT_BOUNDED,
     OK,
     RECORD_NONE,
-    start_protocol,
     terminal_between,
     terminal_events,
 )
-from .rates import rhs
-from .rk import ERR_FLOOR, initial_step, step_allowed
+from .rk import ERR_FLOOR, run_begin, step_allowed
 from .rk_codegen import rk_dense_stages
 from .rk_events import apsis_crossed, apsis_newton, step_events
 
-#: Events a lane can hold (one period: two apsides and a terminal event).
-EV_CAP = 4
+#: Events a lane can hold: a run's (:data:`.orbit.RUN_EVENTS`).
+EV_CAP = RUN_EVENTS
 #: Columns of the int array I: the lane's point (-1: idle), its apsides and events so far.
 ORBIT, N_APS, N_EV = 0, 1, 2
 
@@ -91,9 +90,10 @@ def _lane_start(method, effects, l, i, X, params, rtol, max_steps, W, I, LY0, LE
 @kernel(inline="always")
 def lane_begin(method, effects, l, y0, atol, p, rtol, max_steps, W, I, LEV, LEVK, K, buf, ev_t,
                ev_kind, ev_y):  # fmt: skip
-    """Begin a run of lane l from y0 at t = 0 as :func:`.rk.rk_run` begins one (the terminal
-    events on at the start, the first step): its parameters p and tolerances atol into W, its
-    step counts as they are (a fate run's restarts go on counting). Returns OK when it runs,
+    """Begin a run of lane l from y0 at t = 0 with :func:`.rk.rk_run`'s start
+    (:func:`.rk.run_begin`: the terminal events at the start, the first step): its parameters
+    p and tolerances atol into W, its step counts as they are (a fate run's restarts go on
+    counting). Returns OK when it runs,
     else the status it ends with at once (its events in ev_* and the lane's events)."""
     ly = lanes_layout(method, effects)
     n = ly.n
@@ -105,20 +105,18 @@ def lane_begin(method, effects, l, y0, atol, p, rtol, max_steps, W, I, LEV, LEVK
     W[ly.T * L + l] = 0.0
     W[ly.REJECTED * L + l] = 0.0
     W[ly.POLISH * L + l] = 0.0
-    rhs(y0, p, effects, K, 0)
-    status, n_ev, n_tr = start_protocol(effects, y0, p, RECORD_NONE, ev_t, ev_kind, ev_y, ev_t,
-                                        ev_y)  # fmt: skip
+    status, n_ev, _, h, g_aps = run_begin(method, effects, y0, p, rtol, atol, K, buf, RECORD_NONE,
+                                          ev_t, ev_kind, ev_y, ev_t, ev_y)  # fmt: skip
     save_events(l, n_ev, ev_t, ev_kind, ev_y, LEV, LEVK)
     I[l, N_EV] = n_ev
     if status != OK:
         return status
-    h = initial_step(method, effects, y0, K, p, rtol, atol, buf)
     for j in range(n):
         W[(ly.Y + j) * L + l] = y0[j]
         W[(ly.K + j) * L + l] = K[0, j]
     W[ly.H * L + l] = h
     W[ly.ERR_OLD * L + l] = ERR_FLOOR
-    W[ly.G_APS * L + l] = y0[Y_U] if y0[Y_U] != 0.0 else K[0, Y_U]
+    W[ly.G_APS * L + l] = g_aps
     W[ly.ACTIVE * L + l] = 1.0
     return step_allowed(W[ly.N_ACC * L + l] + W[ly.N_REJ * L + l], max_steps, h, 0.0)
 
@@ -298,7 +296,7 @@ def _lane_flagged(method, effects, l, max_steps, W, I, LEV, LEVK, p, K, K2, ys, 
         term = terminal_between(effects, ys, yn, p)
     if W[ly.FLAG * L + l] == 3.0:
         return _lane_polished(method, effects, l, max_steps, W, LEV, ys, yn)
-    if term or apsis_crossed(W[ly.G_APS * L + l], W[(ly.YN + 2) * L + l]):
+    if term or apsis_crossed(W[ly.G_APS * L + l], W[(ly.YN + Y_U) * L + l]):
         lane_params(method, effects, l, W, p)
         stops, status = _lane_events(method, effects, l, term, W, I, LEV, LEVK, p, K,
                                      K2, ys, yn, buf, brent, ev_t, ev_kind, ev_y)  # fmt: skip

@@ -137,6 +137,33 @@ def lane_run_ended(method, effects, l, status, t_run, y, rtol, max_steps, runs, 
 
 
 @kernel(inline="always")
+def lane_fate_run(method, effects, l, y, t_left, steps0, atol, p, rtol, max_steps, runs, at):
+    """Begin a fate run (:func:`.fate.fate_run`) in lane l from state y (in place), t_left [s]
+    to its horizon, with tolerances atol, after ``steps0`` steps (the budget is max_steps in
+    all): a sphere at rest where the resistance holds it or friction cannot ends at once
+    (:func:`.fate.starts_at_rest`, as the scalar run), else the lane runs
+    (:func:`lane_run_from`; a run that ends at its start is followed by
+    :func:`lane_run_ended`). Returns as :func:`lane_run_ended` does (``at``: scratch). Every
+    fate-run lane's start (here and in :mod:`.lanes_hybrid`)."""
+    ly = lanes_layout(method, effects)
+    L = LANES
+    W, I, F = runs[R_W], runs[R_I], runs[R_F]
+    W[ly.N_ACC * L + l] = steps0
+    W[ly.N_REJ * L + l] = 0.0
+    W[ly.ACTIVE * L + l] = 0.0
+    I[l, RESTARTS] = 0
+    F[l, F_T0] = 0.0
+    F[l, F_HORIZON] = t_left
+    ended, status = starts_at_rest(effects, y, p)
+    if ended:
+        return False, fate_of_status(status), 0.0, steps0
+    status = lane_run_from(method, effects, l, y, t_left - 0.0, atol, p, rtol, max_steps, runs)
+    if status == OK:
+        return True, ROLLING, 0.0, steps0
+    return lane_run_ended(method, effects, l, status, 0.0, y, rtol, max_steps, runs, p, at)
+
+
+@kernel(inline="always")
 def _run_ended(method, effects, l, status, t_run, y, rtol, max_steps, runs, LY0, p, at, out):
     """Lane l's run ended with ``status`` (:func:`lane_run_ended`). Returns True when the lane
     runs again (a restart from rest), False when its point is written into ``out`` (the
@@ -154,16 +181,11 @@ def _lane_start(method, effects, l, i, X, params, rtol, t_horizon, max_steps, ru
     """Start point i (``X[:, i]``) in lane l as :func:`.fate.fate_of` starts it. Returns True
     when it runs; False when its point is written (it ended at its start)."""
     ly = lanes_layout(method, effects)
-    L = LANES
-    W, I, F = runs[R_W], runs[R_I], runs[R_F]
+    I, F = runs[R_I], runs[R_F]
     for k in range(N_PARAMS):
         p[k] = params[k]
     set_point(p, X, i, effects)
     I[l, ORBIT] = i
-    I[l, RESTARTS] = 0
-    W[ly.N_ACC * L + l] = 0.0
-    W[ly.N_REJ * L + l] = 0.0
-    W[ly.ACTIVE * L + l] = 0.0
     start, r, y0, t0, work0, atol, orbit = fate_start(effects, p, X, i, rtol)
     if start != RUNS:
         store_fate(out[OUT_FATE], out[OUT_F], out[OUT_N], i, ended_at_start(start, r))
@@ -172,19 +194,13 @@ def _lane_start(method, effects, l, i, X, params, rtol, t_horizon, max_steps, ru
     for j in range(ly.n):
         LY0[l, j] = y0[j]
         y[j] = y0[j]
-    F[l, F_T0] = 0.0
     F[l, F_TV] = t0
     F[l, F_WORK0] = work0
-    F[l, F_HORIZON] = t_horizon - t0
-    ended, status = starts_at_rest(effects, y, p)
-    if ended:
-        _finish(method, effects, l, fate_of_status(status), 0.0, y, 0, runs, LY0, p, out)
-        return False
-    status = lane_run_from(method, effects, l, y, F[l, F_HORIZON] - 0.0, atol, p, rtol, max_steps,
-                           runs)  # fmt: skip
-    if status == OK:
-        return True
-    return _run_ended(method, effects, l, status, 0.0, y, rtol, max_steps, runs, LY0, p, atol, out)
+    again, fate, t, steps = lane_fate_run(method, effects, l, y, t_horizon - t0, np.int64(0), atol,
+                                          p, rtol, max_steps, runs, atol)  # fmt: skip
+    if not again:
+        _finish(method, effects, l, fate, t, y, steps, runs, LY0, p, out)
+    return again
 
 
 @kernel(inline="always")

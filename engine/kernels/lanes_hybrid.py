@@ -42,26 +42,21 @@ from numba import literally, prange
 
 from .._jit import kernel, parallel_kernel
 from .cone import set_alpha
-from .fate import fate_of_status, starts_at_rest
 from .hybrid import story_until_rolling
 from .lanes import ORBIT, lane_params, lane_workspace
 from .lanes_fate import (
-    F_HORIZON,
-    F_T0,
     OUT_F,
     OUT_FATE,
     OUT_N,
     R_F,
     R_I,
     R_W,
-    RESTARTS,
+    lane_fate_run,
     lane_flagged_run,
     lane_run_ended,
-    lane_run_from,
 )
 from .lanes_step import LANES, borrow, fetch_add, lanes_attempt, lanes_control_fate, lanes_layout
 from .model import N_PARAMS
-from .protocol import OK
 from .rk_codegen import tableau
 from .sliding import N_HYBRID, N_HYBRID_PARAMS
 from .story_parts import (
@@ -111,19 +106,24 @@ def _store(out, i, fate, row, steps):
 
 
 @kernel
+def _stretch_over(effects, l, fate, t, steps, yv, st, runs):
+    """Lane l's rolling stretch is over: it ended with ``fate`` at state yv, t [s] after its
+    start, the story's steps counted to ``steps`` (:func:`.story_parts.rolled` takes it)."""
+    rolled(effects, fate, t, yv, steps - np.int64(runs[R_F][l, F_STEPS0]), st[ST_LYH][l],
+           st[ST_LHS][l], st[ST_LHI][l], st[ST_HEV_T], st[ST_HEV_KIND], st[ST_HEV_Y])  # fmt: skip
+
+
+@kernel
 def _stretch_ended(method, effects, l, status, t_run, yv, rtol, max_steps, st, runs, at):
     """Lane l's run of a rolling stretch ended with ``status`` at state yv, t_run [s] into the
     run: what follows, as in every fate-run lane (:func:`.lanes_fate.lane_run_ended`; ``st``:
     the lanes' stories, the ``ST_*`` tuple; ``runs``: their runs, :mod:`.lanes_fate`'s ``R_*``
     tuple; ``at``: scratch). Returns True when the lane runs again (a restart from rest), False
-    when the stretch is over (its end taken by :func:`.story_parts.rolled`)."""
-    F = runs[R_F]
+    when the stretch is over (:func:`_stretch_over`)."""
     again, fate, t, steps = lane_run_ended(method, effects, l, status, t_run, yv, rtol, max_steps,
                                            runs, st[ST_LP][l], at)  # fmt: skip
     if not again:
-        rolled(effects, fate, t, yv, steps - np.int64(F[l, F_STEPS0]), st[ST_LYH][l],
-               st[ST_LHS][l], st[ST_LHI][l], st[ST_HEV_T], st[ST_HEV_KIND],
-               st[ST_HEV_Y])  # fmt: skip
+        _stretch_over(effects, l, fate, t, steps, yv, st, runs)
     return again
 
 
@@ -150,25 +150,13 @@ def _lane_story(method, effects, model, spin, l, rtol, t_horizon, max_steps, st,
                                        events)  # as the scalar kernel  # fmt: skip
         if not rolls:
             break
-        ended, status = starts_at_rest(effects, yr, p)  # as fate_run starts
-        if ended:
-            rolled(effects, fate_of_status(status), 0.0, yr, 0, y, hs, hi, events[0], events[1],
-                   events[2])  # fmt: skip
-            continue
-        F[l, F_T0] = 0.0
-        F[l, F_HORIZON] = t_horizon - hs[HS_T]
-        F[l, F_STEPS0] = hi[HI_STEPS]
-        I[l, RESTARTS] = 0
-        W[ly.N_ACC * L + l] = hi[HI_STEPS]  # the budget is the story's
-        W[ly.N_REJ * L + l] = 0.0
-        W[ly.ACTIVE * L + l] = 0.0
-        status = lane_run_from(method, effects, l, yr, F[l, F_HORIZON] - 0.0, ra, p, rtol,
-                               max_steps, runs)  # fmt: skip
-        if status == OK:
+        F[l, F_STEPS0] = hi[HI_STEPS]  # the budget is the story's
+        again, f, t, steps = lane_fate_run(method, effects, l, yr, t_horizon - hs[HS_T],
+                                           hi[HI_STEPS], ra, p, rtol, max_steps, runs,
+                                           sc[SC_AT])  # fmt: skip
+        if again:
             return True
-        if _stretch_ended(method, effects, l, status, 0.0, yr, rtol, max_steps, st, runs,
-                          sc[SC_AT]):  # fmt: skip
-            return True
+        _stretch_over(effects, l, f, t, steps, yr, st, runs)
     fate = story_result(effects, model, spin, p, y, st[ST_LY0][l], st[ST_LHP][l], hs, hi,
                         st[ST_ROW])  # fmt: skip
     _store(out, I[l, ORBIT], fate, st[ST_ROW], hi[HI_STEPS])

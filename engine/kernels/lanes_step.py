@@ -33,7 +33,7 @@ from numba.extending import intrinsic, overload
 
 from .._jit import kernel
 from .branchless import keep, pick
-from .layouts import state_size_of
+from .layouts import Y_U, state_size_of
 from .model import MODEL_ROWS, N_PARAMS, model_of_key
 from .protocol import OK, terminal_between, terminal_events
 from .rates import rates5, rates6, rates9, rates10
@@ -163,7 +163,7 @@ def control_source(method: int, n: int, terminal: bool, fate: bool = False) -> s
         f"        eold = {w(ly.ERR_OLD)}",
         f"        acc, h_new, h_next, eold2, rej2 = step_decide(({w(ly.ERR)}, {w(ly.ERR, 1)}), "
         f"h, eold, {w(ly.REJECTED)} != 0.0, {ctl})",
-        f"        aps = {'False' if fate else f'apsis_crossed({w(ly.G_APS)}, {w(ly.YN, 2)})'}",
+        f"        aps = {'False' if fate else f'apsis_crossed({w(ly.G_APS)}, {w(ly.YN, Y_U)})'}",
         f"        term = {term}",
         f"        last = {f'{w(ly.LAST)} != 0.0' if fate else 'False'}",
         "        simple = act & acc & (not aps) & (not term) & (not last)",

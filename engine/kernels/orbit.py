@@ -49,6 +49,9 @@ from .tableaux import RK_TABLEAUX
 RUN_KERNELS = {SYMPLECTIC: sym_run}
 #: The first kernel id of the methods that are not Runge-Kutta pairs.
 OTHER_KERNELS = 100
+#: Events a run that records nothing holds (a one-period run: the apsides it integrates to and
+#: a terminal event; a fate run: its terminal event), scalar or on the lanes (:mod:`.lanes`).
+RUN_EVENTS = 4
 
 
 def check_kernel_ids(run_kernels: dict, n_tableaux: int) -> None:
@@ -154,7 +157,7 @@ def one_period(method, effects, p, X, i, rtol, max_steps):
     ok, y0, atol, orbit = period_start(effects, p, X, i, rtol)
     if not ok:
         return NOT_BOUNDED, math.nan, math.nan, math.nan, 0, math.nan, math.nan
-    ev_t, ev_kind, ev_y = event_buffers(4, y0.shape[0])
+    ev_t, ev_kind, ev_y = event_buffers(RUN_EVENTS, y0.shape[0])
     # Nothing is recorded: the event buffers stand in for the (unused) trajectory buffers.
     n_aps = np.int64(period_apsides(effects))
     res = run(method, effects, y0, p, orbit, rtol, atol, math.inf, n_aps, max_steps,

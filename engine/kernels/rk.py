@@ -173,6 +173,23 @@ def initial_step(method, effects, y0, K, p, rtol, atol, ytmp):
 
 
 @kernel
+def run_begin(method, effects, y, p, rtol, atol, K, buf, record, ev_t, ev_kind, ev_y, tr_t, tr_y):
+    """The start of a run from y at t = 0, the scalar run's (:func:`rk_run`) and every lane's
+    (:func:`.lanes.lane_begin`): f(y) into K[0], the run protocol's start
+    (:func:`.protocol.start_protocol`: the terminal events at the start, the first state
+    recorded), the first step size (:func:`initial_step`, ``buf`` its scratch) and the apsis
+    function's sign (u; at an apsis, u = 0, the sign of du/dt). Returns (status, n_ev, n_tr,
+    h, g_aps), h and g_aps 0 where the run ends at its start (status not OK)."""
+    rhs(y, p, effects, K, 0)
+    status, n_ev, n_tr = start_protocol(effects, y, p, record, ev_t, ev_kind, ev_y, tr_t, tr_y)
+    if status != OK:
+        return status, n_ev, n_tr, 0.0, 0.0
+    g_aps = y[Y_U] if y[Y_U] != 0.0 else K[0, Y_U]
+    h = initial_step(method, effects, y, K, p, rtol, atol, buf)
+    return status, n_ev, n_tr, h, g_aps
+
+
+@kernel
 def rk_fixed(method, effects, y0, p, h, n_steps):
     """y after ``n_steps`` steps of constant size h [s] (no error control; for order tests)."""
     literally(method)
@@ -263,8 +280,8 @@ def rk_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_step
     copy_into(y0, y)
     ctl = controller(method)
     t = 0.0
-    rhs(y, p, effects, K, 0)
-    status, n_ev, n_tr = start_protocol(effects, y, p, record, ev_t, ev_kind, ev_y, tr_t, tr_y)
+    status, n_ev, n_tr, h, g_aps = run_begin(method, effects, y, p, rtol, atol, K, buf, record,
+                                             ev_t, ev_kind, ev_y, tr_t, tr_y)  # fmt: skip
     if effects & ATTITUDE and n_tr > 0:
         for j in range(n):
             tr_rate[0, j] = K[0, j]
@@ -274,9 +291,6 @@ def rk_run(method, effects, y0, p, orbit, rtol, atol, t_end, n_apsides, max_step
     n_rej = 0
     n_aps = 0
     next_out = dt_out
-    # Sign of the apsis function: at an apsis (u = 0) use the sign of udot.
-    g_aps = y[Y_U] if y[Y_U] != 0.0 else K[0, Y_U]
-    h = initial_step(method, effects, y, K, p, rtol, atol, buf)
     pt = param_tuple(p)
     err_old = ERR_FLOOR
     rejected = False
