@@ -1,5 +1,6 @@
 """The shape of the package (docs/architecture.md): layers, no import circles, no hidden
-function-level imports, modules of a readable size; and the recipe "a new Runge-Kutta pair is one
+function-level imports, modules of a readable size, each behaviour of the scalar and the lanes
+drivers in one function both call; and the recipe "a new Runge-Kutta pair is one
 Tableau in kernels/tableaux.py", done once on a copy of the package."""
 
 from __future__ import annotations
@@ -555,3 +556,56 @@ def test_architecture_doc_lists_every_module():
         if f"`{shown}`" not in doc and f"engine/{shown}" not in doc:
             missing.append(name)
     assert not missing, missing
+
+
+# --- the scalar and the lanes drivers: each behaviour once --------------------------------------
+def _drivers_table() -> list[list[str]]:
+    """The rows of docs/architecture.md's table under "The scalar and the lanes drivers"."""
+    doc = (ROOT / "docs" / "architecture.md").read_text()
+    part = doc.split("**The scalar and the lanes drivers.**", 1)[1]
+    rows = []
+    for line in part.splitlines():
+        if line.startswith("| behaviour") or line.startswith("|---"):
+            continue
+        if not line.startswith("|"):
+            if rows:
+                break
+            continue
+        rows.append([cell.strip() for cell in line.strip("|").split("|")])
+    return rows
+
+
+def _called(ref: str) -> set[str]:
+    """The names a kernel function calls (``module.function``: from its AST) or, for a module
+    (``module``), every word of its source (its generators write calls into strings)."""
+    module, _, function = ref.partition(".")
+    source = (PKG / "kernels" / f"{module}.py").read_text()
+    if not function:
+        return set(re.findall(r"\w+", source))
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.FunctionDef) and node.name == function:
+            return {
+                call.func.id if isinstance(call.func, ast.Name) else call.func.attr
+                for call in ast.walk(node)
+                if isinstance(call, ast.Call) and isinstance(call.func, (ast.Name, ast.Attribute))
+            }
+    raise AssertionError(f"docs/architecture.md names {ref}, which engine/kernels has not")
+
+
+def test_the_scalar_and_the_lanes_drivers_call_one_description_of_each_behaviour():
+    """Each row of the drivers' table: its functions exist, and the scalar callers (together)
+    and the lanes' callers (together) call every one of them."""
+    rows = _drivers_table()
+    assert len(rows) >= 8, rows
+    for behaviour, described, scalar, lanes in rows:
+        names = re.findall(r"`(\w+)\.(\w+)`", described)
+        assert names, behaviour
+        for module, function in names:
+            source = (PKG / "kernels" / f"{module}.py").read_text()
+            assert re.search(rf"^def {function}\(", source, re.M), f"{module}.{function}"
+        for side in (scalar, lanes):
+            refs = re.findall(r"`([\w.]+)`", side)
+            assert refs, (behaviour, side)
+            called = set().union(*(_called(ref) for ref in refs))
+            missing = [f for _, f in names if f not in called]
+            assert not missing, f"{behaviour!r}: {side} does not call {missing}"
