@@ -172,7 +172,7 @@ def initial_step(method, effects, y0, K, p, rtol, atol, ytmp):
     return min(100.0 * h0, h1)
 
 
-@kernel
+@kernel(inline="always")
 def run_begin(method, effects, y, p, rtol, atol, K, buf, record, ev_t, ev_kind, ev_y, tr_t, tr_y):
     """The start of a run from y at t = 0, the scalar run's (:func:`rk_run`) and every lane's
     (:func:`.lanes.lane_begin`): f(y) into K[0], the run protocol's start
