@@ -30,6 +30,7 @@ import functools
 import hashlib
 import inspect
 import os
+import pickle
 import sys
 import tempfile
 from pathlib import Path
@@ -258,6 +259,29 @@ class _EngineCacheLocator(_Locator):
         return None
 
 
+class _ReadableIndex(caching.IndexDataCacheFile):
+    """A kernel's cache index that this version of the package cannot read is a cache miss, as
+    an index of another numba version is, and the next save writes it anew. numba pickles a
+    kernel's signatures into its index: an index written by another version of the package can
+    name a class, a module or a value this one has not (seen: ``AttributeError: Can't get
+    attribute 'Family'`` after a named tuple became a plain tuple), and numba would raise it."""
+
+    def _load_index(self) -> dict:
+        try:
+            return super()._load_index()
+        except (AttributeError, ImportError, pickle.UnpicklingError, EOFError, TypeError,
+                ValueError):  # fmt: skip
+            return {}
+
+
+def _readable_index(dispatcher: Any) -> Any:
+    """``dispatcher`` with its cache index read as :class:`_ReadableIndex` (a package kernel)."""
+    index = getattr(getattr(dispatcher, "_cache", None), "_cache_file", None)
+    if type(index) is caching.IndexDataCacheFile:
+        index.__class__ = _ReadableIndex
+    return dispatcher
+
+
 if CACHE and _EngineCacheLocator not in _Impl._locator_classes:
     _Impl._locator_classes.insert(0, _EngineCacheLocator)
 listen(kept=CACHE)  # a compile longer than a second is announced on stderr (engine._compiling)
@@ -269,8 +293,8 @@ def kernel(fn=None, **overrides):
     """Decorate a scalar kernel: ``njit`` with the project's options (cache, no fastmath)."""
     opts = {**_COMMON, **overrides}
     if fn is None:
-        return lambda f: numba.njit(**opts)(f)
-    return numba.njit(**opts)(fn)
+        return lambda f: _readable_index(numba.njit(**opts)(f))
+    return _readable_index(numba.njit(**opts)(fn))
 
 
 def parallel_kernel(fn=None, **overrides):

@@ -74,3 +74,37 @@ def test_a_literal_is_named_by_a_parameter_the_kernel_has():
 
     with pytest.raises(TypeError, match="solve_restarting has no parameter 'methd'"):
         call_specialized(solve_restarting, (), ("methd", "effects"))
+
+
+#: Write an index for cone.coefficients that names a class the package has not (as an index
+#: written by another version of the package can), then compile (or load) it; print (hits,
+#: misses, C) and whether the index is readable afterwards.
+STALE = """
+import pickle
+from engine.kernels import cone
+index = cone.coefficients._cache._cache_file
+with open(index._index_path, "wb") as f:
+    pickle.dump(index._version, f)
+    f.write(b"(S'stamp'\\ncengine.kernels.geometry\\nFamily\\ntp0\\n.")
+A, B, C = cone.coefficients(0.5, 1.0, 1.0, 1.0, 9.81, 0.4)
+st = cone.coefficients.stats
+with open(index._index_path, "rb") as f:
+    pickle.load(f)
+    pickle.loads(f.read())
+print(sum(st.cache_hits.values()), sum(st.cache_misses.values()), repr(C))
+"""
+
+
+def test_an_index_this_version_cannot_read_is_a_cache_miss(tmp_path):
+    """An index naming a class this version has not (``engine.kernels.geometry.Family``, a
+    named tuple an earlier version pickled into its indexes) is not an error: the kernel is
+    compiled again, gives the value the probe gives, and its index is written anew, readable."""
+    env = dict(os.environ, CONESURVEY_CACHE_DIR=str(tmp_path / "cache"))
+    env.pop("CONESURVEY_NO_CACHE", None)
+    res = subprocess.run(
+        [sys.executable, "-c", STALE], env=env, cwd=ROOT, capture_output=True, text=True
+    )
+    assert res.returncode == 0, res.stderr[-3000:]
+    hits, misses, c = res.stdout.split()
+    assert (int(hits), int(misses)) == (0, 1)
+    assert c == _probe(ROOT, tmp_path / "cache")[2]

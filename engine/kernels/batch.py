@@ -32,7 +32,6 @@ from .geometry import (
     FAMILY_FIELDS,
     FORBIDDEN,
     OUT_OF_RANGE,
-    Family,
     cel_args,
     family,
     family_head,
@@ -64,7 +63,8 @@ LANES = 32
 BLOCKS_PER_CHUNK = 16
 #: Energies per unit of parallel work on a grid (each unit computes its triples' families).
 GRID_ENERGY_CHUNK = 64
-#: Rows of a family table (row i: field i of geometry.Family; the well's five from F_WELL on).
+#: Rows of a family table (row i: field i of a family, .geometry.FAMILY_FIELDS; the well's five
+#: from F_WELL on).
 F_KIND, F_S, F_A, F_B, F_C, F_K, F_RC, F_WELL, F_VMIN, F_C3, F_IGAM, F_NOISE, F_KK = (
     FAMILY_FIELDS.index(n) for n in ("kind", "s", "A", "B", "C", "K", "r_c", "a", "V_min", "c3",
                                      "igam", "noise", "kk"))  # fmt: skip
@@ -77,10 +77,11 @@ _NS = _ST + 4  # the last takes four rows (cel_pair_lanes' state)
 
 @kernel
 def family_at(F, col):
-    """The :class:`.geometry.Family` stored in column ``col`` of a family table (row i: field i)."""
+    """The family (:func:`.geometry.family`) stored in column ``col`` of a family table (row i:
+    field i)."""
     f = F[:, col]
-    return Family(int(f[0]), f[1], f[2], f[3], f[4], f[5], f[6], f[7], f[8], f[9], f[10], f[11],
-                  f[12], f[13], f[14], f[15], f[16], f[17], f[18], f[19], f[20])  # fmt: skip
+    return (int(f[0]), f[1], f[2], f[3], f[4], f[5], f[6], f[7], f[8], f[9], f[10], f[11], f[12],
+            f[13], f[14], f[15], f[16], f[17], f[18], f[19], f[20])  # fmt: skip
 
 
 @kernel
@@ -97,8 +98,8 @@ def families(AL, HH, LZ, m, p, eager, F, R):
     r, dr, ok = R[0], R[1], R[2]
     for j in range(m):
         head = family_head(AL[j], HH[j], LZ[j], p, eager)
-        A, B, C = head.A, head.B, head.C
-        F[F_KIND, j] = head.kind
+        A, B, C = head[F_A], head[F_B], head[F_C]
+        F[F_KIND, j] = head[F_KIND]
         _store(F, j, F_S, head[F_S:F_RC])  # the head is the family but r_c and the well
         _store(F, j, F_KK, head[F_RC:])
         ok[j] = 1.0 if LZ[j] != 0.0 and rc_eligible(A, C) else 0.0
@@ -392,4 +393,4 @@ def minimum_energy_batch(alpha, h, Lz, p, out):
         out[0, i] = out[1, i] = math.nan
         if Lz[i] != 0.0:
             fam = family(alpha[i], h[i], Lz[i], p, False)
-            out[0, i], out[1, i] = fam.V_min, fam.r_c
+            out[0, i], out[1, i] = fam[F_VMIN], fam[F_RC]

@@ -20,8 +20,6 @@ the e -> 1 and B -> 0 singularities).
 from __future__ import annotations
 
 import math
-from collections import namedtuple
-from typing import NamedTuple
 
 import numpy as np
 
@@ -73,39 +71,40 @@ CIRCULAR_TOL = 1e-12
 NAN = math.nan
 
 
-class Family(NamedTuple):
-    """What :func:`family` returns: everything of (alpha, h, L_z) that does not depend on the
-    energy. The batch kernels keep it in the rows of a table (row i: field i)."""
-
-    kind: int  # AXIS (L_z = 0), OUT_OF_RANGE or 0
-    s: float  # sin(alpha)
-    c: float  # cos(alpha)
-    A: float  # coefficients of V(r) = A/r^2 + B/r + C r
-    B: float
-    C: float
-    K: float  # |L_z| / (M sin^2 alpha): thetadot = K / r^2
-    r_c: float  # circular radius (NaN: none)
-    a: float  # the well (.roots.well): its a, V_min, c3, igam, noise
-    V_min: float
-    c3: float
-    igam: float
-    noise: float
-    kk: float  # the friction terms (.ending.friction_terms): kk, p0, p2, p3, q0, q3
-    p0: float
-    p2: float
-    p3: float
-    q0: float
-    q3: float
-    rs3: float  # .ending.critical_cube
-    fstar: float  # .ending.critical_ratio (eager families only; NaN otherwise)
-
-
-#: Fields of a :class:`Family`.
-FAMILY_FIELDS = Family._fields
-#: The fields of the well (:func:`.roots.well`) in a :class:`Family`.
-WELL_FIELDS = ("a", "V_min", "c3", "igam", "noise")
-#: What :func:`family_head` returns: the family's fields but r_c and the well.
-FamilyHead = namedtuple("FamilyHead", [f for f in FAMILY_FIELDS if f not in ("r_c", *WELL_FIELDS)])
+#: What :func:`family` returns: everything of (alpha, h, L_z) that does not depend on the
+#: energy, a plain tuple, field i named ``FAMILY_FIELDS[i]`` and read by the ``FM_*`` places
+#: (numba's own type: a class of this package in a cached kernel's signature would stop another
+#: version from reading that cache, docs/architecture.md's kernel contract). The batch kernels
+#: keep it in the rows of a table (row i: field i).
+FAMILY_FIELDS = (
+    "kind",  # AXIS (L_z = 0), OUT_OF_RANGE or 0
+    "s",  # sin(alpha)
+    "c",  # cos(alpha)
+    "A",  # coefficients of V(r) = A/r^2 + B/r + C r
+    "B",
+    "C",
+    "K",  # |L_z| / (M sin^2 alpha): thetadot = K / r^2
+    "r_c",  # circular radius (NaN: none)
+    "a",  # the well (.roots.well): its a, V_min, c3, igam, noise
+    "V_min",
+    "c3",
+    "igam",
+    "noise",
+    "kk",  # the friction terms (.ending.friction_terms): kk, p0, p2, p3, q0, q3
+    "p0",
+    "p2",
+    "p3",
+    "q0",
+    "q3",
+    "rs3",  # .ending.critical_cube
+    "fstar",  # .ending.critical_ratio (eager families only; NaN otherwise)
+)
+(FM_KIND, FM_S, FM_COS, FM_A, FM_B, FM_C, FM_K, FM_RC, FM_WELL, FM_VMIN, FM_C3, FM_IGAM,
+ FM_NOISE, FM_KK, FM_P0, FM_P2, FM_P3, FM_Q0, FM_Q3, FM_RS3, FM_FSTAR) = range(
+    len(FAMILY_FIELDS))  # fmt: skip
+#: What :func:`family_head` returns: the family's fields but r_c and the well (a plain tuple;
+#: its first :data:`FM_RC` places are the family's).
+HEAD_FIELDS = FAMILY_FIELDS[:FM_RC] + FAMILY_FIELDS[FM_KK:]
 
 
 def scene_params(M: float, g: float, k: float, a: float = 0.0, rim: float = math.inf,
@@ -131,7 +130,7 @@ def ideal_cone(p: np.ndarray) -> np.ndarray:
 
 @kernel
 def family_head(alpha, h, Lz, p, eager):
-    """:func:`family` but r_c and the well: a :data:`FamilyHead`."""
+    """:func:`family` but r_c and the well: a tuple of :data:`HEAD_FIELDS`."""
     M, g, k = p[P_M], p[P_G], p[P_K]
     s = math.sin(alpha)
     c = math.cos(alpha)
@@ -145,7 +144,7 @@ def family_head(alpha, h, Lz, p, eager):
         kind = AXIS
     elif not (A >= A_MIN and A < math.inf and abs(B) < math.inf and C < math.inf):
         kind = OUT_OF_RANGE  # r_c and V_min are still reported (minimum_energy)
-    return FamilyHead(kind, s, c, A, B, C, Kang, kk, p0, p2, p3, q0, q3, rs3, fstar)
+    return kind, s, c, A, B, C, Kang, kk, p0, p2, p3, q0, q3, rs3, fstar
 
 
 @kernel
@@ -161,8 +160,8 @@ def family_from(head, rc):
     """:func:`family` from :func:`family_head` and r_c (NaN: none)."""
     kind, s, c, A, B, C, Kang, kk, p0, p2, p3, q0, q3, rs3, fstar = head
     a, vmin, c3, igam, noise = well_or_nan(A, B, C, rc)
-    return Family(kind, s, c, A, B, C, Kang, rc, a, vmin, c3, igam, noise, kk, p0, p2, p3, q0, q3,
-                  rs3, fstar)  # fmt: skip
+    return (kind, s, c, A, B, C, Kang, rc, a, vmin, c3, igam, noise, kk, p0, p2, p3, q0, q3, rs3,
+            fstar)  # fmt: skip
 
 
 @kernel
@@ -173,34 +172,37 @@ def family(alpha, h, Lz, p, eager):
     computes it once per (alpha, h, L_z) for all its energies (``eager``: with |F|/N at the
     interior critical point too); :func:`orbit_in` takes it.
 
-    Returns a :class:`Family`; kind is AXIS (L_z = 0), OUT_OF_RANGE or 0; NaN where undefined.
+    Returns a tuple of :data:`FAMILY_FIELDS`; kind is AXIS (L_z = 0), OUT_OF_RANGE or 0; NaN
+    where undefined.
     """
     head = family_head(alpha, h, Lz, p, eager)
-    rc = NAN if Lz == 0.0 else circular_radius(head.A, head.B, head.C)
+    rc = NAN if Lz == 0.0 else circular_radius(head[FM_A], head[FM_B], head[FM_C])
     return family_from(head, rc)
 
 
 @kernel
 def _mu(fam, r1, r2):
     """mu_required on [r1, r2] from the family's friction terms."""
-    return mu_required_of(r1, r2, fam.kk, fam.p0, fam.p2, fam.p3, fam.q0, fam.q3, fam.rs3,
-                          fam.fstar)  # fmt: skip
+    return mu_required_of(r1, r2, fam[FM_KK], fam[FM_P0], fam[FM_P2], fam[FM_P3], fam[FM_Q0],
+                          fam[FM_Q3], fam[FM_RS3], fam[FM_FSTAR])  # fmt: skip
 
 
 @kernel
 def _turning(fam, energy):
     """Turning points from the family's well (the closed form when C = 0)."""
-    A, B, C, rc = fam.A, fam.B, fam.C, fam.r_c
+    A, B, C, rc = fam[FM_A], fam[FM_B], fam[FM_C], fam[FM_RC]
     if C == 0.0:
         return turning_points(energy, A, B, C, rc)
-    return turning_points_in(energy, A, B, C, rc, fam.a, fam.V_min, fam.c3, fam.igam, fam.noise)
+    return turning_points_in(energy, A, B, C, rc, fam[FM_WELL], fam[FM_VMIN], fam[FM_C3],
+                             fam[FM_IGAM], fam[FM_NOISE])  # fmt: skip
 
 
 @kernel
 def orbit_in(fam, energy, p, circ_tol):
     """:func:`ideal_orbit` at one energy of a :func:`family`."""
     M, g, k = p[P_M], p[P_G], p[P_K]
-    kind, s, A, B, C, Kang, rc = fam.kind, fam.s, fam.A, fam.B, fam.C, fam.K, fam.r_c
+    kind, s, A, B, C = fam[FM_KIND], fam[FM_S], fam[FM_A], fam[FM_B], fam[FM_C]
+    Kang, rc = fam[FM_K], fam[FM_RC]
     cls = FORBIDDEN
     r1 = r2 = T = psi = prec = mu = NAN
     if kind == AXIS:
@@ -215,8 +217,8 @@ def orbit_in(fam, energy, p, circ_tol):
         return OUT_OF_RANGE, r1, r2, NAN, T, psi, prec, mu
     has_min = not math.isnan(rc)
     if has_min:
-        Vmin = fam.V_min
-        if abs(energy - Vmin) <= circ_tol * fam.noise:  # scaled by the size of V's terms
+        Vmin = fam[FM_VMIN]
+        if abs(energy - Vmin) <= circ_tol * fam[FM_NOISE]:  # scaled by the size of V's terms
             omega_r = math.sqrt(2.0 * (A + C * rc * rc * rc) / (M * rc * rc * rc * rc))
             T = 2.0 * math.pi / omega_r
             psi = math.pi * Kang / (rc * rc * omega_r)

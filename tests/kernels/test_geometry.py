@@ -16,6 +16,9 @@ from engine.kernels.ending import mu_required
 from engine.kernels.geometry import (
     BOUNDED,
     CIRCULAR,
+    FM_C,
+    FM_IGAM,
+    FM_RC,
     FORBIDDEN,
     HYPERBOLIC,
     RADIAL,
@@ -327,12 +330,12 @@ def test_outer_root_that_plain_halley_steps_miss_takes_the_safe_path():
     )
     M, g, k = 1e3, 50.0, 2.0 / 3.0
     fam = family(alpha, h, Lz, scene_params(M, g, k), False)
-    rc, a, vmin, c3, igam = fam.r_c, fam.a, fam.V_min, fam.c3, fam.igam
+    rc, a, vmin, c3, igam = fam[FM_RC : FM_IGAM + 1]
     delta = energy - vmin
     r1, r2 = tp_starts(rc, a, delta, c3, igam)
     for _ in range(TP_STEPS):
-        r1, d1 = tp_step(r1, rc, fam.C, a, delta)
-        r2, d2 = tp_step(r2, rc, fam.C, a, delta)
+        r1, d1 = tp_step(r1, rc, fam[FM_C], a, delta)
+        r2, d2 = tp_step(r2, rc, fam[FM_C], a, delta)
     assert tp_accept(r1, d1, rc, True) and not tp_accept(r2, d2, rc, False)
     got, vals, _ = _check_against_oracle(alpha, energy, h, Lz, M=M, g=g, k=k)
     assert got[2] / got[1] > 1e10
